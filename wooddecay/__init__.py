@@ -1,0 +1,14 @@
+"""wooddecay: fungal wood decay (Woodstock, SIGGRAPH 2026) baked into USD and glTF assets.
+
+Python API (DESIGN "Python API")::
+
+    import wooddecay as wd
+    scene = wd.load_scene("samples/log.toml", overrides={"time.days": 30})
+    model = wd.build_model(scene)
+"""
+from .errors import InputError
+from .model import WoodModel, build_model
+from .scene import Scene, load_scene
+
+__all__ = ["InputError", "Scene", "WoodModel", "build_model", "load_scene"]
+__version__ = "0.1.0"

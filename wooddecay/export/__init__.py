@@ -1,0 +1,1 @@
+"""Writers of baked results (USD, glTF) and debug views of the wood model."""

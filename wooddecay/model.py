@@ -1,0 +1,206 @@
+"""WoodModel: the static strand / rod-element / REG representation of a scene's wood.
+
+Woodstock §3 and §5 (opening), Fig. 3; SPEC §2; DESIGN "Data model". ``build_model(scene)`` runs
+skeleton -> topology -> strands -> rod elements -> rings and tissues -> REG -> BSP -> W and
+returns a frozen structure of arrays (no per-element Python objects). Every random choice draws
+from a generator seeded by (scene.seed, stage), so the same seed gives identical arrays.
+"""
+from __future__ import annotations
+
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .strands import bsp as bsp_mod
+from .strands.elements import element_geometry, sample_strands
+from .strands.profiles import signed_distance
+from .strands.reg import build_reg, chain_edges, csr_adjacency
+from .strands.rings import TISSUES, classify_tissue, ring_age, year_noise, profile_years
+from .strands.strands import build_strands
+from .strands.topology import build_topology
+from .strands.weakpoints import weak_point_field
+
+#: random streams, one per build stage (index into the seed sequence)
+_STREAMS = {"strands": 1, "sampling": 2, "rings": 3, "bsp": 4, "weakpoints": 5}
+
+
+def stage_rng(seed: int, stage: str) -> np.random.Generator:
+    """Independent generator for one build stage, determined by the scene seed."""
+    return np.random.default_rng([int(seed), _STREAMS[stage]])
+
+
+@dataclass(frozen=True, eq=False)
+class WoodModel:
+    """Structure of arrays; element arrays have length ``n_elements``, edge arrays ``n_edges``.
+
+    Public names follow DESIGN.md: ``centers``, ``wood_coords`` (r, phi, s), ``frames`` (rows
+    e_r, e_t, e_l), ``tissue``, ``ring_age``, ``bsp_leaf``, ``reg_edges``, ``reg_theta``.
+    """
+
+    # strands and particles
+    particles: np.ndarray
+    particle_offsets: np.ndarray
+    element_offsets: np.ndarray
+    # elements
+    strand: np.ndarray
+    first_particle: np.ndarray
+    centers: np.ndarray
+    rest_length: np.ndarray
+    radius: np.ndarray
+    mass: np.ndarray
+    rest_quat: np.ndarray
+    frames: np.ndarray
+    wood_coords: np.ndarray
+    bark_distance: np.ndarray
+    ring_age: np.ndarray
+    tissue: np.ndarray
+    branch: np.ndarray
+    bsp_leaf: np.ndarray
+    W: np.ndarray
+    anchored: np.ndarray
+    # REG
+    reg_edges: np.ndarray
+    reg_rest_offset: np.ndarray
+    reg_rest_darboux: np.ndarray
+    reg_dir_weights: np.ndarray
+    reg_theta: np.ndarray
+    reg_indptr: np.ndarray
+    reg_indices: np.ndarray
+    reg_edge_of: np.ndarray
+    # transport graph = REG + strand chains (kind 0 REG, 1 chain)
+    transport_edges: np.ndarray
+    transport_kind: np.ndarray
+    transport_indptr: np.ndarray
+    transport_indices: np.ndarray
+    # bookkeeping
+    n_branches: int
+    build_seconds: dict = field(default_factory=dict)
+
+    @property
+    def n_elements(self) -> int:
+        return len(self.centers)
+
+    @property
+    def n_strands(self) -> int:
+        return len(self.element_offsets) - 1
+
+    @property
+    def n_edges(self) -> int:
+        return len(self.reg_edges)
+
+    @property
+    def reg_degree(self) -> np.ndarray:
+        return np.diff(self.reg_indptr)
+
+    @property
+    def bsp_cells(self) -> int:
+        return int(len(np.unique(self.bsp_leaf)))
+
+    @property
+    def nbytes(self) -> int:
+        return int(sum(v.nbytes for v in vars(self).values() if isinstance(v, np.ndarray)))
+
+    def tissue_counts(self) -> dict[str, int]:
+        counts = np.bincount(self.tissue, minlength=len(TISSUES))
+        return {name: int(c) for name, c in zip(TISSUES, counts)}
+
+    def memory_estimate(self) -> int:
+        """Bytes of the model plus a simulation state: per element six fields, quaternion,
+        angular velocity and current rest length; per particle position, prediction and
+        velocity; per REG edge rest offset, integrity and three failure flags."""
+        n, p, m = self.n_elements, len(self.particles), self.n_edges
+        state = n * 8 * (6 + 4 + 3 + 4 + 1) + p * 8 * 9 + m * (8 * 2 + 3)
+        return self.nbytes + state
+
+
+@contextmanager
+def _timed(seconds: dict, stage: str):
+    t0 = time.perf_counter()
+    yield
+    seconds[stage] = time.perf_counter() - t0
+
+
+def _lerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
+    t = t.reshape(t.shape + (1,) * (a.ndim - 1))
+    return (1.0 - t) * a + t * b
+
+
+def build_model(scene) -> WoodModel:
+    """Build the wood model of a validated :class:`wooddecay.scene.Scene`."""
+    sec: dict[str, float] = {}
+    skel = scene.skeleton
+    st, rg, bp, wp = scene.strands, scene.rings, scene.bsp, scene.weakpoints
+    with _timed(sec, "topology"):
+        topo = build_topology(skel)
+    with _timed(sec, "strands"):
+        strands = build_strands(skel, topo, st.r_s, st.phi_pack, st.packing_iterations,
+                                stage_rng(scene.seed, "strands"))
+    with _timed(sec, "elements"):
+        samp = sample_strands(strands, st.rod_length, stage_rng(scene.seed, "sampling"))
+        node_a, node_b = strands.node[samp.cp], strands.node[samp.cp + 1]
+        geo = element_geometry(samp, node_a, node_b, skel.positions, topo.frames, topo.s)
+    with _timed(sec, "rings"):
+        # bark distance and ring age on every control point, in its own node's profile
+        n_cp = len(strands.node)
+        cp_bd, cp_age, cp_years = np.zeros(n_cp), np.zeros(n_cp), np.zeros(n_cp)
+        max_years = max(profile_years(p, rg.ring_width) for p in skel.profiles)
+        noise = year_noise(max_years + 1, rg.width_noise, stage_rng(scene.seed, "rings"))
+        order = np.argsort(strands.node, kind="stable")
+        bounds = np.searchsorted(strands.node[order], np.arange(len(skel.ids) + 1))
+        for i, prof in enumerate(skel.profiles):
+            rows = order[bounds[i]:bounds[i + 1]]
+            if len(rows) == 0:
+                continue
+            pts = strands.uv[rows]
+            cp_bd[rows] = signed_distance(prof.polygon, pts)
+            cp_age[rows], cp_years[rows] = ring_age(
+                prof, topo.up2d[i], pts, ring_width=rg.ring_width, weibull_c=rg.weibull_c,
+                eccentricity=rg.eccentricity, pith_blend=rg.pith_blend, noise=noise)
+        cp, t = samp.cp, samp.t
+        uv = _lerp(strands.uv[cp], strands.uv[cp + 1], t)
+        bd = _lerp(cp_bd[cp], cp_bd[cp + 1], t)
+        age = _lerp(cp_age[cp], cp_age[cp + 1], t)
+        years = _lerp(cp_years[cp], cp_years[cp + 1], t)
+        tissue = classify_tissue(bd, age, years, bark_thickness=rg.bark_thickness,
+                                 sapwood_rings=rg.sapwood_rings, pith_rings=rg.pith_rings)
+        wood_coords = np.stack([np.hypot(uv[:, 0], uv[:, 1]), np.arctan2(uv[:, 1], uv[:, 0]), geo.s], axis=1)
+        m_init = np.array([scene.tissue_param(name, "M_init") for name in TISSUES])[tissue]
+        mass = scene.mechanics.rho_dry * (1.0 + m_init) * np.pi * st.r_s ** 2 * geo.rest_length
+        branch = topo.branch[node_b]
+        root_of = np.arange(len(skel.ids))
+        for i in range(len(skel.ids)):  # parents precede children
+            if skel.parent[i] >= 0:
+                root_of[i] = root_of[skel.parent[i]]
+        anchored = skel.anchored[root_of[node_a]] & (geo.s < st.rod_length)
+    with _timed(sec, "reg"):
+        pa = samp.particles[samp.first_particle]
+        pb = samp.particles[samp.first_particle + 1]
+        reg = build_reg(pa, pb, samp.strand, geo.centers, geo.rest_quat, geo.frames, st.connect_radius)
+        chains = chain_edges(samp.element_offsets)
+        t_edges = np.vstack([reg.edges, chains])
+        t_kind = np.concatenate([np.zeros(len(reg.edges), np.int8), np.ones(len(chains), np.int8)])
+        t_indptr, t_indices, _ = csr_adjacency(len(geo.centers), t_edges)
+    with _timed(sec, "bsp"):
+        leaf = bsp_mod.bsp_leaves(wood_coords, branch, bp.cells, bp.elongation, bp.jitter,
+                                  stage_rng(scene.seed, "bsp"))
+        reg_theta = bsp_mod.theta(leaf, reg.edges)
+    with _timed(sec, "weakpoints"):
+        forks = np.array([i for i, c in enumerate(topo.children) if len(c) > 1], dtype=np.int64)
+        W = weak_point_field(uv, geo.s, geo.centers, skel.positions[forks], scale=wp.scale,
+                             stretch=wp.stretch, octaves=wp.octaves, junction_boost=wp.junction_boost,
+                             junction_radius=wp.junction_radius, rng=stage_rng(scene.seed, "weakpoints"))
+    return WoodModel(
+        particles=samp.particles, particle_offsets=samp.particle_offsets,
+        element_offsets=samp.element_offsets, strand=samp.strand, first_particle=samp.first_particle,
+        centers=geo.centers, rest_length=geo.rest_length, radius=np.full(len(geo.centers), st.r_s),
+        mass=mass, rest_quat=geo.rest_quat, frames=geo.frames, wood_coords=wood_coords,
+        bark_distance=bd, ring_age=age, tissue=tissue, branch=branch, bsp_leaf=leaf, W=W,
+        anchored=anchored, reg_edges=reg.edges, reg_rest_offset=reg.rest_offset,
+        reg_rest_darboux=reg.rest_darboux, reg_dir_weights=reg.dir_weights, reg_theta=reg_theta,
+        reg_indptr=reg.indptr, reg_indices=reg.indices, reg_edge_of=reg.edge_of,
+        transport_edges=t_edges,
+        transport_kind=t_kind, transport_indptr=t_indptr, transport_indices=t_indices,
+        n_branches=topo.n_branches, build_seconds=sec,
+    )

@@ -1,0 +1,540 @@
+"""The parameter schema: every scene key, its default, unit and allowed range.
+
+This module is the single source of truth for the scene parameters (SPEC §1). Every parameter of
+the paper's Table 3 (woodstock) is a key named after its symbol (``alpha_w0``, ``D_b``, ``k_DM``,
+``M_0``, ``S``, ``s``, ``p_l_*``, ``k_c``, ``k_l``, ``k_col``, ``mu_f``, ...) with the Table 3
+typical value as its default. Units are SI; biology time is in days, mechanics time in seconds,
+moisture in kg/kg.
+
+The table is built at import from the compact literal :data:`_SCHEMA` into :data:`PARAMS`
+(``{section: {name: Param}}``). :func:`validate_value` checks one value against its
+:class:`Param` and raises :class:`~wooddecay.errors.InputError` naming the file, the dotted key and
+the allowed range with its unit, e.g. ``log.toml: strands.r_s: -1 is outside (0, 1] m``.
+
+Parameters of :data:`TISSUE_SECTIONS` may be overridden per tissue (``[tissue.heartwood]``); their
+names are unique across those sections (asserted below) so a tissue table can use bare names.
+"""
+from __future__ import annotations
+
+import difflib
+import math
+import numbers
+from dataclasses import dataclass
+from typing import Any, Iterable
+
+from wooddecay.errors import InputError
+
+__all__ = [
+    "Param",
+    "PARAMS",
+    "SECTIONS",
+    "TISSUES",
+    "TISSUE_SECTIONS",
+    "TISSUE_KEYS",
+    "get_param",
+    "make_param",
+    "validate_value",
+    "format_range",
+    "format_value",
+    "type_name",
+    "did_you_mean",
+    "describe",
+]
+
+
+@dataclass(frozen=True)
+class Param:
+    """One scene parameter.
+
+    ``lo``/``hi`` are ``None`` when unbounded; ``lo_open``/``hi_open`` say whether the bound itself
+    is excluded. ``kind`` is one of ``float``, ``int``, ``bool``, ``str``, ``enum``, ``vec3``,
+    ``list``; ``choices`` lists the values of an ``enum``. ``default`` is ``None`` for a derived
+    default (``scene.name``: the scene file stem; ``strands.connect_radius``: ``2.5 * r_s``).
+    """
+
+    section: str
+    name: str
+    default: Any
+    unit: str
+    lo: float | None
+    hi: float | None
+    lo_open: bool
+    hi_open: bool
+    kind: str
+    doc: str
+    choices: tuple[str, ...] = ()
+
+    @property
+    def key(self) -> str:
+        """Dotted key, e.g. ``strands.r_s``."""
+        return f"{self.section}.{self.name}"
+
+    @property
+    def range_text(self) -> str:
+        """Allowed values in words, e.g. ``(0, 1] m`` or ``one of 'draft', 'final'``."""
+        return format_range(self)
+
+
+# ---------------------------------------------------------------------------------------------
+# The compact literal. Row: (name, default, unit, range, doc[, kind]).
+# range: "(lo, hi]" style interval ("inf" for unbounded), "any", or "" (no numeric range).
+# kind is inferred from the default (bool/int/float/str) unless given: "float" (derived default),
+# "enum:a|b", "vec3", "list".
+# ---------------------------------------------------------------------------------------------
+_T3 = "woodstock Table 3"
+_SCHEMA: dict[str, list[tuple]] = {
+    "scene": [
+        ("name", None, "", "", "Scene name used for output files and the USD prim; default: the scene file stem.", "str"),
+        ("seed", 0, "", "[0, inf)", "Seed of the numpy Generator that drives every random choice (packing, rings, noise, BSP)."),
+        ("quality", "final", "", "", "Quality preset: 'draft' multiplies strands.r_s, strands.rod_length (and connect_radius) by 1.5 after validation.", "enum:draft|final"),
+        ("description", "", "", "", "Free text describing the scene."),
+    ],
+    "strands": [
+        ("r_s", 0.006, "m", "(0, 1]", f"Strand radius r_s (SPEC §2); also the capsule radius r_i of contact, {_T3} typical [0.005, 0.05] m."),
+        ("phi_pack", 0.8, "", "(0, 0.9]", "Packing fraction: strands per profile = floor(phi_pack * area / (pi r_s^2)) (SPEC §2)."),
+        ("rod_length", 0.04, "m", "(0, 10]", "Target rod element length along a strand (randomly phased per strand; SPEC §2)."),
+        ("connect_radius", None, "m", "(0, 10]", "REG edge radius: segments of different strands closer than this are joined (woodstock §5); default 2.5 * r_s, must be >= 2 * r_s.", "float"),
+        ("packing_iterations", 200, "", "[1, 100000]", "PBD iterations when packing strand positions on a profile (SPEC §2)."),
+    ],
+    "rings": [
+        ("ring_width", 0.004, "m", "(0, 0.5]", "Mean growth-ring width (woodification §4.1)."),
+        ("weibull_c", 2.0, "", "(0, 10]", "Weibull shape c of the growth rate s(t) = c t^(c-1) exp(-t^c) (woodification §4.1)."),
+        ("eccentricity", 0.0, "", "[-0.9, 0.9]", "Reaction-wood eccentricity e (woodification Eq. 3): rings wider where n . y_hat > 0 for e > 0."),
+        ("width_noise", 0.2, "", "[0, 0.9]", "Relative per-year noise on ring widths (woodification §4.2)."),
+        ("pith_blend", 0.3, "", "[0, 1]", "Blend of the innermost rings towards a near-circular pith contour (branch-fracture §3.3)."),
+        ("bark_thickness", 0.008, "m", "[0, 1]", "Bark tissue: elements with bark distance bd below this (SPEC §2)."),
+        ("sapwood_rings", 8, "", "[0, 10000]", "Number of outermost rings that are sapwood (SPEC §2)."),
+        ("pith_rings", 1, "", "[0, 10000]", "Number of innermost rings that are pith (SPEC §2)."),
+    ],
+    "bsp": [
+        ("cells", 800, "", "[0, 10000000]", f"BSP leaves per branch (woodstock §7.1, Fig. 11; {_T3} 'BSP size/depth'); 0 disables prepartitioning."),
+        ("elongation", 1.0, "", "[0.01, 100]", "Stretch of BSP cells along e_l (woodstock Fig. 11b uses 2.5)."),
+        ("jitter", 0.2, "", "[0, 0.45]", "Random offset of each BSP split from the middle, as a fraction of the cell extent (woodstock §7.1)."),
+    ],
+    "weakpoints": [
+        ("k_W", 0.3, "", "[0, 1)", f"Weak-point gain: rates scale by (1 + k_W (2W - 1)) (woodstock §6, Fig. 5; {_T3} W(x))."),
+        ("scale", 0.05, "m", "(0, 1000]", "Perlin noise feature size of W(x) in wood-local coordinates (woodstock Fig. 5)."),
+        ("stretch", 4.0, "", "[1, 1000]", "Stretch of the noise along the grain e_l (woodstock Fig. 5)."),
+        ("octaves", 3, "", "[1, 8]", "Perlin noise octaves of W(x)."),
+        ("junction_boost", 0.3, "", "[0, 1]", "Rise of W near branch junctions (woodstock Fig. 5: weak regions around junctions)."),
+        ("junction_radius", 0.1, "m", "(0, 1000]", "Distance over which the junction boost fades."),
+    ],
+    "transport": [
+        ("a_r", 0.25, "", "(0, 1000]", f"Radial diffusivity factor: D_r = D a_r (woodstock Fig. 5; {_T3} e_r)."),
+        ("a_t", 1.0, "", "(0, 1000]", f"Tangential diffusivity factor: D_t = D a_t (woodstock Fig. 5; {_T3} e_t)."),
+        ("a_l", 4.0, "", "(0, 1000]", f"Longitudinal (grain) diffusivity factor: D_l = D a_l (woodstock Fig. 5; {_T3} e_l)."),
+    ],
+    "fungi": [
+        ("alpha_w0", 5e-3, "1/day", "[0, 10]", f"Baseline white-rot growth rate alpha_w0 (Eqs. 8, 10; {_T3} typical [1e-4, 1e-2])."),
+        ("alpha_b0", 5e-3, "1/day", "[0, 10]", f"Baseline brown-rot growth rate alpha_b0 (Eqs. 9, 10; {_T3} typical [1e-4, 1e-2])."),
+        ("D_w", 1e-6, "m^2/day", "[0, 1e-2]", f"White-rot diffusion coefficient D_w (Eq. 8; {_T3} typical [1e-7, 1e-5])."),
+        ("D_b", 1e-6, "m^2/day", "[0, 1e-2]", f"Brown-rot diffusion coefficient D_b (Eq. 9; {_T3} typical [1e-7, 1e-5])."),
+        ("lambda_l", 0.5, "", "[0, 10]", f"Weight of lignin availability in white-rot growth lambda_l (Eq. 8; {_T3} typical 0.5)."),
+        ("lambda_c", 0.5, "", "[0, 10]", f"Weight of carbohydrate availability in white-rot growth lambda_c (Eq. 8; {_T3} typical 0.5)."),
+        ("K_c", 0.2, "", "(0, 10]", f"Half-saturation of carbohydrate accessibility K_c (Eq. 8; {_T3} typical 0.2)."),
+        ("beta_w", 1e-3, "1/day", "[0, 10]", f"Defense inhibition of white rot beta_w (Eq. 8; {_T3} typical [1e-4, 1e-2])."),
+        ("beta_b", 1e-3, "1/day", "[0, 10]", f"Defense inhibition of brown rot beta_b (Eq. 9; {_T3} typical [1e-4, 1e-2])."),
+        ("gamma_cw", 5e-3, "1/day", "[0, 10]", f"Carbohydrate depletion by white rot gamma_cw (Eq. 12; {_T3} typical [1e-4, 1e-2])."),
+        ("gamma_cb", 5e-3, "1/day", "[0, 10]", f"Carbohydrate depletion by brown rot gamma_cb (Eq. 12; {_T3} typical [1e-4, 1e-2])."),
+        ("gamma_lw", 5e-3, "1/day", "[0, 10]", f"Lignin depletion by white rot gamma_lw (Eq. 13; {_T3} typical [1e-4, 1e-2])."),
+        ("rho_c", 1e-4, "1/day", "[0, 10]", f"Defense-driven carbohydrate recovery rho_c (Eq. 12; {_T3} typical [1e-5, 1e-3])."),
+        ("rho_l", 1e-4, "1/day", "[0, 10]", f"Defense-driven lignin recovery rho_l (Eq. 13; {_T3} typical [1e-5, 1e-3])."),
+        ("kappa", 1e-3, "1/day", "[0, 10]", f"Defense induction gain kappa (Eq. 14; {_T3} typical [1e-4, 1e-2])."),
+        ("delta", 1e-5, "1/day", "[0, 10]", f"Defense decay rate delta (Eq. 14; {_T3} typical [1e-6, 1e-4])."),
+        ("D_C", 1e-6, "m^2/day", "[0, 1e-2]", f"Defense diffusion coefficient D_C (Eq. 14; {_T3} typical [1e-7, 1e-5])."),
+        ("M_min", 0.2, "kg/kg", "[0, 10]", f"Lower end of the moisture window for fungal growth M_min (Eq. 10; {_T3} typical 0.2)."),
+        ("M_max", 0.9, "kg/kg", "[0, 10]", f"Upper end of the moisture window for fungal growth M_max (Eq. 10; {_T3} typical 0.9)."),
+        ("s_t", 0.05, "kg/kg", "(0, 10]", f"Smoothstep width of the moisture window s_t (Eqs. 10-11; {_T3} typical 0.05)."),
+    ],
+    "moisture": [
+        ("M_1", 1.0, "kg/kg", "(0, 10]", f"Maximum admissible moisture M_1 (Eq. 15; {_T3} typical 1.0)."),
+        ("M_2", 0.1, "kg/kg", "[0, 10]", f"Minimum admissible moisture M_2 (Eq. 15; {_T3} typical 0.1)."),
+        ("M_init", 0.5, "kg/kg", "[0, 10]", "Initial moisture content of every element; must lie in [M_2, M_1]."),
+        ("D_M0", 1e-5, "m^2/day", "[0, 1e-2]", f"Baseline moisture diffusivity D_M0 (Eq. 20; {_T3} typical [1e-6, 1e-4])."),
+        ("k_DM", 0.5, "", "[0, 10]", f"Sensitivity of D_M to health loss k_DM (Eq. 20; {_T3} typical [0, 1])."),
+        ("k_H", 2.5, "", "[0, 100]", "Carbohydrate weight k in the health aggregate H = (H_l + k H_c) / (1 + k) (Eq. 20, §9.4; SPEC §3)."),
+        ("k_in0", 0.01, "1/day", "[0, 100]", f"Moisture uptake rate k_in0 in k_in = k_in0 max(0, 1 - k_r_in bd) H_c (Eq. 15; {_T3} k_in)."),
+        ("k_r_in", 10.0, "1/m", "[0, 1000000]", "Decay of uptake with bark distance k_r_in (Eq. 15)."),
+        ("k_out0", 0.01, "1/day", "[0, 100]", f"Moisture loss rate k_out0 in k_out = k_out0 max(0, 1 - k_r_out H_c) max(0, bd_0 - bd) (Eq. 15; {_T3} k_out)."),
+        ("k_r_out", 0.5, "", "[0, 100]", "Reduction of moisture loss by carbohydrate health k_r_out (Eq. 15)."),
+        ("bd_0", 0.05, "m", "[0, 100]", f"Bark-distance depth of moisture loss bd_0 (Eq. 15; {_T3} bd(x))."),
+        ("schedule", [], "", "", "Seasonal keyframes [[day, M_1, M_2], ...] replacing M_1, M_2 over time (SPEC §3); days strictly increasing, M_2 < M_1.", "list"),
+    ],
+    "wood": [
+        ("H_c_init", 1.0, "", "[0, 1]", f"Initial carbohydrate health H_c ({_T3})."),
+        ("H_l_init", 1.0, "", "[0, 1]", f"Initial lignin health H_l ({_T3})."),
+        ("C_init", 0.0, "", "[0, 1]", f"Initial defense efficacy C ({_T3}, Eq. 14)."),
+    ],
+    "mechanics": [
+        ("M_0", 0.2, "kg/kg", "[0, 10]", f"Drying threshold M_0 below which shrinkage and limit reduction start (Eqs. 16-17; {_T3} typical 0.2)."),
+        ("S", 0.5, "1/(kg/kg)", "[0, 10]", f"Shrinkage gain of REG rest offsets S (Eq. 16; {_T3} typical [0, 1])."),
+        ("s", 0.02, "1/(kg/kg)", "[0, 1]", f"Shrinkage gain of rod rest length s (Eq. 17; {_T3} typical [0, 0.05])."),
+        ("S_R", 1.0, "", "[0, 10]", "Radial shrinkage weight in S_edge = S_R n_r^2 + S_T n_t^2 + S_L n_l^2 (woodstock Table 2, Fig. 6)."),
+        ("S_T", 1.0, "", "[0, 10]", "Tangential shrinkage weight in S_edge (woodstock Table 2, Fig. 6)."),
+        ("S_L", 0.1, "", "[0, 10]", "Longitudinal shrinkage weight in S_edge (woodstock Table 2, Fig. 6)."),
+        ("L_0_stretch", 0.01, "", "[0, 10]", f"Baseline stretch strain limit L_0 (Eq. 18; {_T3} L_0)."),
+        ("L_0_shear", 0.05, "", "[0, 10]", f"Baseline shear strain limit L_0 (Eq. 18; {_T3} L_0)."),
+        ("L_0_bend", 0.1, "", "[0, 10]", f"Baseline bend strain limit L_0 (Eq. 18; {_T3} L_0)."),
+        ("L_0_twist", 0.1, "", "[0, 10]", f"Baseline twist strain limit L_0 (Eq. 18; {_T3} L_0)."),
+        ("L_0_bundle", 0.02, "", "[0, 10]", f"Baseline bundle (REG connection) strain limit L_0 (Eq. 18; {_T3} L_0)."),
+        ("p_l_stretch", 4.0, "", "[0.1, 20]", f"Exponent p_l of the moisture-to-limit map for stretch (Eq. 19; {_T3} typical [3, 5])."),
+        ("p_l_shear", 4.0, "", "[0.1, 20]", f"Exponent p_l for shear (Eq. 19; {_T3} typical [3, 5])."),
+        ("p_l_bend", 4.0, "", "[0.1, 20]", f"Exponent p_l for bend (Eq. 19; {_T3} typical [3, 5])."),
+        ("p_l_twist", 4.0, "", "[0.1, 20]", f"Exponent p_l for twist (Eq. 19; {_T3} typical [3, 5])."),
+        ("p_l_bundle", 4.0, "", "[0.1, 20]", f"Exponent p_l for bundle connections (Eq. 19; {_T3} typical [3, 5])."),
+        ("k_c", 1.0, "", "[0, 100]", f"Integrity loss gain from carbohydrate depletion k_c (Eq. 21; {_T3} typical 1)."),
+        ("k_l", 1.0, "", "[0, 100]", f"Integrity loss gain from lignin depletion k_l (Eq. 21; {_T3} typical 1)."),
+        ("k_col", 30.0, "N/m^2", "[0, 1e12]", f"Penalty contact stiffness k_col (Eq. 4; {_T3} typical 30)."),
+        ("mu_f", 0.7, "", "[0, 2]", f"Friction coefficient mu_f (Eq. 7; {_T3} typical [0.5, 1.0])."),
+        ("epsilon", 1e-4, "m/s", "(0, 1]", f"Velocity floor epsilon in the friction update (Eq. 7; {_T3})."),
+        ("dt_mech", 0.01, "s", "(0, 1]", f"Mechanics (XPBD) step dt_mech (Eq. 1; {_T3} typical 0.01)."),
+        ("N_mech", 25, "", "[1, 10000]", f"Mechanics substeps per macro step N_mech (Algorithm 1; {_T3} typical 25)."),
+        ("iterations", 2, "", "[1, 1000]", "XPBD constraint iterations per substep (Algorithm 1)."),
+        ("E", 1e9, "Pa", "(0, 1e13]", "Young's modulus of a strand (stretch and bend compliance from E A, E I; SPEC §4)."),
+        ("G", 4e8, "Pa", "(0, 1e13]", "Shear modulus of a strand (shear and twist compliance from G A, G J; SPEC §4)."),
+        ("rho_dry", 450.0, "kg/m^3", "(0, 1e5]", "Dry wood density; element mass = rho_dry (1 + M) pi r_s^2 l (SPEC §2)."),
+        ("gravity", [0.0, 0.0, -9.81], "m/s^2", "", "Gravity vector (world frame, Z up); any finite components (woodstock §5.4).", "vec3"),
+    ],
+    "time": [
+        ("days", 365.0, "day", "[0, 1e6]", "Simulated biological time."),
+        ("dt_bio", 0.5, "day", "(0, 1e4]", f"Biophysics macro step dt_bio (Algorithm 1; {_T3} typical 0.5)."),
+        ("frames", 24, "", "[1, 100000]", "Number of output frames over the simulated time."),
+        ("fps", 24.0, "1/s", "(0, 1000]", "Playback frame rate of the exported animation (USD timeCodesPerSecond)."),
+    ],
+    "export": [
+        ("usd", True, "", "", "Write the USD stage <name>.usdc."),
+        ("gltf", True, "", "", "Write the glTF binary <name>.glb."),
+        ("gltf_frame", -1, "", "any", "Frame exported to glTF; negative counts from the end (-1 = last)."),
+    ],
+}
+
+#: Sections whose parameters may be overridden per tissue (``[tissue.<name>]``).
+TISSUE_SECTIONS: tuple[str, ...] = ("fungi", "moisture", "mechanics", "transport", "wood")
+#: Tissue names (SPEC §2), in order from outside in.
+TISSUES: tuple[str, ...] = ("bark", "sapwood", "heartwood", "pith")
+
+
+def _parse_range(text: str) -> tuple[float | None, float | None, bool, bool]:
+    text = text.strip()
+    if text in ("", "any"):
+        return None, None, False, False
+    lo_open = text[0] == "("
+    hi_open = text[-1] == ")"
+    assert text[0] in "([" and text[-1] in ")]", text
+    lo_s, hi_s = (p.strip() for p in text[1:-1].split(","))
+    lo = None if lo_s in ("-inf", "") else float(lo_s)
+    hi = None if hi_s in ("inf", "") else float(hi_s)
+    return lo, hi, lo_open, hi_open
+
+
+def _build(schema: dict[str, list[tuple]]) -> dict[str, dict[str, Param]]:
+    out: dict[str, dict[str, Param]] = {}
+    for section, rows in schema.items():
+        table: dict[str, Param] = {}
+        for row in rows:
+            name, default, unit, rng, doc = row[:5]
+            kind = row[5] if len(row) > 5 else None
+            choices: tuple[str, ...] = ()
+            if kind is None:
+                if isinstance(default, bool):
+                    kind = "bool"
+                elif isinstance(default, int):
+                    kind = "int"
+                elif isinstance(default, float):
+                    kind = "float"
+                elif isinstance(default, str):
+                    kind = "str"
+                else:  # pragma: no cover - schema bug
+                    raise AssertionError(f"cannot infer the kind of {section}.{name}")
+            elif kind.startswith("enum:"):
+                choices = tuple(kind[5:].split("|"))
+                kind = "enum"
+            lo, hi, lo_open, hi_open = _parse_range(rng)
+            if kind == "vec3" and default is not None:
+                default = tuple(float(x) for x in default)
+            elif kind == "list" and default is not None:
+                default = tuple(default)
+            assert name not in table, f"duplicate key {section}.{name}"
+            table[name] = Param(section, name, default, unit, lo, hi, lo_open, hi_open, kind, doc, choices)
+        out[section] = table
+    return out
+
+
+#: ``{section: {name: Param}}`` in schema order.
+PARAMS: dict[str, dict[str, Param]] = _build(_SCHEMA)
+#: Section names of the scalar parameter tables (not ``skeleton``/``tissue``/``inoculation``/``load``).
+SECTIONS: tuple[str, ...] = tuple(PARAMS)
+
+#: Bare name -> Param for every tissue-overridable parameter.
+TISSUE_KEYS: dict[str, Param] = {}
+for _sec in TISSUE_SECTIONS:
+    for _name, _p in PARAMS[_sec].items():
+        assert _name not in TISSUE_KEYS, (
+            f"parameter name {_name!r} appears in both [{TISSUE_KEYS[_name].section}] and [{_sec}]; "
+            "tissue-overridable names must be unique"
+        )
+        TISSUE_KEYS[_name] = _p
+del _sec, _name, _p
+
+
+def make_param(section: str, name: str, default: Any, unit: str, rng: str, doc: str = "",
+               kind: str | None = None) -> Param:
+    """Build one :class:`Param` from a schema row (used for the inoculation / load tables)."""
+    row: tuple = (name, default, unit, rng, doc) + ((kind,) if kind else ())
+    return _build({section: [row]})[section][name]
+
+
+def get_param(key: str) -> Param:
+    """The :class:`Param` of a dotted key ``section.name`` (``KeyError`` if there is none)."""
+    section, _, name = key.partition(".")
+    try:
+        return PARAMS[section][name]
+    except KeyError:
+        raise KeyError(key) from None
+
+
+# ---------------------------------------------------------------------------------------------
+# Formatting helpers (messages are one line)
+# ---------------------------------------------------------------------------------------------
+def _num(x: float) -> str:
+    """Compact number for ranges: 1, 0.5, 1e-5, 1e13."""
+    if x == int(x) and abs(x) <= 1e6:
+        return str(int(x))
+    text = f"{x:g}"
+    if "e" in text:
+        mant, exp = text.split("e")
+        text = f"{mant}e{int(exp)}"
+    return text
+
+
+def format_range(p: Param) -> str:
+    """Allowed values of ``p`` in words with the unit: ``(0, 1] m``, ``one of 'draft', 'final'``."""
+    unit = f" {p.unit}" if p.unit else ""
+    if p.kind == "enum":
+        return "one of " + ", ".join(repr(c) for c in p.choices)
+    if p.kind == "bool":
+        return "true or false"
+    if p.kind == "str":
+        return "a string"
+    if p.kind == "vec3":
+        return f"a list of 3 finite numbers [x, y, z]{unit}"
+    if p.kind == "list":
+        return "a list of [day, M_1, M_2] rows (days >= 0 strictly increasing, M_2 < M_1) in day, kg/kg"
+    if p.lo is None and p.hi is None:
+        what = "any integer" if p.kind == "int" else "any finite number"
+        return what + unit
+    lo = "(-inf" if p.lo is None else ("(" if p.lo_open else "[") + _num(p.lo)
+    hi = "inf)" if p.hi is None else _num(p.hi) + (")" if p.hi_open else "]")
+    return f"{lo}, {hi}{unit}"
+
+
+def type_name(v: Any) -> str:
+    """TOML-flavoured name of a value's type for messages."""
+    if isinstance(v, bool):
+        return "boolean"
+    if isinstance(v, numbers.Integral):
+        return "integer"
+    if isinstance(v, numbers.Real):
+        return "float"
+    if isinstance(v, str):
+        return "string"
+    if isinstance(v, dict):
+        return "table"
+    if isinstance(v, (list, tuple)):
+        return "array"
+    return type(v).__name__
+
+
+def format_value(v: Any, limit: int = 60) -> str:
+    """Short, one-line, TOML-like rendering of a value for messages."""
+    if isinstance(v, bool):
+        s = "true" if v else "false"
+    elif isinstance(v, numbers.Integral):
+        s = str(int(v))
+        if len(s) > 30:
+            s = f"{s[:12]}...({len(s)} digits)"
+    elif isinstance(v, numbers.Real):
+        f = float(v)
+        s = "nan" if math.isnan(f) else ("inf" if f == math.inf else ("-inf" if f == -math.inf else repr(f)))
+    elif isinstance(v, str):
+        s = repr(v)
+    else:
+        try:
+            s = repr(v)
+        except Exception:  # pragma: no cover - defensive
+            s = f"<{type(v).__name__}>"
+    s = " ".join(s.split())
+    if len(s) > limit:
+        s = s[: limit - 3] + "..."
+    return s
+
+
+def did_you_mean(word: Any, candidates: Iterable[str]) -> str:
+    """``"; did you mean 'x'?"`` for the closest candidate, or ``""``."""
+    cands = [str(c) for c in candidates]
+    w = str(word)
+    lower = {c.lower(): c for c in cands}
+    match = None
+    if w.lower() in lower and lower[w.lower()] != w:
+        match = lower[w.lower()]
+    else:
+        close = difflib.get_close_matches(w, cands, n=1, cutoff=0.6)
+        if close:
+            match = close[0]
+    return f"; did you mean {match!r}?" if match else ""
+
+
+# ---------------------------------------------------------------------------------------------
+# Validation
+# ---------------------------------------------------------------------------------------------
+def _is_number(v: Any) -> bool:
+    return isinstance(v, numbers.Real) and not isinstance(v, bool) and type(v).__name__ != "bool_"
+
+
+def _to_float(v: Any) -> float | None:
+    """float(v) or None when not representable / not finite."""
+    try:
+        f = float(v)
+    except (OverflowError, ValueError, TypeError):
+        return None
+    return f if math.isfinite(f) else None
+
+
+def _in_range(p: Param, x: float) -> bool:
+    if p.lo is not None and (x < p.lo or (p.lo_open and x == p.lo)):
+        return False
+    if p.hi is not None and (x > p.hi or (p.hi_open and x == p.hi)):
+        return False
+    return True
+
+
+def _check_number(p: Param, v: Any, file: str, key: str, integer: bool) -> float | int:
+    rng = format_range(p)
+    if not _is_number(v):
+        what = "an integer" if integer else "a number"
+        raise InputError(file, key, f"expected {what} in {rng}, got {type_name(v)} {format_value(v)}")
+    if integer:
+        if isinstance(v, numbers.Integral):
+            x: Any = int(v)
+        else:
+            f = _to_float(v)
+            if f is None or f != int(f):
+                raise InputError(file, key, f"expected an integer in {rng}, got {format_value(v)}")
+            x = int(f)
+        if not _in_range(p, x):
+            raise InputError(file, key, f"{format_value(x)} is outside {rng}")
+        return x
+    f = _to_float(v)
+    if f is None:
+        if isinstance(v, numbers.Integral):  # an integer too large for a float
+            raise InputError(file, key, f"{format_value(v)} is outside {rng}")
+        raise InputError(file, key, f"{format_value(v)} is not a finite number; allowed {rng}")
+    if not _in_range(p, f):
+        raise InputError(file, key, f"{format_value(v)} is outside {rng}")
+    return f
+
+
+def _check_vec3(v: Any, file: str, key: str, what: str) -> tuple[float, float, float]:
+    if hasattr(v, "tolist") and not isinstance(v, (str, bytes)):  # numpy arrays from the Python API
+        try:
+            v = v.tolist()
+        except Exception:  # pragma: no cover - defensive
+            pass
+    if not isinstance(v, (list, tuple)) or len(v) != 3:
+        raise InputError(file, key, f"expected {what}, got {type_name(v)} {format_value(v)}")
+    out = []
+    for i, c in enumerate(v):
+        if not _is_number(c):
+            raise InputError(file, key, f"expected {what}, component {i} is {type_name(c)} {format_value(c)}")
+        f = _to_float(c)
+        if f is None:
+            raise InputError(file, key, f"expected {what}, component {i} is not finite ({format_value(c)})")
+        out.append(f)
+    return (out[0], out[1], out[2])
+
+
+def _check_schedule(p: Param, v: Any, file: str, key: str) -> tuple[tuple[float, float, float], ...]:
+    rng = format_range(p)
+    if not isinstance(v, (list, tuple)):
+        raise InputError(file, key, f"expected {rng}, got {type_name(v)} {format_value(v)}")
+    m1 = PARAMS["moisture"]["M_1"]
+    m2 = PARAMS["moisture"]["M_2"]
+    rows: list[tuple[float, float, float]] = []
+    for i, row in enumerate(v):
+        rkey = f"{key}[{i}]"
+        if not isinstance(row, (list, tuple)) or len(row) != 3:
+            raise InputError(file, rkey, f"expected a row [day, M_1, M_2], got {type_name(row)} {format_value(row)}")
+        vals = []
+        for j, c in enumerate(row):
+            if not _is_number(c) or _to_float(c) is None:
+                raise InputError(file, rkey, f"expected finite numbers [day, M_1, M_2], item {j} is {type_name(c)} {format_value(c)}")
+            vals.append(float(c))
+        day, hi, lo = vals
+        if day < 0:
+            raise InputError(file, rkey, f"day {format_value(day)} is outside [0, inf) day")
+        if rows and day <= rows[-1][0]:
+            raise InputError(file, rkey, f"day {format_value(day)} must be greater than the previous keyframe's day {format_value(rows[-1][0])} (days strictly increasing)")
+        if not _in_range(m1, hi):
+            raise InputError(file, rkey, f"M_1 {format_value(hi)} is outside {format_range(m1)}")
+        if not _in_range(m2, lo):
+            raise InputError(file, rkey, f"M_2 {format_value(lo)} is outside {format_range(m2)}")
+        if not lo < hi:
+            raise InputError(file, rkey, f"M_2 {format_value(lo)} must be < M_1 {format_value(hi)}")
+        rows.append((day, hi, lo))
+    return tuple(rows)
+
+
+def validate_value(p: Param, v: Any, file: str, key: str | None = None) -> Any:
+    """Check ``v`` against ``p`` and return the resolved value.
+
+    ints become floats for ``float`` parameters, integral floats become ints for ``int``
+    parameters, ``vec3`` becomes a tuple of 3 floats and the schedule a tuple of 3-tuples.
+    Booleans are not numbers here. Raises :class:`InputError` (``file``, ``key`` — default
+    ``p.key`` —, a message with the allowed range and unit).
+    """
+    key = p.key if key is None else key
+    kind = p.kind
+    if kind == "float":
+        return _check_number(p, v, file, key, integer=False)
+    if kind == "int":
+        return _check_number(p, v, file, key, integer=True)
+    if kind == "bool":
+        if not isinstance(v, bool):
+            raise InputError(file, key, f"expected true or false, got {type_name(v)} {format_value(v)}")
+        return v
+    if kind == "str":
+        if not isinstance(v, str):
+            raise InputError(file, key, f"expected a string, got {type_name(v)} {format_value(v)}")
+        return v
+    if kind == "enum":
+        if not isinstance(v, str) or v not in p.choices:
+            hint = did_you_mean(v, p.choices) if isinstance(v, str) else ""
+            raise InputError(file, key, f"{format_value(v)} is not {format_range(p)}{hint}")
+        return v
+    if kind == "vec3":
+        return _check_vec3(v, file, key, format_range(p))
+    if kind == "list":
+        return _check_schedule(p, v, file, key)
+    raise AssertionError(f"unknown kind {kind!r}")  # pragma: no cover
+
+
+def describe() -> str:
+    """The schema as a Markdown table per section (for docs and ``wooddecay inspect``)."""
+    lines: list[str] = []
+    for section, table in PARAMS.items():
+        lines.append(f"### [{section}]")
+        lines.append("")
+        lines.append("| key | default | allowed | meaning |")
+        lines.append("|---|---|---|---|")
+        for p in table.values():
+            if p.default is None:
+                default = "2.5 * r_s" if p.name == "connect_radius" else "file stem"
+            elif p.kind == "vec3":
+                default = "[" + ", ".join(_num(c) for c in p.default) + "]"
+            elif p.kind == "list":
+                default = "[]"
+            else:
+                default = format_value(p.default)
+            lines.append(f"| `{p.name}` | {default} | {format_range(p)} | {p.doc} |")
+        lines.append("")
+    return "\n".join(lines)

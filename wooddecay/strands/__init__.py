@@ -1,0 +1,1 @@
+"""Wood representation: skeleton graph, cross-section profiles and strands (SPEC §1-2)."""

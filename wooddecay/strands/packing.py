@@ -1,0 +1,181 @@
+"""Strand positions on a cross-section profile: seeding and PBD packing.
+
+Woodstock §5 (opening) and SPEC §2: strand positions on each profile are optimised with PBD so
+that strands do not collide (centre distance >= 2 r_s) and stay inside the profile. Count per
+profile: floor(phi_pack * area / (pi r_s^2)).
+
+Positions are 2D points in the node frame (u, v) of :mod:`wooddecay.strands.topology`.
+"""
+from __future__ import annotations
+
+import numpy as np
+import numba as nb
+from scipy.optimize import linear_sum_assignment
+from scipy.spatial import cKDTree
+
+from matplotlib.path import Path as _MplPath
+
+from .profiles import Profile, closest_boundary_point
+
+#: separation actually enforced, a hair above 2 r_s so the invariant survives round-off
+SEPARATION_SLACK = 1.0 + 1e-6
+
+
+def strand_capacity(profile: Profile, r_s: float, phi_pack: float) -> int:
+    """floor(phi_pack * A / (pi r_s^2)) strands fit on ``profile`` (SPEC §2)."""
+    return int(np.floor(phi_pack * profile.area / (np.pi * r_s * r_s)))
+
+
+def inside(poly: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Strict point-in-polygon (matplotlib's compiled test): the hot-loop variant of
+    :func:`wooddecay.strands.profiles.contains`, which also accepts points within round-off of
+    the boundary."""
+    return _MplPath(poly).contains_points(pts)
+
+
+def hex_lattice(profile: Profile, spacing: float, rng: np.random.Generator) -> np.ndarray:
+    """Points of a hexagonal lattice (random offset and rotation) inside the profile."""
+    poly = profile.polygon
+    c = poly.mean(axis=0)
+    radius = np.max(np.linalg.norm(poly - c, axis=1)) + spacing
+    n = int(np.ceil(radius / spacing)) + 1
+    i, j = np.meshgrid(np.arange(-n, n + 1), np.arange(-n, n + 1), indexing="ij")
+    pts = np.stack([i + 0.5 * j, j * (np.sqrt(3.0) / 2.0)], axis=-1).reshape(-1, 2) * spacing
+    a = rng.uniform(0.0, np.pi / 3.0)
+    rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    pts = pts @ rot.T + c + rng.uniform(-0.5, 0.5, 2) * spacing
+    return pts[inside(poly, pts)]
+
+
+def seed_positions(profile: Profile, count: int, r_s: float, rng: np.random.Generator) -> np.ndarray:
+    """``count`` non-overlapping positions: the densest hex lattice (spacing >= 2 r_s) holding
+    at least ``count`` points inside the profile, thinned at random to ``count``.
+
+    Returns fewer points only when even spacing 2 r_s cannot hold ``count``.
+    """
+    if count <= 0:
+        return np.zeros((0, 2))
+    lo = 2.0 * r_s * SEPARATION_SLACK
+    best = hex_lattice(profile, lo, rng)
+    # a hex lattice of spacing a holds about area / (sqrt(3)/2 a^2) points: bracket around that
+    guess = np.sqrt(profile.area / (count * np.sqrt(3.0) / 2.0))
+    hi = max(lo, 1.1 * guess)
+    if len(best) > count:
+        for _ in range(14):  # bisection on the spacing: largest that still holds `count`
+            mid = 0.5 * (lo + hi)
+            pts = hex_lattice(profile, mid, rng)
+            if len(pts) >= count:
+                lo, best = mid, pts
+            else:
+                hi = mid
+    keep = np.sort(rng.choice(len(best), size=min(count, len(best)), replace=False))
+    return best[keep]
+
+
+def _project_inside(profile: Profile, pts: np.ndarray) -> np.ndarray:
+    """Points outside the profile move onto its boundary, nudged inside by round-off."""
+    out = ~inside(profile.polygon, pts)
+    if out.any():
+        b = closest_boundary_point(profile.polygon, pts[out])
+        inward = profile.centroid - b
+        inward /= np.maximum(np.linalg.norm(inward, axis=1, keepdims=True), 1e-300)
+        pts = pts.copy()
+        pts[out] = b + inward * (1e-9 * profile.equivalent_radius)
+    return pts
+
+
+def overlapping_pairs(pts: np.ndarray, r_s: float) -> np.ndarray:
+    """(k, 2) index pairs closer than 2 r_s (the packing constraint)."""
+    if len(pts) < 2:
+        return np.zeros((0, 2), dtype=np.int64)
+    return cKDTree(pts).query_pairs(2.0 * r_s, output_type="ndarray")
+
+
+def assign_sites(goal: np.ndarray, sites: np.ndarray) -> np.ndarray:
+    """Site index for each goal position minimising the summed squared displacement
+    (``len(goal) <= len(sites)``; scipy's linear_sum_assignment)."""
+    cost = ((goal[:, None, :] - sites[None, :, :]) ** 2).sum(-1)
+    rows, cols = linear_sum_assignment(cost)
+    out = np.empty(len(goal), dtype=np.int64)
+    out[rows] = cols
+    return out
+
+
+@nb.njit(cache=True)
+def collision_sweep(pts, pairs, target):
+    """One Gauss-Seidel PBD sweep over the pair constraints |x_i - x_j| >= target.
+
+    Sequential by design (Gauss-Seidel: each projection sees the previous ones), so the
+    result is deterministic; packing is a small per-profile problem, not a parallel kernel.
+    """
+    for k in range(len(pairs)):
+        i, j = pairs[k, 0], pairs[k, 1]
+        dx = pts[j, 0] - pts[i, 0]
+        dy = pts[j, 1] - pts[i, 1]
+        dist = np.sqrt(dx * dx + dy * dy)
+        if dist < target:
+            if dist < 1e-15:
+                dx, dy, dist = 1.0, 0.0, 1.0
+                c = 0.5 * target
+            else:
+                c = 0.5 * (target - dist) / dist
+            pts[i, 0] -= c * dx
+            pts[i, 1] -= c * dy
+            pts[j, 0] += c * dx
+            pts[j, 1] += c * dy
+
+
+def pbd_relax(
+    profile: Profile, pts: np.ndarray, goal: np.ndarray, r_s: float, iterations: int,
+    pull: float = 0.5, sweeps: int = 4,
+) -> np.ndarray:
+    """PBD packing: move a valid packing towards ``goal`` positions under the constraints.
+
+    Each iteration pulls every point a fraction ``pull`` towards its goal, projects the pair
+    constraints |x_i - x_j| >= 2 r_s with ``sweeps`` Gauss-Seidel sweeps and the inside
+    constraint; an iterate is accepted only if it satisfies all constraints, so the result is
+    always a valid packing (the input, which must be valid, at worst).
+    """
+    target = 2.0 * r_s * SEPARATION_SLACK
+    best = pts
+    cur = pts.copy()
+    for _ in range(iterations):
+        cur = _project_inside(profile, cur + pull * (goal - cur))
+        pairs = cKDTree(cur).query_pairs(1.5 * target, output_type="ndarray")
+        for _ in range(sweeps):
+            collision_sweep(cur, pairs, target)
+            cur = _project_inside(profile, cur)
+        if len(overlapping_pairs(cur, r_s)) == 0:
+            best = cur.copy()
+        else:
+            cur = best.copy()
+            pull *= 0.5
+    return best
+
+
+def pack_profile(
+    profile: Profile, goal: np.ndarray, capacity: int, r_s: float, iterations: int,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """Pack carried strands (at ``goal``) and new ones on a profile holding ``capacity``.
+
+    Sites: the hex lattice holding ``capacity`` points (:func:`seed_positions`). If fewer sites
+    than carried strands exist, a random subset of the carried strands continues. Carried
+    strands take the sites nearest their goals (:func:`assign_sites`), the remaining sites start
+    new strands, then :func:`pbd_relax` moves the carried strands back towards their goals.
+
+    Returns
+    -------
+    pts : (k, 2) positions, carried strands first (in ``kept`` order), then new strands
+    kept : indices into ``goal`` of the carried strands that continue
+    n_new : number of new strands (the last ``n_new`` rows of ``pts``)
+    """
+    sites = seed_positions(profile, capacity, r_s, rng)
+    kept = np.arange(len(goal))
+    if len(goal) > len(sites):
+        kept = np.sort(rng.choice(len(goal), size=len(sites), replace=False))
+    site_of = assign_sites(goal[kept], sites)
+    free = np.setdiff1d(np.arange(len(sites)), site_of)
+    pts = np.vstack([sites[site_of], sites[free]])
+    pts = pbd_relax(profile, pts, np.vstack([goal[kept], sites[free]]), r_s, iterations)
+    return pts, kept, len(free)
