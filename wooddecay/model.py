@@ -17,7 +17,7 @@ from .strands import bsp as bsp_mod
 from .strands.elements import element_geometry, sample_strands
 from .strands.profiles import signed_distance
 from .strands.reg import build_reg, chain_edges, csr_adjacency
-from .strands.rings import TISSUES, classify_tissue, ring_age, year_noise, profile_years
+from .strands.rings import TISSUES, age_of, classify_tissue, profile_years, radial_coordinate, year_noise
 from .strands.strands import build_strands
 from .strands.topology import build_topology
 from .strands.weakpoints import weak_point_field
@@ -127,6 +127,13 @@ def _lerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
     return (1.0 - t) * a + t * b
 
 
+def _group_rows(keys: np.ndarray, n: int) -> list[np.ndarray]:
+    """Row indices grouped by key 0..n-1 (one stable sort, no per-row Python work)."""
+    order = np.argsort(keys, kind="stable")
+    bounds = np.searchsorted(keys[order], np.arange(n + 1))
+    return [order[bounds[i]:bounds[i + 1]] for i in range(n)]
+
+
 def build_model(scene) -> WoodModel:
     """Build the wood model of a validated :class:`wooddecay.scene.Scene`."""
     sec: dict[str, float] = {}
@@ -142,28 +149,27 @@ def build_model(scene) -> WoodModel:
         node_a, node_b = strands.node[samp.cp], strands.node[samp.cp + 1]
         geo = element_geometry(samp, node_a, node_b, skel.positions, topo.frames, topo.s)
     with _timed(sec, "rings"):
-        # bark distance and ring age on every control point, in its own node's profile
+        # bark distance and radial coordinate q on every control point, in its node's profile
         n_cp = len(strands.node)
-        cp_bd, cp_age, cp_years = np.zeros(n_cp), np.zeros(n_cp), np.zeros(n_cp)
-        max_years = max(profile_years(p, rg.ring_width) for p in skel.profiles)
-        noise = year_noise(max_years + 1, rg.width_noise, stage_rng(scene.seed, "rings"))
-        order = np.argsort(strands.node, kind="stable")
-        bounds = np.searchsorted(strands.node[order], np.arange(len(skel.ids) + 1))
-        for i, prof in enumerate(skel.profiles):
-            rows = order[bounds[i]:bounds[i + 1]]
-            if len(rows) == 0:
-                continue
-            pts = strands.uv[rows]
-            cp_bd[rows] = signed_distance(prof.polygon, pts)
-            cp_age[rows], cp_years[rows] = ring_age(
-                prof, topo.up2d[i], pts, ring_width=rg.ring_width, weibull_c=rg.weibull_c,
-                eccentricity=rg.eccentricity, pith_blend=rg.pith_blend, noise=noise)
+        cp_bd, cp_q = np.zeros(n_cp), np.zeros(n_cp)
+        years = np.array([profile_years(p, rg.ring_width) for p in skel.profiles])
+        noise = year_noise(int(years.max()) + 1, rg.width_noise, stage_rng(scene.seed, "rings"))
+        for i, rows in enumerate(_group_rows(strands.node, len(skel.ids))):
+            if len(rows):
+                prof, pts = skel.profiles[i], strands.uv[rows]
+                cp_bd[rows] = signed_distance(prof.polygon, pts)
+                cp_q[rows] = radial_coordinate(prof, topo.up2d[i], rg.eccentricity, rg.pith_blend, pts)
         cp, t = samp.cp, samp.t
         uv = _lerp(strands.uv[cp], strands.uv[cp + 1], t)
         bd = _lerp(cp_bd[cp], cp_bd[cp + 1], t)
-        age = _lerp(cp_age[cp], cp_age[cp + 1], t)
-        years = _lerp(cp_years[cp], cp_years[cp + 1], t)
-        tissue = classify_tissue(bd, age, years, bark_thickness=rg.bark_thickness,
+        q = _lerp(cp_q[cp], cp_q[cp + 1], t)
+        age_a, age_b = np.zeros(len(q)), np.zeros(len(q))
+        for i, (ra, rb) in enumerate(zip(_group_rows(node_a, len(skel.ids)), _group_rows(node_b, len(skel.ids)))):
+            age_a[ra] = age_of(q[ra], years[i], rg.weibull_c, noise)
+            age_b[rb] = age_of(q[rb], years[i], rg.weibull_c, noise)
+        age = _lerp(age_a, age_b, t)
+        elem_years = _lerp(years[node_a].astype(float), years[node_b].astype(float), t)
+        tissue = classify_tissue(bd, age, elem_years, bark_thickness=rg.bark_thickness,
                                  sapwood_rings=rg.sapwood_rings, pith_rings=rg.pith_rings)
         wood_coords = np.stack([np.hypot(uv[:, 0], uv[:, 1]), np.arctan2(uv[:, 1], uv[:, 0]), geo.s], axis=1)
         m_init = np.array([scene.tissue_param(name, "M_init") for name in TISSUES])[tissue]

@@ -499,6 +499,8 @@ def validate_value(p: Param, v: Any, file: str, key: str | None = None) -> Any:
     if kind == "int":
         return _check_number(p, v, file, key, integer=True)
     if kind == "bool":
+        if type(v).__name__ == "bool_":  # numpy.bool_ from the Python API
+            v = bool(v)
         if not isinstance(v, bool):
             raise InputError(file, key, f"expected true or false, got {type_name(v)} {format_value(v)}")
         return v

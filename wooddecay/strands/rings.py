@@ -19,7 +19,8 @@ Construction per profile (all 2D, node frame):
 * the number of years is Y = max(1, round(R_eq / ring_width)); year j (0 at the pith) has width
   proportional to s(t_j) (t_j spans the Weibull life [T_BIRTH, T_LIFE]) times a per-calendar-year noise
   factor shared by the whole tree; the cumulative normalised widths Q_j map q to the ring age
-  (fractional years from the pith).
+  (fractional years from the pith). Between two profiles an element's q is interpolated and
+mapped through both profiles' ring tables, so age stays monotone in q along an edge.
 """
 from __future__ import annotations
 
@@ -91,22 +92,11 @@ def profile_years(profile: Profile, ring_width: float) -> int:
     return max(1, int(round(profile.equivalent_radius / ring_width)))
 
 
-def ring_age(
-    profile: Profile,
-    up2d: np.ndarray,
-    pts: np.ndarray,
-    *,
-    ring_width: float,
-    weibull_c: float,
-    eccentricity: float,
-    pith_blend: float,
-    noise: np.ndarray,
-) -> tuple[np.ndarray, int]:
-    """Fractional ring age (years from the pith) of points on a profile, and its year count."""
-    years = profile_years(profile, ring_width)
-    q = radial_coordinate(profile, up2d, eccentricity, pith_blend, pts)
+def age_of(q: np.ndarray, years: int, weibull_c: float, noise: np.ndarray) -> np.ndarray:
+    """Fractional ring age (years from the pith) at radial coordinate ``q`` of a section with
+    ``years`` rings: the inverse of the cumulative ring widths."""
     Q = cumulative_widths(years, weibull_c, noise)
-    return np.interp(q, Q, np.arange(years + 1, dtype=np.float64)), years
+    return np.interp(q, Q, np.arange(years + 1, dtype=np.float64))
 
 
 def classify_tissue(
