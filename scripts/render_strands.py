@@ -12,7 +12,7 @@ The USD importer turns the ``BasisCurves`` prim into a Blender *Curves* object (
 Curve data): each primvar becomes a point attribute of the same name (``displayColor``,
 ``tissue``, ``ring``) and the widths become the ``radius`` attribute, so Cycles and EEVEE draw
 the strands as round tubes without any bevel. A geometry-nodes modifier cuts away the quadrant
-of the lower stem that faces the camera (deleting those points) so heartwood and sapwood show
+(default: half) of the lower stem that faces the camera (deleting those points) so heartwood and sapwood show
 inside the bark; a material reads ``displayColor`` through an Attribute node. The camera frames
 the bounding box from a 3/4 view.
 """
@@ -40,7 +40,10 @@ def parse_args(argv=None):
     ap.add_argument("--height", type=int, default=640)
     ap.add_argument("--threads", type=int, default=0, help="render threads (0: all cores)")
     ap.add_argument("--no-cut", dest="cut", action="store_false",
-                    help="do not cut away the camera-facing quadrant of the lower stem")
+                    help="no cut-away: show the bark all round")
+    ap.add_argument("--cut", dest="cut_mode", choices=["half", "quadrant"], default="half",
+                    help="cut away the camera-facing half (a section through the stem axis) "
+                         "or quadrant of the lower tree (default half)")
     ap.add_argument("--cut-height", type=float, default=0.45,
                     help="cut-away up to this fraction of the tree's height (default 0.45)")
     ap.add_argument("--azimuth", type=float, default=-50.0, help="camera azimuth in degrees")
@@ -69,13 +72,15 @@ def world_bbox(ob):
     return lo, hi
 
 
-def add_cutaway(bpy, ob, lo, hi, view_dir, height_fraction):
-    """Geometry nodes: delete points in the camera-facing quadrant below the cut height.
+def add_cutaway(bpy, ob, lo, hi, view_dir, height_fraction, mode="half"):
+    """Geometry nodes: delete the points on the camera side of the stem below the cut height.
 
-    The quadrant is taken about the stem axis (the bbox centre in x, y of the lowest points'
-    mean would be nicer, but the bbox centre of the base is robust enough): a point is deleted
-    where its horizontal offset from the stem has a positive component along both horizontal
-    axes of the view that face the camera.
+    The stem axis is taken through the mean of the lowest points. ``half``: a point is deleted
+    where its horizontal offset from the axis points towards the camera (a section plane through
+    the axis, seen face on). ``quadrant``: where the offset has a positive component along both
+    horizontal axes at +-45 degrees of the view direction (a wedge with two faces).
+    A strand crossing the cut loses its points there; Delete Geometry keeps the rest of the
+    curve in one piece.
     """
     import numpy as np
 
@@ -88,8 +93,11 @@ def add_cutaway(bpy, ob, lo, hi, view_dir, height_fraction):
     cx, cy = (base[:, 0].mean(), base[:, 1].mean()) if len(base) else ((lo.x + hi.x) / 2, (lo.y + hi.y) / 2)
     # the two horizontal half-axes at +-45 degrees of the view direction bound the quadrant
     az = math.atan2(view_dir.y, view_dir.x)
-    a1 = (math.cos(az - math.pi / 4), math.sin(az - math.pi / 4))
-    a2 = (math.cos(az + math.pi / 4), math.sin(az + math.pi / 4))
+    if mode == "quadrant":
+        a1 = (math.cos(az - math.pi / 4), math.sin(az - math.pi / 4))
+        a2 = (math.cos(az + math.pi / 4), math.sin(az + math.pi / 4))
+    else:
+        a1 = a2 = (math.cos(az), math.sin(az))
 
     ng = bpy.data.node_groups.new("StrandCutaway", "GeometryNodeTree")
     ng.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
@@ -295,7 +303,7 @@ def main(argv=None) -> None:
     setup_render(bpy, args)
     view_dir = view_direction(args.azimuth, args.elevation)
     if args.cut and ob.type == "CURVES":
-        add_cutaway(bpy, ob, lo, hi, view_dir, args.cut_height)
+        add_cutaway(bpy, ob, lo, hi, view_dir, args.cut_height, args.cut_mode)
     if ob.type == "CURVES":
         frame_camera(bpy, point_positions(ob), args.azimuth, args.elevation, args.width / args.height)
     else:
