@@ -11,10 +11,10 @@ Also works as ``blender -b -P scripts/render_strands.py -- STRANDS.usd OUT.png [
 The USD importer turns the ``BasisCurves`` prim into a Blender *Curves* object (not legacy
 Curve data): each primvar becomes a point attribute of the same name (``displayColor``,
 ``tissue``, ``ring``) and the widths become the ``radius`` attribute, so Cycles and EEVEE draw
-the strands as round tubes without any bevel. A geometry-nodes modifier cuts away the quadrant
-(default: half) of the lower stem that faces the camera (deleting those points) so heartwood and sapwood show
-inside the bark; a material reads ``displayColor`` through an Attribute node. The camera frames
-the bounding box from a 3/4 view.
+the strands as round tubes without any bevel. A geometry-nodes modifier cuts away the half (or
+quadrant) of the lower stem that faces the camera by deleting those points, so heartwood and
+sapwood show inside the bark; a material reads ``displayColor`` through an Attribute node. The
+camera, on a 3/4 view, is fitted to the points of the whole tree.
 """
 from __future__ import annotations
 
@@ -44,8 +44,8 @@ def parse_args(argv=None):
     ap.add_argument("--cut", dest="cut_mode", choices=["half", "quadrant"], default="half",
                     help="cut away the camera-facing half (a section through the stem axis) "
                          "or quadrant of the lower tree (default half)")
-    ap.add_argument("--cut-height", type=float, default=0.45,
-                    help="cut-away up to this fraction of the tree's height (default 0.45)")
+    ap.add_argument("--cut-height", type=float, default=0.33,
+                    help="cut-away up to this fraction of the tree's height (default 0.33)")
     ap.add_argument("--azimuth", type=float, default=-50.0, help="camera azimuth in degrees")
     ap.add_argument("--elevation", type=float, default=12.0, help="camera elevation in degrees")
     ap.add_argument("--max-kb", type=int, default=400,
@@ -325,6 +325,9 @@ def main(argv=None) -> None:
         bpy.ops.render.render(write_still=True)
         t_render = time.perf_counter() - t1
         shrink_png(tmp, args.max_kb)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp made it 0600
         os.replace(tmp, out)
     finally:
         if os.path.exists(tmp):

@@ -1,0 +1,85 @@
+"""`wooddecay inspect` and `wooddecay init`: reports, templates and one-line errors."""
+from __future__ import annotations
+
+import json
+
+import pytest
+from click.testing import CliRunner
+
+import wooddecay as wd
+from wooddecay.cli import main
+
+from .conftest import SAMPLES
+
+
+def _run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
+
+
+def test_inspect_json_keys():
+    r = _run("inspect", SAMPLES / "tiny.toml", "--json")
+    assert r.exit_code == 0, r.output
+    rep = json.loads(r.stdout)
+    for key in ("elements", "reg_edges", "build_seconds", "strands", "bsp_cells", "tissues",
+                "memory_estimate_mb", "build_stages", "reg_degree"):
+        assert key in rep
+    m = wd.build_model(wd.load_scene(SAMPLES / "tiny.toml"))
+    assert rep["elements"] == m.n_elements and rep["reg_edges"] == m.n_edges
+    assert rep["bsp_cells"] == 40
+    assert set(rep["build_stages"]) >= {"strands", "elements", "rings", "reg", "bsp", "weakpoints"}
+    assert rep["build_seconds"] > 0
+
+
+def test_inspect_text_and_set_override():
+    r = _run("inspect", SAMPLES / "tiny.toml", "--set", "bsp.cells=10")
+    assert r.exit_code == 0
+    assert "BSP cells        10" in r.stdout and "REG edges" in r.stdout
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--set", "strands.r_s=-1"], "strands.r_s"),
+    (["--set", "strands.r_ss=1"], "did you mean"),
+    (["--set", "bsp.cells"], "<--set>"),
+])
+def test_inspect_bad_input_one_line_exit_2(args, needle):
+    r = CliRunner().invoke(main, ["inspect", str(SAMPLES / "tiny.toml"), *args])
+    assert r.exit_code == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0] and "Traceback" not in r.output
+
+
+def test_inspect_broken_scene_file(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[strands]\nr_s = 'thick'\n")
+    r = CliRunner().invoke(main, ["inspect", str(bad)])
+    assert r.exit_code == 2
+    assert r.stderr.count("\n") == 1 and "bad.toml" in r.stderr and "strands.r_s" in r.stderr
+
+
+def test_inspect_missing_file(tmp_path):
+    r = CliRunner().invoke(main, ["inspect", str(tmp_path / "nope.toml")])
+    assert r.exit_code == 2 and r.stderr.count("\n") == 1
+
+
+def test_inspect_treeqsm_skeleton(tmp_path):
+    (tmp_path / "qsm.csv").write_text(
+        "start_x,start_y,start_z,axis_x,axis_y,axis_z,length,radius,parent\n"
+        "0,0,0,0,0,1,0.4,0.05,0\n"
+        "0,0,0.4,0,0,1,0.4,0.045,1\n"
+        "0,0,0.8,0.6,0,0.8,0.3,0.03,2\n")
+    (tmp_path / "s.toml").write_text('[skeleton]\nfile = "qsm.csv"\n[strands]\nr_s = 0.005\n')
+    r = _run("inspect", tmp_path / "s.toml", "--json")
+    rep = json.loads(r.stdout)
+    assert rep["elements"] > 100 and rep["branches"] == 1
+
+
+@pytest.mark.parametrize("template", ["board", "log", "tree"])
+def test_init_writes_a_loadable_scene(tmp_path, template, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    r = _run("init", "mine", "--template", template)
+    assert r.exit_code == 0, r.output
+    scene = wd.load_scene(tmp_path / "mine.toml")
+    assert scene.name == "mine"
+    assert len(scene.skeleton.ids) >= 2
+    again = CliRunner().invoke(main, ["init", "mine", "--template", template])
+    assert again.exit_code == 2 and "already exists" in again.stderr
