@@ -34,7 +34,8 @@ def parse_args(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("usd", help="strands USD written by `wooddecay inspect --strands-usd`")
     ap.add_argument("png", help="output PNG")
-    ap.add_argument("--engine", choices=["CYCLES", "EEVEE"], default="CYCLES")
+    ap.add_argument("--engine", choices=["CYCLES", "EEVEE"], default="CYCLES",
+                    help="CYCLES (CPU, default) or EEVEE (a rougher fallback: camera-facing strips)")
     ap.add_argument("--samples", type=int, default=16)
     ap.add_argument("--width", type=int, default=480)
     ap.add_argument("--height", type=int, default=640)
@@ -244,6 +245,7 @@ def setup_render(bpy, args):
         scene.cycles_curves.shape = "THICK"
     else:
         r.engine = "BLENDER_EEVEE_NEXT"
+        r.hair_type = "STRIP"  # camera-facing strips of the curve radius (default: 1 px lines)
         scene.eevee.taa_render_samples = args.samples
 
 

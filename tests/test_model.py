@@ -192,3 +192,9 @@ def test_tree_builds_about_50k_elements():
     assert m.bsp_cells == scene.bsp.cells
     assert all(v > 0 for v in m.tissue_counts().values())
     assert json.dumps(m.tissue_counts())
+
+
+def test_bsp_disabled_on_the_tree_has_no_theta():
+    scene = wd.load_scene(SAMPLES / "tree.toml", overrides={"bsp.cells": 0})
+    m = wd.build_model(scene)
+    assert m.bsp_cells == 1 and not m.reg_theta.any()

@@ -7,8 +7,8 @@ longest of all is split across that axis, at the middle of its extent moved by a
 ``jitter`` times the extent (so cells are near-cubic but not a lattice); a split that would leave
 one side empty falls back to the median. Splitting stops when ``cells`` leaves exist. Leaves are
 numbered in creation order, which with the seeded jitter makes the partition deterministic.
-``cells = 0`` disables the partition (every element in leaf 0 of its branch, theta = 0 within a
-branch). With fewer ``cells`` than branches each branch is one leaf (recorded in decisions.md).
+``cells = 0`` disables the partition (one leaf, theta = 0 everywhere). With fewer ``cells``
+than branches each branch is one leaf (recorded in decisions.md).
 
 theta_ij = 1 when elements i and j lie in different leaves (§7.1).
 """
@@ -53,10 +53,12 @@ def bsp_leaves(
     jitter: float,
     rng: np.random.Generator,
 ) -> np.ndarray:
-    """Leaf index (groupID) of every element; ``max(cells, branches)`` leaves (one per branch
-    when cells = 0)."""
+    """Leaf index (groupID) of every element: ``max(cells, branches)`` leaves, or a single leaf
+    when ``cells`` = 0."""
     X = bsp_coordinates(wood_coords, elongation)
     leaf = np.zeros(len(X), dtype=np.int64)
+    if cells == 0:  # disabled: one leaf, theta = 0 everywhere
+        return leaf
     branches = np.unique(branch)
     members = [np.flatnonzero(branch == b) for b in branches]
     if cells <= len(members):
