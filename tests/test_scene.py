@@ -5,7 +5,6 @@ import json
 import math
 import pickle
 import string
-from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings

@@ -174,7 +174,6 @@ class ElementGeometry:
     rest_length: np.ndarray  # (n,)
     rest_quat: np.ndarray  # (n, 4) material frame (d1, d2, d3), w first
     frames: np.ndarray  # (n, 3, 3) rows e_r, e_t, e_l
-    axis_point: np.ndarray  # (n, 3) branch centreline point of the element's cross-section
     s: np.ndarray  # (n,) distance to the root along the skeleton
 
 
@@ -207,6 +206,5 @@ def element_geometry(samp: Sampling, node_a: np.ndarray, node_b: np.ndarray, pos
         rest_length=length,
         rest_quat=matrix_to_quaternion(R),
         frames=np.stack([e_r, e_t, e_l], axis=1),
-        axis_point=axis_point,
         s=node_s[node_a] + samp.t * edge_len,
     )

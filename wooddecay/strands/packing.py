@@ -5,6 +5,10 @@ that strands do not collide (centre distance >= 2 r_s) and stay inside the profi
 profile: floor(phi_pack * area / (pi r_s^2)).
 
 Positions are 2D points in the node frame (u, v) of :mod:`wooddecay.strands.topology`.
+A profile's sites are the hex lattice (spacing >= 2 r_s, bisected to hold the count) that makes
+the packing valid by construction; carried strands take the sites nearest their goals (minimum
+total displacement) and PBD then pulls them back towards the goals, accepting only iterates that
+satisfy every constraint (docs/decisions.md explains why PBD alone is not enough at phi_pack 0.8).
 """
 from __future__ import annotations
 

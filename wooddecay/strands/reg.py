@@ -92,8 +92,11 @@ def _cell_range(keys, key):
 
 
 @nb.njit(parallel=True, cache=True)
-def _pairs_pass(pa, pb, strand, cell, order, keys, dims, radius, counts, out, fill):
-    """One pass of the grid search: count (fill=False) or write (fill=True) j > i neighbours."""
+def _pairs_pass(pa, pb, center, half, strand, cell, order, keys, dims, radius, counts, out, fill):
+    """One pass of the grid search: count (fill=False) or write (fill=True) j > i neighbours.
+
+    Segments within ``radius`` have centres within radius + half_i + half_j: that cheap test
+    runs before the exact segment distance."""
     n = len(pa)
     for i in nb.prange(n):
         k = 0
@@ -116,6 +119,12 @@ def _pairs_pass(pa, pb, strand, cell, order, keys, dims, radius, counts, out, fi
                         j = order[m]
                         if j <= i or strand[j] == strand[i]:
                             continue
+                        reach = radius + half[i] + half[j]
+                        dx = center[j, 0] - center[i, 0]
+                        dy = center[j, 1] - center[i, 1]
+                        dz = center[j, 2] - center[i, 2]
+                        if dx * dx + dy * dy + dz * dz > reach * reach:
+                            continue
                         if segment_distance(pa[i], pb[i], pa[j], pb[j]) <= radius:
                             if fill:
                                 out[base + k] = j
@@ -130,7 +139,8 @@ def segment_pairs(pa, pb, strand, radius):
     if n == 0:
         return np.zeros((0, 2), dtype=np.int64)
     centers = 0.5 * (pa + pb)
-    h = radius + float(np.max(np.linalg.norm(pb - pa, axis=1)))
+    half = 0.5 * np.linalg.norm(pb - pa, axis=1)
+    h = radius + 2.0 * float(half.max())
     lo = centers.min(axis=0)
     cell = np.floor((centers - lo) / h).astype(np.int64)
     dims = cell.max(axis=0) + 1
@@ -139,10 +149,10 @@ def segment_pairs(pa, pb, strand, radius):
     keys = key[order]
     counts = np.zeros(n, dtype=np.int64)
     dummy = np.zeros(0, dtype=np.int64)
-    _pairs_pass(pa, pb, strand, cell, order, keys, dims, radius, counts, dummy, False)
+    _pairs_pass(pa, pb, centers, half, strand, cell, order, keys, dims, radius, counts, dummy, False)
     starts = np.concatenate([[0], np.cumsum(counts)])
     out = np.empty(starts[-1], dtype=np.int64)
-    _pairs_pass(pa, pb, strand, cell, order, keys, dims, radius, starts[:-1].copy(), out, True)
+    _pairs_pass(pa, pb, centers, half, strand, cell, order, keys, dims, radius, starts[:-1].copy(), out, True)
     i = np.repeat(np.arange(n), counts)
     idx = np.lexsort((out, i))
     return np.stack([i[idx], out[idx]], axis=1)

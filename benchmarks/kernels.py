@@ -1,0 +1,61 @@
+"""Foundation kernels against their numpy references, timed in one run (ratios, not absolutes).
+
+Prints ``name value unit`` lines for samples/tree.toml (or the scene given):
+    reg_pairs_numba_seconds / reg_pairs_reference_seconds / reg_pairs_speedup
+    transport_frames_numba_seconds / transport_frames_reference_seconds / transport_frames_speedup
+    reg_pairs_numba_seconds_threads_<k>  for k = 1 .. numba.config.NUMBA_NUM_THREADS
+Each timing is the best of 3 after a warm-up call.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+
+import wooddecay as wd
+from wooddecay.strands.elements import transport_frames_numba, transport_frames_reference
+from wooddecay.strands.reg import segment_pairs, segment_pairs_reference
+
+
+def best(fn, repeat=3):
+    fn()
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def main() -> None:
+    path = Path(sys.argv[1] if len(sys.argv) > 1 else Path(__file__).resolve().parent.parent / "samples" / "tree.toml")
+    scene = wd.load_scene(path)
+    m = wd.build_model(scene)
+    pa, pb = m.particles[m.first_particle], m.particles[m.first_particle + 1]
+    radius = scene.strands.connect_radius
+    print(f"elements {m.n_elements} -")
+    t_nb = best(lambda: segment_pairs(pa, pb, m.strand, radius))
+    t_ref = best(lambda: segment_pairs_reference(pa, pb, m.strand, radius), repeat=1)
+    print(f"reg_pairs_numba_seconds {t_nb:.4f} s")
+    print(f"reg_pairs_reference_seconds {t_ref:.4f} s")
+    print(f"reg_pairs_speedup {t_ref / t_nb:.2f} x")
+    for k in range(1, numba.config.NUMBA_NUM_THREADS + 1):
+        numba.set_num_threads(k)
+        print(f"reg_pairs_numba_seconds_threads_{k} {best(lambda: segment_pairs(pa, pb, m.strand, radius)):.4f} s")
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    tangent = m.frames[:, 2]
+    d1 = m.frames[m.element_offsets[:-1], 0]
+    t_nb = best(lambda: transport_frames_numba(m.element_offsets, tangent, d1))
+    t_ref = best(lambda: transport_frames_reference(m.element_offsets, tangent, d1), repeat=1)
+    print(f"transport_frames_numba_seconds {t_nb:.5f} s")
+    print(f"transport_frames_reference_seconds {t_ref:.4f} s")
+    print(f"transport_frames_speedup {t_ref / t_nb:.1f} x")
+    ok = np.array_equal(segment_pairs(pa, pb, m.strand, radius), segment_pairs_reference(pa, pb, m.strand, radius))
+    print(f"reg_pairs_equal_reference {int(ok)} -")
+
+
+if __name__ == "__main__":
+    main()
