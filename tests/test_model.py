@@ -195,3 +195,18 @@ def test_bsp_disabled_on_the_tree_has_no_theta():
     scene = wd.load_scene(SAMPLES / "tree.toml", overrides={"bsp.cells": 0})
     m = wd.build_model(scene)
     assert m.bsp_cells == 1 and not m.reg_theta.any()
+
+
+@pytest.mark.slow
+def test_weak_points_raised_near_junctions_and_stretched_along_grain():
+    scene = wd.load_scene(SAMPLES / "tree.toml")
+    m = wd.build_model(scene)
+    skel = scene.skeleton
+    forks = np.array([i for i in range(len(skel.ids)) if np.sum(skel.parent == i) > 1])
+    d = np.min(np.linalg.norm(m.centers[:, None] - skel.positions[forks][None], axis=-1), axis=1)
+    near, far = d < 0.5 * scene.weakpoints.junction_radius, d > 3 * scene.weakpoints.junction_radius
+    assert m.W[near].mean() > m.W[far].mean() + 0.1
+    # stretched along the grain: W varies less along a strand than across strands
+    chain = m.transport_edges[m.transport_kind == 1]
+    reg = m.reg_edges
+    assert np.mean(np.abs(np.diff(m.W[chain], axis=1))) < np.mean(np.abs(np.diff(m.W[reg], axis=1)))
