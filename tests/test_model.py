@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import wooddecay as wd
+from wooddecay.strands.reg import segment_distance_reference
 from wooddecay.strands.rings import BARK, HEARTWOOD, PITH, SAPWOOD
 
 from .conftest import ROOT, SAMPLES
@@ -78,13 +79,21 @@ def test_reg_symmetric_simple(fixture, request):
     np.testing.assert_allclose(m.reg_rest_offset, np.linalg.norm(m.centers[e[:, 1]] - m.centers[e[:, 0]], axis=1))
 
 
-def test_transport_graph_is_reg_plus_chains(tiny_model):
+def test_transport_graph_is_chains_plus_wider_pairs(tiny_model, tiny_scene):
     m = tiny_model
     chains = m.transport_edges[m.transport_kind == 1]
     assert np.all(chains[:, 1] == chains[:, 0] + 1)
     assert np.all(m.strand[chains[:, 0]] == m.strand[chains[:, 1]])
     assert len(chains) == m.n_elements - m.n_strands
+    # the REG is exactly the transport pairs within connect_radius; the rest reach further
     np.testing.assert_array_equal(m.transport_edges[m.transport_kind == 0], m.reg_edges)
+    wide = m.transport_edges[m.transport_kind == 2]
+    assert len(wide) > 0 and np.all(m.strand[wide[:, 0]] != m.strand[wide[:, 1]])
+    pa, pb = m.particles[m.first_particle], m.particles[m.first_particle + 1]
+    i, j = wide[:, 0], wide[:, 1]
+    d = segment_distance_reference(pa[i], pb[i], pa[j], pb[j])
+    st = tiny_scene.strands
+    assert np.all(d > st.connect_radius) and np.all(d <= st.transport_reach * st.r_s)
 
 
 def test_tissues_ordered_by_bark_distance(log_model):

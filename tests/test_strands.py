@@ -42,7 +42,8 @@ def test_root_count_follows_area():
     cap = packing.strand_capacity(prof, scene.strands.r_s, scene.strands.phi_pack)
     assert cap == int(np.floor(0.8 * np.pi * 0.15**2 / (np.pi * scene.strands.r_s**2)))
     # every seeded root position either continues or ends right there; none is lost to overlap
-    assert packing.seed_positions(prof, cap, scene.strands.r_s, np.random.default_rng(0)).shape == (cap, 2)
+    rng = np.random.default_rng(0)
+    assert packing.seed_positions(prof, cap, scene.strands.r_s, packing.random_lattice(rng), rng).shape == (cap, 2)
 
 
 def test_fork_splits_by_area_and_side():
@@ -73,7 +74,7 @@ def test_pbd_relax_keeps_valid_packing_and_moves_to_goal():
     prof = profiles.circle(0.05)
     r_s = 0.004
     rng = np.random.default_rng(1)
-    sites = packing.seed_positions(prof, 100, r_s, rng)
+    sites = packing.seed_positions(prof, 100, r_s, packing.random_lattice(rng), rng)
     goal = sites * 0.9  # compressed: infeasible target, must stay valid
     out = packing.pbd_relax(prof, sites, goal, r_s, 30)
     assert len(packing.overlapping_pairs(out, r_s)) == 0

@@ -77,7 +77,7 @@ def _print_report(rep: dict) -> None:
         f"strands          {rep['strands']}",
         f"rod elements     {rep['elements']}  ({rep['particles']} particles)",
         f"REG edges        {rep['reg_edges']}  (degree min {d['min']} / mean {d['mean']} / max {d['max']})",
-        f"transport edges  {rep['transport_edges']}  (REG + strand chains)",
+        f"transport edges  {rep['transport_edges']}  (strand chains + cross-strand pairs within transport_reach r_s)",
         f"branches         {rep['branches']}",
         f"BSP cells        {rep['bsp_cells']}",
         "tissues          " + ", ".join(f"{k} {v}" for k, v in rep["tissues"].items()),

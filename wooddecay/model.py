@@ -16,7 +16,7 @@ import numpy as np
 from .strands import bsp as bsp_mod
 from .strands.elements import element_geometry, sample_strands
 from .strands.profiles import signed_distance
-from .strands.reg import build_reg, chain_edges, csr_adjacency
+from .strands.reg import build_reg, csr_adjacency, transport_graph
 from .strands.rings import TISSUES, age_of, classify_tissue, profile_years, radial_coordinate, year_noise
 from .strands.strands import build_strands
 from .strands.topology import build_topology
@@ -69,11 +69,13 @@ class WoodModel:
     reg_indptr: np.ndarray
     reg_indices: np.ndarray
     reg_edge_of: np.ndarray
-    # transport graph = REG + strand chains (kind 0 REG, 1 chain)
+    # transport graph = strand chains + cross-strand pairs within transport_reach * r_s
+    # (kind 0: a REG edge, 1: a chain link, 2: a wider transverse pair)
     transport_edges: np.ndarray
     transport_kind: np.ndarray
     transport_indptr: np.ndarray
     transport_indices: np.ndarray
+    transport_edge_of: np.ndarray
     # bookkeeping
     n_branches: int
     build_seconds: dict = field(default_factory=dict)
@@ -183,11 +185,12 @@ def build_model(scene) -> WoodModel:
     with _timed(sec, "reg"):
         pa = samp.particles[samp.first_particle]
         pb = samp.particles[samp.first_particle + 1]
-        reg = build_reg(pa, pb, samp.strand, geo.centers, geo.rest_quat, geo.frames, st.connect_radius)
-        chains = chain_edges(samp.element_offsets)
-        t_edges = np.vstack([reg.edges, chains])
-        t_kind = np.concatenate([np.zeros(len(reg.edges), np.int8), np.ones(len(chains), np.int8)])
-        t_indptr, t_indices, _ = csr_adjacency(len(geo.centers), t_edges)
+        pairs, is_reg, chains = transport_graph(pa, pb, samp.strand, samp.element_offsets,
+                                                st.connect_radius, st.transport_reach * st.r_s)
+        reg = build_reg(pairs[is_reg], geo.centers, geo.rest_quat, geo.frames)
+        t_edges = np.vstack([pairs, chains])
+        t_kind = np.concatenate([np.where(is_reg, 0, 2).astype(np.int8), np.ones(len(chains), np.int8)])
+        t_indptr, t_indices, t_edge_of = csr_adjacency(len(geo.centers), t_edges)
     with _timed(sec, "bsp"):
         leaf = bsp_mod.bsp_leaves(wood_coords, branch, bp.cells, bp.elongation, bp.jitter,
                                   stage_rng(scene.seed, "bsp"))
@@ -208,5 +211,6 @@ def build_model(scene) -> WoodModel:
         reg_indptr=reg.indptr, reg_indices=reg.indices, reg_edge_of=reg.edge_of,
         transport_edges=t_edges,
         transport_kind=t_kind, transport_indptr=t_indptr, transport_indices=t_indices,
+        transport_edge_of=t_edge_of,
         n_branches=topo.n_branches, build_seconds=sec,
     )

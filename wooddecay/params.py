@@ -95,6 +95,7 @@ _SCHEMA: dict[str, list[tuple]] = {
         ("rod_length", 0.04, "m", "(0, 10]", "Target rod element length along a strand (randomly phased per strand; SPEC §2)."),
         ("connect_radius", None, "m", "(0, 10]", "REG edge radius: segments of different strands closer than this are joined (woodstock §5); default 2.5 * r_s, must be >= 2 * r_s.", "float"),
         ("packing_iterations", 200, "", "[1, 100000]", "PBD iterations when packing strand positions on a profile (SPEC §2)."),
+        ("transport_reach", 4.0, "r_s", "[2, 20]", "Transverse reach of the transport graph in strand radii: cross-strand pairs within reach * r_s exchange fields (a wider ring than the REG so that positive weights can represent a_r != a_t at any lattice orientation; docs/decisions.md)."),
     ],
     "rings": [
         ("ring_width", 0.004, "m", "(0, 0.5]", "Mean growth-ring width (woodification §4.1)."),
@@ -155,7 +156,7 @@ _SCHEMA: dict[str, list[tuple]] = {
         ("k_H", 2.5, "", "[0, 100]", "Carbohydrate weight k in the health aggregate H = (H_l + k H_c) / (1 + k) (Eq. 20, §9.4; SPEC §3)."),
         ("k_in0", 0.01, "1/day", "[0, 100]", f"Moisture uptake rate k_in0 in k_in = k_in0 max(0, 1 - k_r_in bd) H_c (Eq. 15; {_T3} k_in)."),
         ("k_r_in", 10.0, "1/m", "[0, 1000000]", "Decay of uptake with bark distance k_r_in (Eq. 15)."),
-        ("k_out0", 0.01, "1/day", "[0, 100]", f"Moisture loss rate k_out0 in k_out = k_out0 max(0, 1 - k_r_out H_c) max(0, bd_0 - bd) (Eq. 15; {_T3} k_out)."),
+        ("k_out0", 0.2, "1/(day m)", "[0, 10000]", f"Moisture loss rate k_out0 (per metre of depth bd_0 - bd) in k_out = k_out0 max(0, 1 - k_r_out H_c) max(0, bd_0 - bd) (Eq. 15; {_T3} k_out)."),
         ("k_r_out", 0.5, "", "[0, 100]", "Reduction of moisture loss by carbohydrate health k_r_out (Eq. 15)."),
         ("bd_0", 0.05, "m", "[0, 100]", f"Bark-distance depth of moisture loss bd_0 (Eq. 15; {_T3} bd(x))."),
         ("schedule", [], "", "", "Seasonal keyframes [[day, M_1, M_2], ...] replacing M_1, M_2 over time (SPEC §3); days strictly increasing, M_2 < M_1.", "list"),

@@ -37,21 +37,31 @@ def inside(poly: np.ndarray, pts: np.ndarray) -> np.ndarray:
     return _MplPath(poly).contains_points(pts)
 
 
-def hex_lattice(profile: Profile, spacing: float, rng: np.random.Generator) -> np.ndarray:
-    """Points of a hexagonal lattice (random offset and rotation) inside the profile."""
+def hex_lattice(profile: Profile, spacing: float, lattice: tuple[float, np.ndarray]) -> np.ndarray:
+    """Points inside the profile of a hexagonal lattice with the given orientation
+    ``lattice = (angle, offset)`` (offset in spacings, about the profile's vertex mean).
+
+    One orientation per model keeps consecutive profiles' lattices aligned, so strands run
+    parallel and the REG is regular across the grain (docs/decisions.md)."""
     poly = profile.polygon
     c = poly.mean(axis=0)
     radius = np.max(np.linalg.norm(poly - c, axis=1)) + spacing
     n = int(np.ceil(radius / spacing)) + 1
     i, j = np.meshgrid(np.arange(-n, n + 1), np.arange(-n, n + 1), indexing="ij")
     pts = np.stack([i + 0.5 * j, j * (np.sqrt(3.0) / 2.0)], axis=-1).reshape(-1, 2) * spacing
-    a = rng.uniform(0.0, np.pi / 3.0)
+    a, offset = lattice
     rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
-    pts = pts @ rot.T + c + rng.uniform(-0.5, 0.5, 2) * spacing
+    pts = (pts + np.asarray(offset) * spacing) @ rot.T + c
     return pts[inside(poly, pts)]
 
 
-def seed_positions(profile: Profile, count: int, r_s: float, rng: np.random.Generator) -> np.ndarray:
+def random_lattice(rng: np.random.Generator) -> tuple[float, np.ndarray]:
+    """A random lattice orientation (angle in [0, pi/3), offset in [-1/2, 1/2)^2 spacings)."""
+    return float(rng.uniform(0.0, np.pi / 3.0)), rng.uniform(-0.5, 0.5, 2)
+
+
+def seed_positions(profile: Profile, count: int, r_s: float, lattice: tuple[float, np.ndarray],
+                   rng: np.random.Generator) -> np.ndarray:
     """``count`` non-overlapping positions: the densest hex lattice (spacing >= 2 r_s) holding
     at least ``count`` points inside the profile, thinned at random to ``count``.
 
@@ -60,14 +70,14 @@ def seed_positions(profile: Profile, count: int, r_s: float, rng: np.random.Gene
     if count <= 0:
         return np.zeros((0, 2))
     lo = 2.0 * r_s * SEPARATION_SLACK
-    best = hex_lattice(profile, lo, rng)
+    best = hex_lattice(profile, lo, lattice)
     # a hex lattice of spacing a holds about area / (sqrt(3)/2 a^2) points: bracket around that
     guess = np.sqrt(profile.area / (count * np.sqrt(3.0) / 2.0))
     hi = max(lo, 1.1 * guess)
     if len(best) > count:
         for _ in range(14):  # bisection on the spacing: largest that still holds `count`
             mid = 0.5 * (lo + hi)
-            pts = hex_lattice(profile, mid, rng)
+            pts = hex_lattice(profile, mid, lattice)
             if len(pts) >= count:
                 lo, best = mid, pts
             else:
@@ -159,7 +169,7 @@ def pbd_relax(
 
 def pack_profile(
     profile: Profile, goal: np.ndarray, capacity: int, r_s: float, iterations: int,
-    rng: np.random.Generator,
+    lattice: tuple[float, np.ndarray], rng: np.random.Generator,
 ) -> tuple[np.ndarray, np.ndarray, int]:
     """Pack carried strands (at ``goal``) and new ones on a profile holding ``capacity``.
 
@@ -174,7 +184,7 @@ def pack_profile(
     kept : indices into ``goal`` of the carried strands that continue
     n_new : number of new strands (the last ``n_new`` rows of ``pts``)
     """
-    sites = seed_positions(profile, capacity, r_s, rng)
+    sites = seed_positions(profile, capacity, r_s, lattice, rng)
     kept = np.arange(len(goal))
     if len(goal) > len(sites):
         kept = np.sort(rng.choice(len(goal), size=len(sites), replace=False))

@@ -5,8 +5,10 @@ strands whose segments come within ``connect_radius`` of each other (the minimum
 the two segments, the proximity construction of Macklin et al. 2016). Per edge: the rest offset
 dp_0 = |c_i - c_j| (Eq. 2), the rest Darboux quaternion conj(q_i) q_j, and the squared components
 of the edge direction in the wood frame (n_r^2, n_t^2, n_l^2), averaged over the two ends.
-The transport graph used by the biology is the REG plus the chain links between consecutive
-elements of a strand.
+The transport graph used by the biology is the strand chains (links between consecutive
+elements of a strand) plus every cross-strand pair within ``transport_reach * r_s``, a superset of
+the REG (docs/decisions.md: a hex ring alone cannot carry anisotropic diffusion with positive
+weights).
 
 The search is a numba kernel over a uniform hash grid (cell = connect_radius + longest element):
 two passes (count, then fill) over elements in parallel, each element writing only its own rows,
@@ -201,9 +203,8 @@ class REG:
     edge_of: np.ndarray  # edge id of each CSR entry
 
 
-def build_reg(pa, pb, strand, centers, rest_quat, frames, connect_radius) -> REG:
-    """REG edges and their rest quantities (see module docstring)."""
-    edges = segment_pairs(pa, pb, strand, connect_radius)
+def build_reg(edges, centers, rest_quat, frames) -> REG:
+    """REG of the given edges (pairs within connect_radius) with their rest quantities."""
     i, j = edges[:, 0], edges[:, 1]
     d = centers[j] - centers[i]
     rest = np.linalg.norm(d, axis=1)
@@ -212,6 +213,18 @@ def build_reg(pa, pb, strand, centers, rest_quat, frames, connect_radius) -> REG
     indptr, indices, edge_of = csr_adjacency(len(centers), edges)
     return REG(edges=edges, rest_offset=rest, rest_darboux=quat_conj_mul(rest_quat[i], rest_quat[j]),
                dir_weights=w, indptr=indptr, indices=indices, edge_of=edge_of)
+
+
+def transport_graph(pa, pb, strand, element_offsets, connect_radius, reach_radius):
+    """Proximity pairs within ``max(connect_radius, reach_radius)`` plus the strand chains.
+
+    Returns (pairs, is_reg, chains): the cross-strand pairs (sorted, i < j), a mask of those
+    within ``connect_radius`` (the REG, a subset), and the chain links.
+    """
+    pairs = segment_pairs(pa, pb, strand, max(connect_radius, reach_radius))
+    i, j = pairs[:, 0], pairs[:, 1]
+    is_reg = segment_distance_reference(pa[i], pb[i], pa[j], pb[j]) <= connect_radius
+    return pairs, is_reg, chain_edges(element_offsets)
 
 
 def chain_edges(element_offsets: np.ndarray) -> np.ndarray:

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
-from .packing import pack_profile, seed_positions, strand_capacity
+from .packing import pack_profile, random_lattice, seed_positions, strand_capacity
 from .profiles import polygon_centroid, ray_extent
 from .skeleton import Skeleton
 from .topology import Topology
@@ -108,11 +108,12 @@ def build_strands(
     uv_at: list[np.ndarray] = [None] * n_nodes  # type: ignore[list-item]
     incoming: dict[int, tuple[np.ndarray, np.ndarray, bool]] = {}
     next_id = 0
+    lattice = random_lattice(rng)
     for i in range(n_nodes):
         prof = skel.profiles[i]
         cap = strand_capacity(prof, r_s, phi_pack)
         if skel.parent[i] < 0:
-            pts = seed_positions(prof, cap, r_s, rng)
+            pts = seed_positions(prof, cap, r_s, lattice, rng)
             ids = np.arange(next_id, next_id + len(pts))
             next_id += len(pts)
         else:
@@ -125,7 +126,7 @@ def build_strands(
                 goal = star_map(hull, prof.polygon, src, pad=r_s)
             else:
                 goal = src - src.mean(axis=0) + prof.centroid
-            pts, kept, n_new = pack_profile(prof, goal, cap, r_s, iterations, rng)
+            pts, kept, n_new = pack_profile(prof, goal, cap, r_s, iterations, lattice, rng)
             ids = np.concatenate([ids[kept], np.arange(next_id, next_id + n_new)])
             next_id += n_new
         ids_at[i], uv_at[i] = ids.astype(np.int64), pts
