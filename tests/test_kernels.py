@@ -113,13 +113,16 @@ def test_arc_positions_staggered_ends():
 
 def test_weibull_cumulative_widths():
     noise = np.ones(50)
-    Q = rings.cumulative_widths(30, 2.0, noise)
+    Q = rings.cumulative_widths(30, 2.0, noise, 30)
     assert Q[0] == 0 and Q[-1] == pytest.approx(1.0) and np.all(np.diff(Q) > 0)
     w = np.diff(Q)
     peak = np.argmax(w)
     # "prime of life" peak at t = 1/sqrt(2) for c = 2 (juvenile rise, mature decline)
     t_peak = rings.T_BIRTH + (peak + 0.5) / 30 * (rings.T_LIFE - rings.T_BIRTH)
     assert abs(t_peak - 1 / np.sqrt(2)) < (rings.T_LIFE - rings.T_BIRTH) / 30
+    # a young section of the same tree has the rings of the last years: narrow, declining
+    twig = np.diff(rings.cumulative_widths(3, 2.0, noise, 30))
+    np.testing.assert_allclose(twig / twig.sum(), w[-3:] / w[-3:].sum(), rtol=1e-12)
 
 
 def test_eccentricity_widens_rings_on_the_upper_side():

@@ -20,12 +20,28 @@ def _arrays(model):
     return {k: v for k, v in vars(model).items() if isinstance(v, np.ndarray)}
 
 
-@pytest.mark.parametrize("fixture", ["tiny_model", "log_model", "board_model"])
-def test_element_count_matches_strand_length(fixture, request):
-    m = request.getfixturevalue(fixture)
-    scene_rod = {"tiny_model": 0.03, "log_model": 0.04, "board_model": 0.03}[fixture]
-    total = m.rest_length.sum()
-    assert abs(m.n_elements - total / scene_rod) <= 0.02 * m.n_elements
+@pytest.mark.parametrize("name", ["tiny", "log", "board"])
+def test_element_count_matches_strand_length(name):
+    scene = wd.load_scene(SAMPLES / f"{name}.toml")
+    m = wd.build_model(scene)
+    L = scene.strands.rod_length
+    assert abs(m.n_elements - m.rest_length.sum() / L) <= 0.02 * m.n_elements
+    per_strand = np.add.reduceat(m.rest_length, m.element_offsets[:-1])
+    assert np.all(np.abs(np.diff(m.element_offsets) - per_strand / L) <= 1.0)
+
+
+def test_mass_uses_per_tissue_density_and_moisture():
+    scene = wd.load_scene(SAMPLES / "tiny.toml", overrides={"tissue.bark.rho_dry": 900.0,
+                                                             "tissue.bark.M_init": 0.3})
+    m = wd.build_model(scene)
+    bark = m.tissue == BARK
+    expect = np.where(bark, 900.0 * 1.3, scene.mechanics.rho_dry * (1 + scene.moisture.M_init))
+    np.testing.assert_allclose(m.mass, expect * np.pi * scene.strands.r_s**2 * m.rest_length)
+
+
+def test_model_arrays_are_read_only(tiny_model):
+    with pytest.raises(ValueError):
+        tiny_model.centers[0, 0] = 1.0
 
 
 def test_rest_lengths_staggered(log_model):

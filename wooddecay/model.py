@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .arrays import group_rows
 from .strands import bsp as bsp_mod
 from .strands.elements import element_geometry, sample_strands
 from .strands.profiles import signed_distance
@@ -129,13 +130,6 @@ def _lerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
     return (1.0 - t) * a + t * b
 
 
-def _group_rows(keys: np.ndarray, n: int) -> list[np.ndarray]:
-    """Row indices grouped by key 0..n-1 (one stable sort, no per-row Python work)."""
-    order = np.argsort(keys, kind="stable")
-    bounds = np.searchsorted(keys[order], np.arange(n + 1))
-    return [order[bounds[i]:bounds[i + 1]] for i in range(n)]
-
-
 def build_model(scene) -> WoodModel:
     """Build the wood model of a validated :class:`wooddecay.scene.Scene`."""
     sec: dict[str, float] = {}
@@ -149,33 +143,41 @@ def build_model(scene) -> WoodModel:
     with _timed(sec, "elements"):
         samp = sample_strands(strands, st.rod_length, stage_rng(scene.seed, "sampling"))
         node_a, node_b = strands.node[samp.cp], strands.node[samp.cp + 1]
-        geo = element_geometry(samp, node_a, node_b, skel.positions, topo.frames, topo.s)
+        edge_t = samp.t * strands.frac[samp.cp + 1]  # a strand's end lies part-way along its edge
+        geo = element_geometry(samp, node_a, node_b, edge_t, skel.positions, topo.frames, topo.s)
     with _timed(sec, "rings"):
         # bark distance and radial coordinate q on every control point, in its node's profile
         n_cp = len(strands.node)
         cp_bd, cp_q = np.zeros(n_cp), np.zeros(n_cp)
         years = np.array([profile_years(p, rg.ring_width) for p in skel.profiles])
         noise = year_noise(int(years.max()) + 1, rg.width_noise, stage_rng(scene.seed, "rings"))
-        for i, rows in enumerate(_group_rows(strands.node, len(skel.ids))):
+        for i, rows in enumerate(group_rows(strands.node, len(skel.ids))):
             if len(rows):
                 prof, pts = skel.profiles[i], strands.uv[rows]
                 cp_bd[rows] = signed_distance(prof.polygon, pts)
                 cp_q[rows] = radial_coordinate(prof, topo.up2d[i], rg.eccentricity, rg.pith_blend, pts)
+        part = np.flatnonzero(strands.frac < 1.0)  # strand ends between two profiles
+        f = strands.frac[part]
+        cp_uv = strands.uv.copy()
+        for v in (cp_bd, cp_q, cp_uv):
+            fv = f.reshape(f.shape + (1,) * (v.ndim - 1))
+            v[part] = (1.0 - fv) * v[part - 1] + fv * v[part]
         cp, t = samp.cp, samp.t
-        uv = _lerp(strands.uv[cp], strands.uv[cp + 1], t)
+        uv = _lerp(cp_uv[cp], cp_uv[cp + 1], t)
         bd = _lerp(cp_bd[cp], cp_bd[cp + 1], t)
         q = _lerp(cp_q[cp], cp_q[cp + 1], t)
         age_a, age_b = np.zeros(len(q)), np.zeros(len(q))
-        for i, (ra, rb) in enumerate(zip(_group_rows(node_a, len(skel.ids)), _group_rows(node_b, len(skel.ids)))):
-            age_a[ra] = age_of(q[ra], years[i], rg.weibull_c, noise)
-            age_b[rb] = age_of(q[rb], years[i], rg.weibull_c, noise)
-        age = _lerp(age_a, age_b, t)
-        elem_years = _lerp(years[node_a].astype(float), years[node_b].astype(float), t)
+        for i, (ra, rb) in enumerate(zip(group_rows(node_a, len(skel.ids)), group_rows(node_b, len(skel.ids)))):
+            age_a[ra] = age_of(q[ra], years[i], rg.weibull_c, noise, int(years.max()))
+            age_b[rb] = age_of(q[rb], years[i], rg.weibull_c, noise, int(years.max()))
+        age = _lerp(age_a, age_b, edge_t)
+        elem_years = _lerp(years[node_a].astype(float), years[node_b].astype(float), edge_t)
         tissue = classify_tissue(bd, age, elem_years, bark_thickness=rg.bark_thickness,
                                  sapwood_rings=rg.sapwood_rings, pith_rings=rg.pith_rings)
         wood_coords = np.stack([np.hypot(uv[:, 0], uv[:, 1]), np.arctan2(uv[:, 1], uv[:, 0]), geo.s], axis=1)
-        m_init = np.array([scene.tissue_param(name, "M_init") for name in TISSUES])[tissue]
-        mass = scene.mechanics.rho_dry * (1.0 + m_init) * np.pi * st.r_s ** 2 * geo.rest_length
+        per_tissue = {k: np.array([scene.tissue_param(name, k) for name in TISSUES])[tissue]
+                      for k in ("M_init", "rho_dry")}
+        mass = per_tissue["rho_dry"] * (1.0 + per_tissue["M_init"]) * np.pi * st.r_s**2 * geo.rest_length
         branch = topo.branch[node_b]
         root_of = np.arange(len(skel.ids))
         for i in range(len(skel.ids)):  # parents precede children
@@ -200,7 +202,7 @@ def build_model(scene) -> WoodModel:
         W = weak_point_field(uv, geo.s, geo.centers, skel.positions[forks], scale=wp.scale,
                              stretch=wp.stretch, octaves=wp.octaves, junction_boost=wp.junction_boost,
                              junction_radius=wp.junction_radius, rng=stage_rng(scene.seed, "weakpoints"))
-    return WoodModel(
+    model = WoodModel(
         particles=samp.particles, particle_offsets=samp.particle_offsets,
         element_offsets=samp.element_offsets, strand=samp.strand, first_particle=samp.first_particle,
         centers=geo.centers, rest_length=geo.rest_length, radius=np.full(len(geo.centers), st.r_s),
@@ -214,3 +216,7 @@ def build_model(scene) -> WoodModel:
         transport_edge_of=t_edge_of,
         n_branches=topo.n_branches, build_seconds=sec,
     )
+    for v in vars(model).values():  # the model is static: solvers change a SimState, never it
+        if isinstance(v, np.ndarray):
+            v.flags.writeable = False
+    return model

@@ -18,6 +18,8 @@ import heapq
 
 import numpy as np
 
+from ..arrays import group_rows
+
 
 def bsp_coordinates(wood_coords: np.ndarray, elongation: float) -> np.ndarray:
     """X = (r, r phi, s / elongation) from wood-local (r, phi, s)."""
@@ -59,8 +61,7 @@ def bsp_leaves(
     leaf = np.zeros(len(X), dtype=np.int64)
     if cells == 0:  # disabled: one leaf, theta = 0 everywhere
         return leaf
-    branches = np.unique(branch)
-    members = [np.flatnonzero(branch == b) for b in branches]
+    members = [g for g in group_rows(branch, int(branch.max()) + 1) if len(g)]
     if cells <= len(members):
         for k, idx in enumerate(members):
             leaf[idx] = k

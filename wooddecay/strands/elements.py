@@ -177,15 +177,16 @@ class ElementGeometry:
     s: np.ndarray  # (n,) distance to the root along the skeleton
 
 
-def element_geometry(samp: Sampling, node_a: np.ndarray, node_b: np.ndarray, positions: np.ndarray,
-                     node_frames: np.ndarray, node_s: np.ndarray) -> ElementGeometry:
-    """Frames and centreline positions of elements lying on skeleton edges node_a -> node_b."""
+def element_geometry(samp: Sampling, node_a: np.ndarray, node_b: np.ndarray, edge_t: np.ndarray,
+                     positions: np.ndarray, node_frames: np.ndarray, node_s: np.ndarray) -> ElementGeometry:
+    """Frames and centreline positions of elements lying at fraction ``edge_t`` of the skeleton
+    edges node_a -> node_b."""
     pa = samp.particles[samp.first_particle]
     pb = samp.particles[samp.first_particle + 1]
     d = pb - pa
     length = np.linalg.norm(d, axis=1)
     e_l = d / length[:, None]
-    t = samp.t[:, None]
+    t = edge_t[:, None]
     axis_point = (1.0 - t) * positions[node_a] + t * positions[node_b]
     edge_len = np.linalg.norm(positions[node_b] - positions[node_a], axis=1)
     U = _unit((1.0 - t) * node_frames[node_a, 0] + t * node_frames[node_b, 0])
@@ -206,5 +207,5 @@ def element_geometry(samp: Sampling, node_a: np.ndarray, node_b: np.ndarray, pos
         rest_length=length,
         rest_quat=matrix_to_quaternion(R),
         frames=np.stack([e_r, e_t, e_l], axis=1),
-        s=node_s[node_a] + samp.t * edge_len,
+        s=node_s[node_a] + edge_t * edge_len,
     )

@@ -104,16 +104,16 @@ def _pairs_pass(pa, pb, center, half, strand, cell, order, keys, dims, radius, c
         k = 0
         base = counts[i] if fill else 0
         cx, cy, cz = cell[i, 0], cell[i, 1], cell[i, 2]
-        for dx in range(-1, 2):
-            x = cx + dx
+        for ox in range(-1, 2):
+            x = cx + ox
             if x < 0 or x >= dims[0]:
                 continue
-            for dy in range(-1, 2):
-                y = cy + dy
+            for oy in range(-1, 2):
+                y = cy + oy
                 if y < 0 or y >= dims[1]:
                     continue
-                for dz in range(-1, 2):
-                    z = cz + dz
+                for oz in range(-1, 2):
+                    z = cz + oz
                     if z < 0 or z >= dims[2]:
                         continue
                     lo, hi = _cell_range(keys, (x * dims[1] + y) * dims[2] + z)
@@ -133,6 +133,15 @@ def _pairs_pass(pa, pb, center, half, strand, cell, order, keys, dims, radius, c
                             k += 1
         if not fill:
             counts[i] = k
+
+
+@nb.njit(parallel=True, cache=True)
+def pair_distances(pa, pb, i, j):
+    """Segment distance of each pair (i[k], j[k]) (the same arithmetic as the search)."""
+    out = np.empty(len(i))
+    for k in nb.prange(len(i)):
+        out[k] = segment_distance(pa[i[k]], pb[i[k]], pa[j[k]], pb[j[k]])
+    return out
 
 
 def segment_pairs(pa, pb, strand, radius):
@@ -223,7 +232,7 @@ def transport_graph(pa, pb, strand, element_offsets, connect_radius, reach_radiu
     """
     pairs = segment_pairs(pa, pb, strand, max(connect_radius, reach_radius))
     i, j = pairs[:, 0], pairs[:, 1]
-    is_reg = segment_distance_reference(pa[i], pb[i], pa[j], pb[j]) <= connect_radius
+    is_reg = pair_distances(pa, pb, i, j) <= connect_radius
     return pairs, is_reg, chain_edges(element_offsets)
 
 

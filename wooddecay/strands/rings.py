@@ -17,7 +17,8 @@ Construction per profile (all 2D, node frame):
   (0 at the pith, 1 on the bark) follows the contour, the inner one q_in = |x - x_p| / d_e(x_p)
   is circular; q blends q_in -> q_out over the inner ``pith_blend`` fraction.
 * the number of years is Y = max(1, round(R_eq / ring_width)); year j (0 at the pith) has width
-  proportional to s(t_j) (t_j spans the Weibull life [T_BIRTH, T_LIFE]) times a per-calendar-year noise
+  proportional to s(t_j), t_j the tree's age in Weibull time when the ring formed (the tree's
+  life, its oldest section's Y years, spans [T_BIRTH, T_LIFE]), times a per-calendar-year noise
   factor shared by the whole tree; the cumulative normalised widths Q_j map q to the ring age
   (fractional years from the pith). Between two profiles an element's q is interpolated and
 mapped through both profiles' ring tables, so age stays monotone in q along an edge.
@@ -48,9 +49,15 @@ def year_noise(max_years: int, width_noise: float, rng: np.random.Generator) -> 
     return np.clip(rng.normal(1.0, width_noise, max_years), 0.1, None)
 
 
-def cumulative_widths(years: int, c: float, noise: np.ndarray) -> np.ndarray:
-    """Q (years + 1,): normalised radius at the end of each year from the pith, Q_0 = 0, Q_Y = 1."""
-    t = T_BIRTH + (np.arange(years) + 0.5) / years * (T_LIFE - T_BIRTH)
+def cumulative_widths(years: int, c: float, noise: np.ndarray, tree_years: int) -> np.ndarray:
+    """Q (years + 1,): normalised radius at the end of each year from the pith, Q_0 = 0, Q_Y = 1.
+
+    Weibull time is the tree's age (woodification §4.1): a section with ``years`` rings in a tree
+    of ``tree_years`` was formed in the last ``years`` years, t in [T_BIRTH, T_LIFE] over the
+    tree's life, so a twig's rings are those of the mature (declining) years.
+    """
+    first = tree_years - years
+    t = T_BIRTH + (first + np.arange(years) + 0.5) / tree_years * (T_LIFE - T_BIRTH)
     w = weibull_rate(t, c) * noise[:years][::-1]
     return np.concatenate([[0.0], np.cumsum(w) / w.sum()])
 
@@ -92,10 +99,10 @@ def profile_years(profile: Profile, ring_width: float) -> int:
     return max(1, int(round(profile.equivalent_radius / ring_width)))
 
 
-def age_of(q: np.ndarray, years: int, weibull_c: float, noise: np.ndarray) -> np.ndarray:
+def age_of(q: np.ndarray, years: int, weibull_c: float, noise: np.ndarray, tree_years: int) -> np.ndarray:
     """Fractional ring age (years from the pith) at radial coordinate ``q`` of a section with
     ``years`` rings: the inverse of the cumulative ring widths."""
-    Q = cumulative_widths(years, weibull_c, noise)
+    Q = cumulative_widths(years, weibull_c, noise, tree_years)
     return np.interp(q, Q, np.arange(years + 1, dtype=np.float64))
 
 
