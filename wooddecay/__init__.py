@@ -9,6 +9,7 @@ Python API (DESIGN "Python API")::
 from .errors import InputError
 from .model import WoodModel, build_model
 from .scene import Scene, load_scene, parse_scene
+from .sim.driver import Simulation
 
-__all__ = ["InputError", "Scene", "WoodModel", "build_model", "load_scene", "parse_scene"]
+__all__ = ["InputError", "Scene", "WoodModel", "build_model", "load_scene", "parse_scene", "Simulation"]
 __version__ = "0.1.0"

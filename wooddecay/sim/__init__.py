@@ -1,0 +1,1 @@
+"""Simulation: state, biology (rot, health, defence, moisture), transport, driver."""

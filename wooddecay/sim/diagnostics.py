@@ -1,0 +1,41 @@
+"""Per-step diagnostics of the biology (woodstock §9.4; SPEC §3).
+
+* mass loss = 1 - (H_l + k H_c) / (1 + k), k = k_H (2.5), volume-weighted over the wood;
+* moisture content ratio = (M - M_2)(1 + k) l / ((M_1 - M_2)(H_l + k H_c)), l = 1, volume-
+  weighted (elements whose remaining mass is below 1e-9 are left out of the ratio);
+* mean of every field per tissue.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..strands.rings import TISSUES
+from .biology import K_H, BioSetup, moisture_bounds
+from .state import FIELDS, SimState
+
+
+def mass_remaining(state: SimState, k: np.ndarray) -> np.ndarray:
+    """(H_l + k H_c) / (1 + k) per element."""
+    return (state.H_l + k * state.H_c) / (1.0 + k)
+
+
+def diagnostics(state: SimState, setup: BioSetup) -> dict:
+    """Mass loss, moisture content ratio and per-tissue field means at the state's time."""
+    V = setup.op.volume
+    k = setup.P[setup.tissue, K_H]
+    remaining = mass_remaining(state, k)
+    M12 = moisture_bounds(setup, state.t_days)[setup.tissue]
+    alive = remaining > 1e-9
+    ratio = (state.M - M12[:, 1]) * (1.0 + k) / ((M12[:, 0] - M12[:, 1]) * np.where(alive, remaining * (1.0 + k), 1.0))
+    out = {
+        "t_days": float(state.t_days),
+        "mass_loss": float(np.sum(V * (1.0 - remaining)) / np.sum(V)),
+        "moisture_content_ratio": float(np.sum((V * ratio)[alive]) / max(np.sum(V[alive]), 1e-300)),
+        "clamp_count": int(state.clamp_count),
+        "tissue_means": {},
+    }
+    for code, name in enumerate(TISSUES):
+        sel = setup.tissue == code
+        if sel.any():
+            out["tissue_means"][name] = {f: float(np.average(getattr(state, f)[sel], weights=V[sel])) for f in FIELDS}
+    return out
