@@ -48,8 +48,9 @@ def _load(scene_path: str, set_items: tuple[str, ...]):
     return load_scene(scene_path, overrides=parse_set_option(set_items))
 
 
-def inspect_report(model, scene) -> dict:
-    """The numbers ``wooddecay inspect`` prints (also its JSON)."""
+def inspect_report(model, scene, bio=None) -> dict:
+    """The numbers ``wooddecay inspect`` prints (also its JSON). ``bio``: a prepared
+    :class:`wooddecay.sim.biology.BioSetup` to report the explicit-step bound and substeps."""
     deg = model.reg_degree
     stages = {k: round(v, 4) for k, v in model.build_seconds.items()}
     return {
@@ -67,6 +68,16 @@ def inspect_report(model, scene) -> dict:
         "memory_estimate_mb": round(model.memory_estimate() / 2**20, 2),
         "build_seconds": round(sum(model.build_seconds.values()), 4),
         "build_stages": stages,
+    } | ({} if bio is None else {"biology": _bio_report(bio, scene)})
+
+
+def _bio_report(bio, scene) -> dict:
+    from .sim.biology import substeps
+
+    return {
+        "dt_bio_days": scene.time.dt_bio,
+        "stability_bound_days": float(bio.bound),
+        "substeps": substeps(scene.time.dt_bio, bio.bound),
     }
 
 
@@ -85,21 +96,40 @@ def _print_report(rep: dict) -> None:
         f"build            {rep['build_seconds']:.3f} s  ("
         + ", ".join(f"{k} {v:.3f}" for k, v in rep["build_stages"].items()) + ")",
     ]
+    if "biology" in rep:
+        b = rep["biology"]
+        lines.append(f"biology step     dt_bio {b['dt_bio_days']:g} d, explicit bound {b['stability_bound_days']:.4g} d"
+                     f" -> {b['substeps']} substep(s) per step")
     click.echo("\n".join(lines))
+
+
+def _usd_path(ctx: click.Context, param: click.Parameter, value: str | None) -> Path | None:
+    """Check ``--strands-usd`` (suffix, existing folder) before the model is built."""
+    if value is None:
+        return None
+    from .export.strands_usd import check_usd_path
+
+    return check_usd_path(value)
 
 
 @main.command()
 @click.argument("scene_path", metavar="SCENE", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
-@click.option("--strands-usd", type=click.Path(dir_okay=False), help="Write the strands as USD BasisCurves.")
+@click.option("--strands-usd", type=click.Path(dir_okay=False), callback=_usd_path,
+              help="Write the strands as USD BasisCurves (.usda, .usdc or .usd, in an existing folder).")
 @click.option("--set", "set_items", multiple=True, metavar="KEY=VALUE", help="Override a scene key (repeatable).")
-def inspect(scene_path: str, as_json: bool, strands_usd: str | None, set_items: tuple[str, ...]) -> None:
-    """Build the wood model of SCENE and report its size, tissues and build time."""
+def inspect(scene_path: str, as_json: bool, strands_usd: Path | None, set_items: tuple[str, ...]) -> None:
+    """Build the wood model of SCENE and report its size, tissues, build time and the biology's
+    explicit-step stability bound."""
     from .model import build_model
+    from .sim.biology import prepare
 
     scene = _load(scene_path, set_items)
     model = build_model(scene)
-    rep = inspect_report(model, scene)
+    t0 = time.perf_counter()
+    bio = prepare(model, scene)
+    model.build_seconds["biology_setup"] = time.perf_counter() - t0
+    rep = inspect_report(model, scene, bio)
     if strands_usd:
         from .export.strands_usd import write_strands_usd
 
@@ -157,6 +187,31 @@ def init(name: str, template: str, force: bool) -> None:
     for path, text in files.items():
         write_atomic(path, text.encode("utf-8"))
         click.echo(f"wrote {path}")
+
+
+@main.group()
+def chart() -> None:
+    """Charts of the validation studies (PNG)."""
+
+
+@chart.command("barrier")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="barrier.png", show_default=True)
+@click.option("--days", type=click.FloatRange(min=10.0), default=1500.0, show_default=True)
+def chart_barrier(output: str, days: float) -> None:
+    """Fig. 18: mass loss and moisture content ratio over time for beta/kappa in {0, 0.5, 1, 2}."""
+    from .charts.barrier import RATIOS, plot_barrier, run_barrier
+
+    out = Path(output)
+    if not out.parent.is_dir():
+        raise InputError(output, "", f"folder {out.parent} does not exist")
+    runs = [run_barrier(r, days=days) for r in RATIOS]
+    with tempfile.TemporaryDirectory(dir=out.parent) as tmp:
+        tmp_png = Path(tmp) / out.name
+        plot_barrier(runs, tmp_png)
+        os.replace(tmp_png, out)
+    for r in runs:
+        click.echo(f"beta/kappa {r.ratio:g}: plateau {r.plateau:.0f} days, mass loss at day {r.t[-1]:.0f} {r.mass_loss[-1]:.3f}")
+    click.echo(f"wrote {out}")
 
 
 if __name__ == "__main__":  # pragma: no cover

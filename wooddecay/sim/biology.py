@@ -25,7 +25,9 @@ larger than that bound is split into the fewest equal substeps that satisfy it. 
 box remains as a safety net; every change above 1e-12 it makes is counted and reported.
 
 The numba kernel runs every update as a parallel loop over elements, each writing only its own
-entry (a gather over its CSR row): race-free and identical for any thread count.
+entry (a gather over its CSR row): race-free and identical for any thread count. The same code is
+also compiled serially for small models (PARALLEL_MIN_ELEMENTS), where thread synchronisation
+would cost more than the work; both give bit-identical results.
 :func:`step_reference` is the plain numpy version of the same step.
 """
 from __future__ import annotations
@@ -176,8 +178,7 @@ def _clamp(v, lo, hi, clamp, i):
     return v
 
 
-@nb.njit(parallel=True, cache=True)
-def _substep(h, indptr, indices, weight, volume, tissue, P, wfac, bd, kappa, M12, box_M,
+def _substep_py(h, indptr, indices, weight, volume, tissue, P, wfac, bd, kappa, M12, box_M,
              R_w, R_b, H_c, H_l, C, M, buf, kappa_M, clamp):
     """One forward-Euler substep of all six fields in the paper's order (module docstring)."""
     n = len(R_w)
@@ -229,6 +230,12 @@ def _substep(h, indptr, indices, weight, volume, tissue, P, wfac, bd, kappa, M12
     M[:] = buf
 
 
+_substep_parallel = nb.njit(parallel=True, cache=True)(_substep_py)
+_substep_serial = nb.njit(cache=True)(_substep_py)
+#: below this many elements the serial build is faster than six parallel regions per substep
+PARALLEL_MIN_ELEMENTS = 20_000
+
+
 def _advance(setup: BioSetup, state: SimState, dt: float, n_sub: int, kernel) -> None:
     h = dt / n_sub
     for k in range(n_sub):
@@ -241,7 +248,8 @@ def _numba_kernel(setup: BioSetup, state: SimState, h: float, M12: np.ndarray) -
     op = setup.op
     n = len(state.R_w)
     clamp = np.zeros(n, dtype=np.int64)
-    _substep(h, op.indptr, op.indices, op.weight, op.volume, setup.tissue, setup.P, setup.wfac,
+    kernel = _substep_parallel if n >= PARALLEL_MIN_ELEMENTS else _substep_serial
+    kernel(h, op.indptr, op.indices, op.weight, op.volume, setup.tissue, setup.P, setup.wfac,
              setup.bd, setup.kappa, M12, setup.box_M, state.R_w, state.R_b, state.H_c, state.H_l,
              state.C, state.M, np.empty(n), np.empty(n), clamp)
     state.clamp_count += int(clamp.sum())
@@ -271,7 +279,7 @@ def _clamp_np(v, lo, hi, state: SimState):
 
 
 def _reference_kernel(setup: BioSetup, s: SimState, h: float, M12: np.ndarray) -> None:
-    """Plain numpy version of :func:`_substep` (same order, same formulas)."""
+    """Plain numpy version of :func:`_substep_py` (same order, same formulas)."""
     P = setup.P[setup.tissue]
     col = dict(zip(BIO_PARAMS, P.T))
     op, w, bd = setup.op, setup.wfac, setup.bd

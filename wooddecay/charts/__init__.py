@@ -1,0 +1,1 @@
+"""Charts of the studies the paper validates against (matplotlib, written to files)."""
