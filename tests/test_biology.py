@@ -1,0 +1,382 @@
+"""Biophysics (woodstock §6, Eqs. 8-15, 20; SPEC §3 and §7): kernel vs reference, transport
+accuracy (heat kernel, Fisher-KPP fronts), conservation, the invariant box, stability, the
+barrier effect and the rot signatures."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import wooddecay as wd
+from wooddecay.charts.barrier import RATIOS, run_barrier
+from wooddecay.cli import main
+from wooddecay.params import PARAMS
+from wooddecay.sim import biology as B
+from wooddecay.sim.state import FIELDS, SimState, initial_state
+from wooddecay.strands.rings import HEARTWOOD, SAPWOOD
+
+from .biofixtures import AXIS, block, constant_frame_setup
+from .conftest import ROOT, SAMPLES
+
+ACTIVE = {
+    "fungi.alpha_w0": 0.08, "fungi.alpha_b0": 0.1, "fungi.D_w": 2e-5, "fungi.D_b": 3e-5,
+    "fungi.beta_w": 0.02, "fungi.beta_b": 0.01, "fungi.gamma_cw": 0.02, "fungi.gamma_cb": 0.03,
+    "fungi.gamma_lw": 0.02, "fungi.rho_c": 0.001, "fungi.rho_l": 0.002, "fungi.kappa": 0.05,
+    "fungi.delta": 0.001, "fungi.D_C": 1e-5, "moisture.D_M0": 1e-4, "moisture.k_in0": 0.05,
+    "moisture.k_out0": 1.0,
+}
+
+
+def _random_state(model, scene, rng) -> SimState:
+    s = initial_state(model, scene)
+    for f in ("R_w", "R_b", "H_c", "H_l", "C"):
+        setattr(s, f, rng.uniform(0, 1, model.n_elements))
+    s.M = rng.uniform(scene.moisture.M_2, scene.moisture.M_1, model.n_elements)
+    return s
+
+
+@pytest.mark.parametrize("name", ["tiny", "log", "board"])
+def test_numba_step_equals_numpy_reference(name):
+    scene = wd.load_scene(SAMPLES / f"{name}.toml", overrides=ACTIVE)
+    model = wd.build_model(scene)
+    setup = B.prepare(model, scene)
+    a = _random_state(model, scene, np.random.default_rng(0))
+    b = a.copy()
+    for _ in range(5):
+        B.step(a, setup, 0.5)
+        B.step_reference(b, setup, 0.5)
+    for f in FIELDS:
+        np.testing.assert_allclose(getattr(a, f), getattr(b, f), rtol=0, atol=1e-12, err_msg=f)
+    assert a.clamp_count == b.clamp_count == 0
+
+
+def test_serial_and_parallel_kernels_identical(log_model, log_scene, monkeypatch):
+    scene = wd.load_scene(SAMPLES / "log.toml", overrides=ACTIVE)
+    setup = B.prepare(log_model, scene)
+    a = _random_state(log_model, scene, np.random.default_rng(1))
+    b = a.copy()
+    B.step(a, setup, 0.5)
+    monkeypatch.setattr(B, "PARALLEL_MIN_ELEMENTS", 0)
+    B.step(b, setup, 0.5)
+    for f in FIELDS:
+        np.testing.assert_array_equal(getattr(a, f), getattr(b, f))
+
+
+_THREADS = """
+import hashlib, sys, numpy as np, wooddecay as wd
+from wooddecay.sim import biology as B
+B.PARALLEL_MIN_ELEMENTS = 0
+scene = wd.load_scene(sys.argv[1], overrides={"fungi.alpha_b0": 0.1, "fungi.D_b": 3e-5})
+sim = wd.Simulation(wd.build_model(scene), scene)
+sim.advance(20.0)
+h = hashlib.sha256()
+for f in ("R_w", "R_b", "H_c", "H_l", "C", "M"):
+    h.update(getattr(sim.state, f).tobytes())
+print(h.hexdigest())
+"""
+
+
+@pytest.mark.slow
+def test_biology_identical_for_1_and_2_threads():
+    out = []
+    for threads in ("1", "2"):
+        r = subprocess.run([sys.executable, "-c", _THREADS, str(SAMPLES / "log.toml")],
+                           env=dict(os.environ, NUMBA_NUM_THREADS=threads), capture_output=True,
+                           text=True, cwd=ROOT, check=True)
+        out.append(r.stdout.strip())
+    assert out[0] == out[1]
+
+
+def test_operator_symmetric_nonnegative(log_model, log_scene):
+    op = B.prepare(log_model, log_scene).op
+    np.testing.assert_array_equal(op.weight, op.weight[op.reverse])
+    assert op.weight.min() >= 0.0
+
+
+def test_pure_diffusion_conserves_volume_weighted_sum(log_model):
+    scene = wd.load_scene(SAMPLES / "log.toml", overrides={
+        "fungi.alpha_w0": 0.0, "fungi.beta_w": 0.0, "fungi.D_w": 1e-4, "moisture.k_in0": 0.0, "moisture.k_out0": 0.0,
+        "moisture.D_M0": 1e-4, "moisture.k_DM": 2.0})
+    setup = B.prepare(log_model, scene)
+    s = initial_state(log_model, scene)
+    rng = np.random.default_rng(2)
+    s.R_w = rng.uniform(0, 1, log_model.n_elements)
+    s.M = rng.uniform(0.2, 0.9, log_model.n_elements)
+    V = setup.op.volume
+    before = [np.sum(V * s.R_w), np.sum(V * s.M)]
+    for _ in range(20):
+        B.step(s, setup, 0.5)
+    after = [np.sum(V * s.R_w), np.sum(V * s.M)]
+    np.testing.assert_allclose(after, before, rtol=1e-12, atol=0)
+    assert np.std(s.R_w) < 0.9 * np.std(rng.uniform(0, 1, 1000))  # it did diffuse
+
+
+@pytest.fixture(scope="module")
+def heat_block():
+    return block(0.8, 0.24, 0.24, 0.015, alpha=0.0, D=1e-3)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("direction, a", [("l", 4.0), ("r", 0.25), ("t", 1.0)])
+def test_heat_kernel_variance_grows_as_2Dt(heat_block, direction, a):
+    """A point release on the irregular rod graph: d var / dt = 2 D a_dir within 3%."""
+    scene, model = heat_block
+    setup = constant_frame_setup(model, scene, direction)
+    axis = AXIS[direction]
+    c = model.centers
+    i0 = int(np.argmin(np.linalg.norm(c - [0.4, 0.0, 0.0], axis=1)))
+    s = initial_state(model, scene)
+    s.R_b[:] = 0.0
+    s.R_b[i0] = 1.0
+    V = setup.op.volume
+    x = c[:, axis] - c[i0, axis]
+
+    def var():
+        w = V * s.R_b
+        w = w / w.sum()
+        mu = np.sum(w * x)
+        return np.sum(w * (x - mu) ** 2)
+
+    D = 1e-3
+    t_end = 0.6  # sigma stays well inside the block along every axis
+    ts, vs = [], []
+    while s.t_days < t_end - 1e-12:
+        B.step(s, setup, 0.01)
+        ts.append(s.t_days)
+        vs.append(var())
+    ts, vs = np.array(ts), np.array(vs)
+    late = ts >= t_end / 3
+    slope = np.polyfit(ts[late], vs[late], 1)[0]
+    assert slope / (2 * D * a) == pytest.approx(1.0, abs=0.03)
+    assert s.clamp_count == 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("direction, a", [("l", 4.0), ("r", 0.25), ("t", 1.0)])
+def test_fisher_kpp_front_speed(direction, a):
+    """R_b with H_c = 1, no defence, open moisture window is Fisher-KPP: a planar front moves at
+    2 sqrt(alpha D_dir). Long-time fit with Bramson's log correction, within 5%."""
+    alpha, D_dir = 1.0, 0.0016 if direction != "l" else 0.0025
+    if direction == "l":
+        scene, model = block(4.0, 0.05, 0.05, 0.01, alpha, D_dir / a)
+    else:
+        scene, model = block(0.06, 3.4, 0.04, 0.015, alpha, D_dir / a)
+    setup = constant_frame_setup(model, scene, direction)
+    axis = AXIS[direction]
+    x = model.centers[:, axis] - model.centers[:, axis].min()
+    s = initial_state(model, scene)
+    s.R_b[:] = np.where(x < 0.2, 1.0, 0.0)
+    V = setup.op.volume
+    area = V.sum() / x.max()
+    ts, X = [], []
+    while s.t_days < 34.0 - 1e-9:
+        B.step(s, setup, 0.1)
+        ts.append(s.t_days)
+        X.append(np.sum(V * s.R_b) / area)
+    ts, X = np.array(ts), np.array(X)
+    late = ts >= 17.0
+    corrected = X + 1.5 * np.sqrt(D_dir / alpha) * np.log(alpha * ts)
+    v = np.polyfit(ts[late], corrected[late], 1)[0]
+    assert v / (2 * np.sqrt(alpha * D_dir)) == pytest.approx(1.0, abs=0.05)
+    assert s.clamp_count == 0
+
+
+# ------------------------------------------------------------------ invariant box (Appendix A)
+
+
+@pytest.fixture(scope="module")
+def box_setup():
+    scene = wd.load_scene(SAMPLES / "tiny.toml")
+    model = wd.build_model(scene)
+    return model, scene, B.prepare(model, scene)
+
+
+def _range(name):
+    p = next(PARAMS[s][name] for s in ("fungi", "moisture") if name in PARAMS[s])
+    lo = p.lo + (1e-6 if p.lo_open else 0.0)
+    hi = p.hi
+    return st.one_of(st.just(lo), st.just(hi), st.floats(lo, hi, allow_nan=False))
+
+
+_BIO = [k for k in B.BIO_PARAMS if k not in ("M_min", "M_max")]
+
+
+@st.composite
+def bio_case(draw):
+    params = {k: draw(_range(k)) for k in _BIO}
+    M_2 = draw(st.one_of(st.just(0.0), st.floats(0.0, 2.0)))
+    M_1 = M_2 + draw(st.one_of(st.just(1e-3), st.floats(1e-3, 3.0)))
+    M_min = draw(st.floats(0.0, 4.0))
+    M_max = M_min + draw(st.floats(1e-3, 4.0))
+    k_W = draw(st.one_of(st.just(0.0), st.just(0.999), st.floats(0.0, 0.999)))
+    dt = draw(st.one_of(st.just(0.5), st.floats(1e-3, 0.5)))
+    seed = draw(st.integers(0, 2**32 - 1))
+    return params, (M_1, M_2, M_min, M_max), k_W, dt, seed
+
+
+@pytest.mark.slow
+@settings(max_examples=500, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(case=bio_case())
+def test_invariant_box_under_random_parameters(box_setup, case):
+    model, scene, setup = box_setup
+    params, (M_1, M_2, M_min, M_max), k_W, dt, seed = case
+    P = setup.P.copy()
+    for k, v in params.items():
+        P[:, B.BIO_PARAMS.index(k)] = v
+    P[:, B.M_MIN], P[:, B.M_MAX] = M_min, M_max
+    wfac = 1.0 + k_W * (2.0 * model.W - 1.0)
+    t = setup.tissue
+    kappa = np.stack([P[t, B.D_W], P[t, B.D_B], P[t, B.D_C]], 1) * wfac[:, None]
+    const = tuple((np.zeros(1), np.array([M_1]), np.array([M_2])) for _ in range(len(P)))
+    s2 = replace(setup, P=P, wfac=wfac, kappa=kappa, schedules=const,
+                 box_M=np.tile([M_2, M_1], (len(P), 1)))
+    s2 = replace(s2, bound=B.stability_bound(s2))
+    # extreme rates (k_out0 bd_0 up to 1e6 / day) need ~1e6 substeps per day: keep each example
+    # to at most 20 substeps per step, still crossing from one substep to many
+    dt = min(dt, 20.0 * s2.bound)
+    rng = np.random.default_rng(seed)
+    n = model.n_elements
+    # clipped uniforms put a share of the values exactly on the box faces (extremes)
+    state = SimState(*(np.clip(rng.uniform(-0.2, 1.2, n), 0, 1) for _ in range(5)),
+                     M=np.clip(rng.uniform(M_2 - 0.2, M_1 + 0.2, n), M_2, M_1))
+    for _ in range(2):
+        B.step(state, s2, dt)
+    for f in ("R_w", "R_b", "H_c", "H_l", "C"):
+        v = getattr(state, f)
+        assert np.all(np.isfinite(v)) and v.min() >= 0.0 and v.max() <= 1.0, f
+    assert state.M.min() >= M_2 and state.M.max() <= M_1
+    assert state.clamp_count == 0
+
+
+def test_step_past_stability_bound_leaves_the_box(box_setup):
+    model, scene, setup = box_setup
+    rng = np.random.default_rng(4)
+    fast = wd.load_scene(SAMPLES / "tiny.toml", overrides={"fungi.D_b": 5e-3, "fungi.alpha_b0": 1.0})
+    setup = B.prepare(model, fast)
+    start = initial_state(model, fast)
+    start.R_b = rng.uniform(0, 1, model.n_elements)
+    unstable = start.copy()
+    dt = 4.0 * setup.bound
+    B.step(unstable, setup, dt, n_sub=1)
+    assert unstable.clamp_count > 0  # explicit Euler overshot the box; the clamp caught it
+    stable = start.copy()
+    n = B.step(stable, setup, dt)
+    assert n == B.substeps(dt, setup.bound) >= 4 and stable.clamp_count == 0
+    # and without the clamp the overshoot grows: the unclamped reference diverges
+    grow = start.copy()
+    for _ in range(3):
+        B.step(grow, setup, dt, n_sub=1)
+    assert grow.clamp_count > unstable.clamp_count
+
+
+def test_inspect_reports_bound_and_substeps():
+    r = CliRunner().invoke(main, ["inspect", str(SAMPLES / "tiny.toml"), "--json", "--set", "time.dt_bio=50"])
+    rep = json.loads(r.stdout)["biology"]
+    assert rep["stability_bound_days"] > 0
+    assert rep["substeps"] == int(np.ceil(50 / rep["stability_bound_days"]))
+
+
+# ------------------------------------------------------------------ studies
+
+
+def test_barrier_plateau_lengthens_with_inhibition():
+    runs = [run_barrier(r) for r in RATIOS]
+    lengths = [r.plateau for r in runs]
+    assert lengths[0] == 0.0
+    assert all(b > a + 50 for a, b in zip(lengths, lengths[1:])), lengths
+    assert all(r.mass_loss[-1] < runs[0].mass_loss[-1] for r in runs[1:])
+
+
+def test_chart_barrier_writes_png(tmp_path):
+    out = tmp_path / "barrier.png"
+    r = CliRunner().invoke(main, ["chart", "barrier", "-o", str(out), "--days", "400"])
+    assert r.exit_code == 0, r.output
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and "plateau" in r.stdout
+
+
+def _log_with(inoculations: str, extra: str = "", days: float = 400.0) -> wd.Scene:
+    text = (SAMPLES / "log.toml").read_text().split("[[inoculation]]")[0]
+    return wd.parse_scene(text + extra + inoculations, source="log.toml", base_dir=SAMPLES,
+                          overrides={"time.days": days, "time.frames": 2})
+
+
+_FAST = """
+[fungi]
+alpha_w0 = 0.08
+alpha_b0 = 0.08
+D_w = 2e-5
+D_b = 2e-5
+gamma_cw = 0.03
+gamma_cb = 0.03
+gamma_lw = 0.03
+"""
+
+
+def _run(scene):
+    sim = wd.Simulation(wd.build_model(scene), scene)
+    for _ in sim.run():
+        pass
+    return sim
+
+
+@pytest.mark.slow
+def test_brown_rot_keeps_lignin():
+    sim = _run(_log_with('[[inoculation]]\nfungus = "brown"\nactivity = 0.3\n'
+                         'region = { kind = "end", which = "root", depth = 0.1 }\n', _FAST))
+    s = sim.state
+    rotted = s.H_c < 0.3
+    assert rotted.sum() > 100
+    assert np.all(s.H_l[rotted] >= 0.9)
+
+
+@pytest.mark.slow
+def test_white_rot_takes_both():
+    sim = _run(_log_with('[[inoculation]]\nfungus = "white"\nactivity = 0.3\n'
+                         'region = { kind = "end", which = "root", depth = 0.1 }\n', _FAST))
+    s = sim.state
+    rotted = s.H_c < 0.3
+    assert rotted.sum() > 100
+    assert np.median(s.H_l[rotted]) < 0.5
+
+
+@pytest.mark.slow
+def test_white_rot_hollows_heartwood_first_when_its_defences_are_low():
+    defences = _FAST + """
+[tissue.sapwood]
+kappa = 1.0
+beta_w = 1.0
+C_init = 1.0
+[tissue.heartwood]
+kappa = 0.0
+C_init = 0.0
+"""
+    sim = _run(_log_with('[[inoculation]]\nfungus = "white"\nactivity = 0.3\n'
+                         'region = { kind = "end", which = "root", depth = 0.3 }\n', defences, days=180))
+    s, tissue = sim.state, sim.model.tissue
+    hollow = s.H_l < 0.5
+    heart = hollow[tissue == HEARTWOOD].mean()
+    sap = hollow[tissue == SAPWOOD].mean()
+    assert heart > 0.5 and sap < 0.05, (heart, sap)
+
+
+def test_simulation_frames_and_diagnostics(tiny_model, tiny_scene):
+    sim = wd.Simulation(tiny_model, tiny_scene)
+    frames = list(sim.run())
+    assert [f.index for f in frames] == list(range(tiny_scene.time.frames))
+    np.testing.assert_allclose([f.t_days for f in frames], np.linspace(0, tiny_scene.time.days, tiny_scene.time.frames))
+    d = frames[-1].diagnostics
+    assert set(d) >= {"mass_loss", "moisture_content_ratio", "clamp_count", "tissue_means"}
+    assert 0.0 <= d["mass_loss"] <= 1.0 and d["clamp_count"] == 0
+    ml = [h["mass_loss"] for h in sim.history]
+    assert np.all(np.diff(ml) >= -1e-15)  # no recovery (rho = 1e-4 is slower than depletion)
+    assert len(sim.history) == int(np.ceil(tiny_scene.time.days / tiny_scene.time.dt_bio))
+    with pytest.raises(NotImplementedError):
+        wd.Simulation(tiny_model, tiny_scene, mechanics=True)
