@@ -1,0 +1,76 @@
+"""Biology step throughput and memory-bandwidth efficiency (issue: biophysics).
+
+Prints ``name value unit`` lines for samples/tree.toml (or the scene given):
+    bio_updates_per_s_threads_<k>   element-field updates per second (6 fields x elements x substeps)
+    bio_substep_seconds_threads_<k> seconds per biology substep
+    stream_triad_gb_s               a = b + s c over 3 x 160 MB arrays (numba, all threads)
+    bio_bytes_per_substep           compulsory traffic of one substep (model below)
+    bio_bandwidth_fraction          (bytes per substep / substep time) / triad bandwidth
+Traffic model per substep: each of the four diffusing passes (R_w, R_b, C, M) streams its CSR
+row (index, weight) and gathers u_j and kappa_j: 32 bytes per nonzero; every pass also reads and
+writes its per-element arrays (63 doubles per element over the six updates). Timings are the
+best of 5 after a warm-up, all in this one run.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import numba as nb
+import numpy as np
+
+import wooddecay as wd
+from wooddecay.sim import biology as B
+from wooddecay.sim.state import initial_state
+
+
+@nb.njit(parallel=True, cache=True)
+def _triad(a, b, c, s):
+    for i in nb.prange(len(a)):
+        a[i] = b[i] + s * c[i]
+
+
+def stream_triad(n: int = 20_000_000) -> float:
+    a, b, c = np.zeros(n), np.ones(n), np.full(n, 2.0)
+    _triad(a, b, c, 3.0)
+    best = min(_timed(lambda: _triad(a, b, c, 3.0)) for _ in range(5))
+    return 3 * 8 * n / best
+
+
+def _timed(fn) -> float:
+    t0 = time.perf_counter()
+    fn()
+    return time.perf_counter() - t0
+
+
+def main() -> None:
+    path = Path(sys.argv[1] if len(sys.argv) > 1 else Path(__file__).resolve().parent.parent / "samples" / "tree.toml")
+    scene = wd.load_scene(path, overrides={"fungi.alpha_b0": 0.05, "fungi.D_b": 1e-5})
+    model = wd.build_model(scene)
+    setup = B.prepare(model, scene)
+    state = initial_state(model, scene)
+    n, nnz = model.n_elements, len(setup.op.indices)
+    print(f"elements {n} -")
+    print(f"transport_nonzeros {nnz} -")
+    dt = 0.5 * setup.bound
+    B.step(state, setup, dt, n_sub=1)  # compile / load
+    results = {}
+    for k in range(1, nb.config.NUMBA_NUM_THREADS + 1):
+        nb.set_num_threads(k)
+        best = min(_timed(lambda: B.step(state, setup, dt, n_sub=1)) for _ in range(5))
+        results[k] = best
+        print(f"bio_substep_seconds_threads_{k} {best:.5f} s")
+        print(f"bio_updates_per_s_threads_{k} {6 * n / best:.4g} 1/s")
+    nb.set_num_threads(nb.config.NUMBA_NUM_THREADS)
+    bw = stream_triad()
+    traffic = 4 * 32 * nnz + 63 * 8 * n
+    print(f"stream_triad_gb_s {bw / 1e9:.2f} GB/s")
+    print(f"bio_bytes_per_substep {traffic} B")
+    best = min(results.values())
+    print(f"bio_bandwidth_fraction {traffic / best / bw:.3f} -")
+    print(f"clamp_count {state.clamp_count} -")
+
+
+if __name__ == "__main__":
+    main()
