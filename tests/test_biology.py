@@ -43,7 +43,7 @@ def _random_state(model, scene, rng) -> SimState:
     return s
 
 
-@pytest.mark.parametrize("name", ["tiny", "log", "board"])
+@pytest.mark.parametrize("name", ["tiny", "log", "board", pytest.param("tree", marks=pytest.mark.slow)])
 def test_numba_step_equals_numpy_reference(name):
     scene = wd.load_scene(SAMPLES / f"{name}.toml", overrides=ACTIVE)
     model = wd.build_model(scene)
