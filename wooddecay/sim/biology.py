@@ -32,6 +32,7 @@ would cost more than the work; both give bit-identical results.
 """
 from __future__ import annotations
 
+import types
 from dataclasses import dataclass, replace
 
 import numba as nb
@@ -230,8 +231,19 @@ def _substep_py(h, indptr, indices, weight, volume, tissue, P, wfac, bd, kappa, 
     M[:] = buf
 
 
-_substep_parallel = nb.njit(parallel=True, cache=True)(_substep_py)
-_substep_serial = nb.njit(cache=True)(_substep_py)
+def _build(parallel: bool):
+    """A separately named copy of :func:`_substep_py` compiled with or without ``parallel``.
+
+    numba's on-disk cache is keyed by the function's qualified name and source line, not by the
+    ``parallel`` flag: two dispatchers of one function would load each other's machine code."""
+    name = "_substep_parallel" if parallel else "_substep_serial"
+    fn = types.FunctionType(_substep_py.__code__, _substep_py.__globals__, name)
+    fn.__qualname__ = name
+    return nb.njit(parallel=parallel, cache=True)(fn)
+
+
+_substep_parallel = _build(parallel=True)
+_substep_serial = _build(parallel=False)
 #: below this many elements the serial build is faster than six parallel regions per substep
 PARALLEL_MIN_ELEMENTS = 20_000
 
