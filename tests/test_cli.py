@@ -83,3 +83,24 @@ def test_init_writes_a_loadable_scene(tmp_path, template, monkeypatch):
     assert len(scene.skeleton.ids) >= 2
     again = CliRunner().invoke(main, ["init", "mine", "--template", template])
     assert again.exit_code == 2 and "already exists" in again.stderr
+
+
+@pytest.fixture
+def no_build(monkeypatch):
+    """Fail the test if the model gets built."""
+    def fail(*_args, **_kwargs):
+        raise AssertionError("the model was built before the --strands-usd path was checked")
+
+    monkeypatch.setattr("wooddecay.model.build_model", fail)
+
+
+@pytest.mark.parametrize("name, needle", [
+    ("x.txt", "must end in .usda, .usdc, .usd"),
+    ("missing/x.usda", "does not exist"),
+])
+def test_inspect_bad_strands_usd_path_fails_before_building(tmp_path, no_build, name, needle):
+    r = CliRunner().invoke(main, ["inspect", str(SAMPLES / "tiny.toml"), "--strands-usd", str(tmp_path / name)])
+    assert r.exit_code == 2, r.output
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0] and "Traceback" not in r.output
+    assert list(tmp_path.iterdir()) == []

@@ -57,6 +57,7 @@ def test_ellipse_angle_defaults_to_zero_and_empty_parent_is_root():
 def test_reject_cycle():
     nodes = tree()
     nodes[2]["parent"] = "tip_a"  # 0 -> tip_a -> mid -> 0: no root left either
+    del nodes[2]["anchored"]  # only roots may be anchored
     text = rejection(nodes, "tip_a")
     assert "cycle tip_a -> mid -> 0 -> tip_a" in text and "no root" in text
 
@@ -141,13 +142,33 @@ def test_reject_unknown_profile_key_and_wrong_types():
     assert "did you mean 'radius'" in rejection(nodes, "tip_a")
     nodes = tree()
     nodes[0]["profile"]["radius"] = "0.1"
-    assert "must be a number (got a string '0.1')" in rejection(nodes, "tip_a")
+    assert "must be a number (got string '0.1')" in rejection(nodes, "tip_a")
     nodes = tree()
     nodes[2]["anchored"] = "yes"
     assert "true or false" in rejection(nodes, "0")
     nodes = tree()
     nodes[1]["position"] = [0.0, True, 1.0]
     assert "must be a number" in rejection(nodes, "mid")
+
+
+def test_reject_anchored_node_with_parent():
+    nodes = tree()
+    nodes[1]["anchored"] = True
+    text = rejection(nodes, "mid")
+    assert "skeleton.node[mid].anchored: only a root node can be anchored" in text
+
+
+def test_unknown_key_without_close_match_lists_allowed_keys():
+    nodes = tree()
+    nodes[1]["zzz"] = 1
+    text = rejection(nodes, "mid")
+    assert "skeleton.node[mid].zzz: unknown key; allowed keys: id, position, parent, profile, anchored" in text
+
+
+def test_reject_integer_too_long_for_text():
+    nodes = tree()
+    nodes[0]["profile"]["radius"] = 10**5000
+    assert "must be a finite number (got <integer of about 5001 digits>)" in rejection(nodes, "tip_a")
 
 
 @pytest.mark.parametrize("bad", [None, [], {}, "nodes", [1, 2]])

@@ -9,6 +9,7 @@ import pytest
 pxr = pytest.importorskip("pxr")
 from pxr import Usd, UsdGeom  # noqa: E402
 
+from wooddecay.errors import InputError  # noqa: E402
 from wooddecay.export.strands_usd import TISSUE_COLORS, write_strands_usd  # noqa: E402
 
 
@@ -83,8 +84,22 @@ def test_binary_formats_and_no_temp_left(tmp_path, tiny_model, tiny_scene, suffi
 
 
 def test_rejects_other_suffix(tmp_path, tiny_model, tiny_scene):
-    with pytest.raises(ValueError):
+    with pytest.raises(InputError, match=r"strands.txt: a strands USD file must end in .usda, .usdc, .usd"):
         write_strands_usd(tmp_path / "strands.txt", tiny_model, tiny_scene)
+
+
+def test_missing_folder_is_not_created(tmp_path, tiny_model, tiny_scene):
+    with pytest.raises(InputError, match="does not exist"):
+        write_strands_usd(tmp_path / "no" / "such" / "strands.usda", tiny_model, tiny_scene)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_failed_write_is_input_error_and_leaves_no_temp(tmp_path, tiny_model, tiny_scene):
+    (tmp_path / "strands.usda").mkdir()  # a folder where the file should go: the rename fails
+    with pytest.raises(InputError, match="cannot write the strands USD file") as info:
+        write_strands_usd(tmp_path / "strands.usda", tiny_model, tiny_scene)
+    assert "\n" not in str(info.value)
+    assert [p.name for p in tmp_path.iterdir()] == ["strands.usda"]
 
 
 def test_cli_inspect_writes_usd(tmp_path, samples_dir):

@@ -108,7 +108,7 @@ _SCHEMA: dict[str, list[tuple]] = {
         ("pith_rings", 1, "", "[0, 10000]", "Number of innermost rings that are pith (SPEC §2)."),
     ],
     "bsp": [
-        ("cells", 800, "", "[0, 10000000]", f"BSP leaves per branch (woodstock §7.1, Fig. 11; {_T3} 'BSP size/depth'); 0 disables prepartitioning."),
+        ("cells", 800, "", "[0, 10000000]", f"Total BSP leaves over the whole model (woodstock §7.1, Fig. 11; {_T3} 'BSP size/depth'); with fewer cells than branches each branch is one leaf; 0 disables prepartitioning (one leaf, theta = 0)."),
         ("elongation", 1.0, "", "[0.01, 100]", "Stretch of BSP cells along e_l (woodstock Fig. 11b uses 2.5)."),
         ("jitter", 0.2, "", "[0, 0.45]", "Random offset of each BSP split from the middle, as a fraction of the cell extent (woodstock §7.1)."),
     ],
@@ -351,8 +351,11 @@ def format_value(v: Any, limit: int = 60) -> str:
     if isinstance(v, bool):
         s = "true" if v else "false"
     elif isinstance(v, numbers.Integral):
-        s = str(int(v))
-        if len(s) > 30:
+        try:
+            s = str(int(v))
+        except ValueError:  # more digits than Python converts to text
+            s = f"<integer of about {int(int(v).bit_length() * math.log10(2)) + 1} digits>"
+        if len(s) > 30 and s[0] != "<":
             s = f"{s[:12]}...({len(s)} digits)"
     elif isinstance(v, numbers.Real):
         f = float(v)

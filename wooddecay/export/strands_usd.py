@@ -10,7 +10,8 @@ which starts none, those of the strand's last element. The stage is Z up with me
 All arrays are built with numpy from the model's CSR offsets (no Python loop over particles or
 elements). The file is written atomically: the stage is exported to a hidden temporary file in
 the same folder that keeps the real extension last (USD picks the format from the suffix), then
-renamed over ``path``.
+renamed over ``path``. The folder must exist (USD would create missing ones silently); a bad
+path or a failed write raises :class:`~wooddecay.errors.InputError`.
 """
 from __future__ import annotations
 
@@ -18,6 +19,8 @@ import os
 from pathlib import Path
 
 import numpy as np
+
+from ..errors import InputError
 
 #: display colour per tissue index (bark, sapwood, heartwood, pith), linear-ish RGB in [0, 1]
 TISSUE_COLORS = np.array([
@@ -53,14 +56,33 @@ def _prim_name(name: str) -> str:
     return ident or "scene"
 
 
-def write_strands_usd(path, model, scene) -> Path:
-    """Write the strands of ``model`` as USD BasisCurves to ``path`` (.usda, .usdc or .usd)."""
-    from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+def check_usd_path(path) -> Path:
+    """Return ``path`` as a Path after checking it can name a strands USD file.
 
+    Raises
+    ------
+    InputError
+        When the suffix is not .usda, .usdc or .usd, or the folder does not exist.
+    """
     path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in _SUFFIXES:
-        raise ValueError(f"strands USD path must end in {', '.join(_SUFFIXES)}: {path}")
+    if path.suffix.lower() not in _SUFFIXES:
+        raise InputError(str(path), "", f"a strands USD file must end in {', '.join(_SUFFIXES)}")
+    if not path.parent.is_dir():
+        raise InputError(str(path), "", f"folder {path.parent} does not exist")
+    return path
+
+
+def write_strands_usd(path, model, scene) -> Path:
+    """Write the strands of ``model`` as USD BasisCurves to ``path`` (.usda, .usdc or .usd).
+
+    Raises
+    ------
+    InputError
+        For a bad path (:func:`check_usd_path`) or when the file cannot be written.
+    """
+    from pxr import Gf, Sdf, Tf, Usd, UsdGeom, Vt
+
+    path = check_usd_path(path)
 
     p_off = np.asarray(model.particle_offsets, dtype=np.int64)
     e_off = np.asarray(model.element_offsets, dtype=np.int64)
@@ -100,12 +122,13 @@ def write_strands_usd(path, model, scene) -> Path:
     color = curves.CreateDisplayColorPrimvar(UsdGeom.Tokens.vertex)
     color.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(colors)))
 
-    path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
     try:
         if not stage.GetRootLayer().Export(str(tmp)):
             raise OSError(f"USD could not write {tmp}")
         os.replace(tmp, path)
+    except (OSError, Tf.ErrorException) as err:
+        raise InputError(str(path), "", f"cannot write the strands USD file: {err}") from None
     finally:
         if tmp.exists():
             tmp.unlink()

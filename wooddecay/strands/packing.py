@@ -12,14 +12,13 @@ satisfy every constraint (docs/decisions.md explains why PBD alone is not enough
 """
 from __future__ import annotations
 
-import numpy as np
 import numba as nb
-from scipy.optimize import linear_sum_assignment
+import numpy as np
+from matplotlib.path import Path as _MplPath
 from scipy.spatial import cKDTree
 
-from matplotlib.path import Path as _MplPath
-
-from .profiles import Profile, closest_boundary_point
+from .assignment import assign_sites
+from .profiles import Profile
 
 #: separation actually enforced, a hair above 2 r_s so the invariant survives round-off
 SEPARATION_SLACK = 1.0 + 1e-6
@@ -86,15 +85,53 @@ def seed_positions(profile: Profile, count: int, r_s: float, lattice: tuple[floa
     return best[keep]
 
 
+def _edge_vectors(poly: np.ndarray) -> np.ndarray:
+    """Edge vectors of a closed polygon: edge i runs from vertex i to vertex i + 1."""
+    return np.roll(poly, -1, axis=0) - poly
+
+
+def _closest_edges(poly: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Index of the boundary edge closest to each point and the parameter t in [0, 1] of the
+    closest point on it."""
+    d = _edge_vectors(poly)
+    len2 = np.maximum(np.sum(d * d, axis=1), 1e-300)
+    rel = pts[:, None, :] - poly[None, :, :]
+    t = np.clip(np.sum(rel * d[None], axis=2) / len2, 0.0, 1.0)
+    dist2 = np.sum((rel - t[..., None] * d[None]) ** 2, axis=2)
+    edge = np.argmin(dist2, axis=1)
+    return edge, t[np.arange(len(pts)), edge]
+
+
+def _inward_normals(poly: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit inward normals of the edges (left normals: the polygon is counter-clockwise) and
+    unit inward bisectors at the vertices (vertex i joins edges i - 1 and i)."""
+    d = _edge_vectors(poly)
+    edge_n = np.stack([-d[:, 1], d[:, 0]], axis=1)
+    edge_n /= np.maximum(np.linalg.norm(edge_n, axis=1, keepdims=True), 1e-300)
+    vert_n = edge_n + np.roll(edge_n, 1, axis=0)
+    vert_n /= np.maximum(np.linalg.norm(vert_n, axis=1, keepdims=True), 1e-300)
+    return edge_n, vert_n
+
+
 def _project_inside(profile: Profile, pts: np.ndarray) -> np.ndarray:
-    """Points outside the profile move onto its boundary, nudged inside by round-off."""
-    out = ~inside(profile.polygon, pts)
-    if out.any():
-        b = closest_boundary_point(profile.polygon, pts[out])
-        inward = profile.centroid - b
-        inward /= np.maximum(np.linalg.norm(inward, axis=1, keepdims=True), 1e-300)
-        pts = pts.copy()
-        pts[out] = b + inward * (1e-9 * profile.equivalent_radius)
+    """Points outside the profile move onto its closest boundary point, nudged inside by
+    round-off along the inward normal of the closest edge (the inward bisector where that
+    point is a vertex), which is inward also on concave profiles."""
+    poly = profile.polygon
+    out = ~inside(poly, pts)
+    if not out.any():
+        return pts
+    eps = 1e-9 * profile.equivalent_radius
+    edge, t = _closest_edges(poly, pts[out])
+    d = _edge_vectors(poly)
+    foot = poly[edge] + t[:, None] * d[edge]
+    edge_n, vert_n = _inward_normals(poly)
+    length = np.linalg.norm(d[edge], axis=1)
+    normal = edge_n[edge]
+    normal = np.where((t * length <= eps)[:, None], vert_n[edge], normal)
+    normal = np.where(((1.0 - t) * length <= eps)[:, None], vert_n[(edge + 1) % len(poly)], normal)
+    pts = pts.copy()
+    pts[out] = foot + normal * eps
     return pts
 
 
@@ -103,16 +140,6 @@ def overlapping_pairs(pts: np.ndarray, r_s: float) -> np.ndarray:
     if len(pts) < 2:
         return np.zeros((0, 2), dtype=np.int64)
     return cKDTree(pts).query_pairs(2.0 * r_s, output_type="ndarray")
-
-
-def assign_sites(goal: np.ndarray, sites: np.ndarray) -> np.ndarray:
-    """Site index for each goal position minimising the summed squared displacement
-    (``len(goal) <= len(sites)``; scipy's linear_sum_assignment)."""
-    cost = ((goal[:, None, :] - sites[None, :, :]) ** 2).sum(-1)
-    rows, cols = linear_sum_assignment(cost)
-    out = np.empty(len(goal), dtype=np.int64)
-    out[rows] = cols
-    return out
 
 
 @nb.njit(cache=True)
@@ -147,8 +174,8 @@ def pbd_relax(
 
     Each iteration pulls every point a fraction ``pull`` towards its goal, projects the pair
     constraints |x_i - x_j| >= 2 r_s with ``sweeps`` Gauss-Seidel sweeps and the inside
-    constraint; an iterate is accepted only if it satisfies all constraints, so the result is
-    always a valid packing (the input, which must be valid, at worst).
+    constraint; an iterate is accepted only if every point is strictly inside and no pair
+    overlaps, so the result is always a valid packing (the input, which must be valid, at worst).
     """
     target = 2.0 * r_s * SEPARATION_SLACK
     best = pts
@@ -159,7 +186,7 @@ def pbd_relax(
         for _ in range(sweeps):
             collision_sweep(cur, pairs, target)
             cur = _project_inside(profile, cur)
-        if len(overlapping_pairs(cur, r_s)) == 0:
+        if inside(profile.polygon, cur).all() and len(overlapping_pairs(cur, r_s)) == 0:
             best = cur.copy()
         else:
             cur = best.copy()

@@ -11,7 +11,6 @@ All bad input raises :class:`wooddecay.errors.InputError` naming the file, the k
 """
 from __future__ import annotations
 
-import difflib
 import heapq
 import math
 import tomllib
@@ -21,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from wooddecay.errors import InputError
+from wooddecay.params import did_you_mean, format_value, type_name
 from wooddecay.strands import profiles
 from wooddecay.strands.profiles import Profile
 
@@ -75,35 +75,13 @@ class Skeleton:
 
 # ----------------------------------------------------------------------------- messages
 
-def _did_you_mean(word: str, allowed) -> str:
-    """Suffix suggesting the closest allowed key, or listing them all."""
-    close = difflib.get_close_matches(word, list(allowed), n=1)
-    if close:
-        return f"; did you mean '{close[0]}'?"
-    return f"; allowed keys: {', '.join(allowed)}"
-
-
-def _show(value) -> str:
-    """Short one-line rendering of a bad value for messages."""
-    try:
-        text = " ".join(repr(value).split())
-    except ValueError:  # e.g. an integer with more digits than repr allows
-        return _type_name(value)
-    return text if len(text) <= 40 else text[:37] + "..."
-
-
-def _type_name(value) -> str:
-    """TOML-ish name of a value's type for messages."""
-    names = {bool: "a boolean", str: "a string", dict: "a table", list: "an array", tuple: "an array"}
-    return names.get(type(value), f"a {type(value).__name__}")
-
-
 def _check_keys(table: dict, allowed, required, source: str, key: str) -> None:
     """Reject unknown keys (with a did-you-mean) and missing required keys."""
     prefix = f"{key}." if key else ""
     for name in table:
         if not isinstance(name, str) or name not in allowed:
-            raise InputError(source, f"{prefix}{name}", "unknown key" + _did_you_mean(str(name), allowed))
+            hint = did_you_mean(name, allowed) or f"; allowed keys: {', '.join(allowed)}"
+            raise InputError(source, f"{prefix}{name}", "unknown key" + hint)
     for name in required:
         if name not in table:
             raise InputError(source, f"{prefix}{name}", "is required")
@@ -120,13 +98,13 @@ def _number(value, source: str, key: str) -> float:
         For any other type, NaN, infinities and integers too large for a float.
     """
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise InputError(source, key, f"must be a number (got {_type_name(value)} {_show(value)})")
+        raise InputError(source, key, f"must be a number (got {type_name(value)} {format_value(value)})")
     try:
         x = float(value)
     except OverflowError:
-        raise InputError(source, key, f"must be a finite number (got {_show(value)})") from None
+        raise InputError(source, key, f"must be a finite number (got {format_value(value)})") from None
     if not math.isfinite(x):
-        raise InputError(source, key, f"must be a finite number (got {_show(value)})")
+        raise InputError(source, key, f"must be a finite number (got {format_value(value)})")
     return x
 
 
@@ -134,21 +112,21 @@ def _positive(value, source: str, key: str) -> float:
     """Return ``value`` as a finite float > 0 m."""
     x = _number(value, source, key)
     if x <= 0.0:
-        raise InputError(source, key, f"must be > 0 m (got {_show(value)})")
+        raise InputError(source, key, f"must be > 0 m (got {format_value(value)})")
     return x
 
 
 def _vector(value, size: int, source: str, key: str) -> np.ndarray:
     """Return ``value`` (an array of ``size`` finite numbers) as a float64 array."""
     if not isinstance(value, (list, tuple)) or len(value) != size:
-        raise InputError(source, key, f"must be an array of {size} numbers (got {_type_name(value)} {_show(value)})")
+        raise InputError(source, key, f"must be an array of {size} numbers (got {type_name(value)} {format_value(value)})")
     return np.array([_number(v, source, f"{key}[{i}]") for i, v in enumerate(value)])
 
 
 def _node_id(value, source: str, key: str) -> str:
     """Return a node id (non-empty string or integer) as a string."""
     if isinstance(value, bool) or not isinstance(value, (str, int)):
-        raise InputError(source, key, f"must be a string or an integer (got {_type_name(value)} {_show(value)})")
+        raise InputError(source, key, f"must be a string or an integer (got {type_name(value)} {format_value(value)})")
     try:
         text = str(value)
     except ValueError:  # an integer with more digits than str allows
@@ -163,7 +141,7 @@ def _node_id(value, source: str, key: str) -> str:
 def _polygon_profile(points, source: str, key: str) -> Profile:
     """Validate ``points`` (>= 3 [u, v] pairs, simple, counter-clockwise) into a Profile."""
     if not isinstance(points, (list, tuple)) or len(points) < 3:
-        raise InputError(source, key, f"must be an array of >= 3 [u, v] points (got {_show(points)})")
+        raise InputError(source, key, f"must be an array of >= 3 [u, v] points (got {format_value(points)})")
     poly = np.array([_vector(p, 2, source, f"{key}[{i}]") for i, p in enumerate(points)])
     with np.errstate(all="ignore"):
         simple = profiles.is_simple(poly)
@@ -180,10 +158,10 @@ def _polygon_profile(points, source: str, key: str) -> Profile:
 def _profile(value, source: str, key: str) -> Profile:
     """Validate a profile table ``{kind = circle|ellipse|polygon, ...}`` into a Profile."""
     if not isinstance(value, dict):
-        raise InputError(source, key, f"must be a table with kind = circle | ellipse | polygon (got {_type_name(value)})")
+        raise InputError(source, key, f"must be a table with kind = circle | ellipse | polygon (got {type_name(value)})")
     kind = value.get("kind")
     if not isinstance(kind, str) or kind not in PROFILE_KEYS:
-        raise InputError(source, f"{key}.kind", f"must be one of circle, ellipse, polygon (got {_show(kind)})")
+        raise InputError(source, f"{key}.kind", f"must be one of circle, ellipse, polygon (got {format_value(kind)})")
     allowed = PROFILE_KEYS[kind]
     required = tuple(k for k in allowed if k != "angle")
     _check_keys(value, allowed, required, source, key)
@@ -217,7 +195,7 @@ def _parse_node(node, index: int, source: str, key: str) -> tuple[str, str, np.n
         ``(id, parent id or "", position (3,), profile, anchored)``.
     """
     if not isinstance(node, dict):
-        raise InputError(source, f"{key}[#{index}]", f"must be a table (got {_type_name(node)} {_show(node)})")
+        raise InputError(source, f"{key}[#{index}]", f"must be a table (got {type_name(node)} {format_value(node)})")
     if "id" not in node:
         raise InputError(source, f"{key}[#{index}].id", "is required")
     nid = _node_id(node["id"], source, f"{key}[#{index}].id")
@@ -229,7 +207,9 @@ def _parse_node(node, index: int, source: str, key: str) -> tuple[str, str, np.n
     profile = _profile(node["profile"], source, f"{here}.profile")
     anchored = node.get("anchored", False)
     if not isinstance(anchored, bool):
-        raise InputError(source, f"{here}.anchored", f"must be true or false (got {_show(anchored)})")
+        raise InputError(source, f"{here}.anchored", f"must be true or false (got {format_value(anchored)})")
+    if anchored and parent != "":
+        raise InputError(source, f"{here}.anchored", "only a root node can be anchored")
     return nid, parent, position, profile, anchored
 
 
@@ -342,7 +322,7 @@ def parse_nodes(nodes, source: str, key: str = "skeleton.node") -> Skeleton:
         For any invalid node, naming its id.
     """
     if not isinstance(nodes, (list, tuple)) or not nodes:
-        raise InputError(source, key, f"must be a non-empty array of node tables (got {_show(nodes)})")
+        raise InputError(source, key, f"must be a non-empty array of node tables (got {format_value(nodes)})")
     parsed = [_parse_node(node, i, source, key) for i, node in enumerate(nodes)]
     ids = [p[0] for p in parsed]
     parent = _link(ids, [p[1] for p in parsed], source, key)
@@ -381,7 +361,7 @@ def _format_of(table: dict, path: Path | None, source: str) -> str:
     if "format" in table:
         fmt = table["format"]
         if fmt not in ("native", "treeqsm"):
-            raise InputError(source, "skeleton.format", f"must be \"native\" or \"treeqsm\" (got {_show(fmt)})")
+            raise InputError(source, "skeleton.format", f"must be \"native\" or \"treeqsm\" (got {format_value(fmt)})")
         if path is None and fmt != "native":
             raise InputError(source, "skeleton.format", "inline skeleton.node tables are always \"native\"")
         return fmt
@@ -431,7 +411,7 @@ def load_skeleton(table, base_dir: Path, source: str) -> Skeleton:
         For a bad table or a bad skeleton (file errors name the skeleton file).
     """
     if not isinstance(table, dict):
-        raise InputError(source, "skeleton", f"must be a table (got {_type_name(table)})")
+        raise InputError(source, "skeleton", f"must be a table (got {type_name(table)})")
     _check_keys(table, TABLE_KEYS, (), source, "skeleton")
     if ("file" in table) == ("node" in table):
         raise InputError(source, "skeleton", "give exactly one of skeleton.file or [[skeleton.node]]")
@@ -440,7 +420,7 @@ def load_skeleton(table, base_dir: Path, source: str) -> Skeleton:
         _format_of(table, None, source)
         return _scaled(parse_nodes(table["node"], source, "skeleton.node"), scale, "skeleton.node")
     if not isinstance(table["file"], str) or not table["file"].strip():
-        raise InputError(source, "skeleton.file", f"must be a path string (got {_show(table['file'])})")
+        raise InputError(source, "skeleton.file", f"must be a path string (got {format_value(table['file'])})")
     path = Path(base_dir) / table["file"]
     if not path.is_file():
         raise InputError(source, "skeleton.file", f"'{table['file']}' is not a file (looked for {path})")

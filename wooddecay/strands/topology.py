@@ -51,7 +51,8 @@ def _transport(n1: np.ndarray, t_from: np.ndarray, t_to: np.ndarray) -> np.ndarr
 
 
 def _root_u(t: np.ndarray) -> np.ndarray:
-    """U axis of a root frame: V = up projected into the plane (x-axis if vertical)."""
+    """U axis of a root frame: V = world up projected into the plane normal to ``t`` (world y
+    projected instead when ``t`` is vertical), U = V x T."""
     v = UP - np.dot(UP, t) * t
     if np.linalg.norm(v) < 1e-6:
         v = np.array([0.0, 1.0, 0.0]) - t[1] * t
