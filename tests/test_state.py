@@ -74,3 +74,42 @@ def test_seasonal_schedule_interpolates(tiny_model):
     np.testing.assert_allclose(B.moisture_bounds(setup, 500.0)[2], [0.6, 0.2])  # held after
     np.testing.assert_allclose(B.moisture_bounds(setup, 50.0)[0], [1.0, 0.1])  # bark: constant
     np.testing.assert_allclose(setup.box_M[1], [0.1, 1.0])
+
+
+def test_inoculation_between_steps_is_applied_on_its_day(tiny_model):
+    text = (SAMPLES / "tiny.toml").read_text().split("[[inoculation]]")[0] + """
+[[inoculation]]
+fungus = "brown"
+activity = 0.3
+day = 2.0
+region = { kind = "end", which = "root", depth = 0.05 }
+"""
+    scene = wd.parse_scene(text, source="tiny.toml", overrides={"time.dt_bio": 50.0})
+    sim = wd.Simulation(tiny_model, scene)
+    sim.advance(2.0)
+    assert sim.state.t_days == 2.0 and sim.state.R_b.max() == 0.3
+    sim.advance(48.0)
+    assert [round(h["t_days"], 9) for h in sim.history] == [0.0, 2.0, 50.0]
+
+
+def test_M_init_must_lie_in_the_schedule():
+    with pytest.raises(wd.InputError, match="schedule"):
+        wd.load_scene(SAMPLES / "tiny.toml", overrides={
+            "moisture.schedule": [[0.0, 0.6, 0.2], [100.0, 0.6, 0.2]], "moisture.M_init": 0.9})
+
+
+def test_moisture_box_is_one_envelope_over_tissues(tiny_model):
+    """Tissues with different M bounds share one clamp box, so diffusion between them cannot
+    push M out of it (each update is a convex combination of values inside)."""
+    scene = wd.load_scene(SAMPLES / "tiny.toml", overrides={
+        "tissue.bark.M_1": 0.4, "tissue.bark.M_init": 0.35, "fungi.D_w": 0.0,
+        "moisture.D_M0": 1e-3, "moisture.k_in0": 0.0, "moisture.k_out0": 0.0})
+    setup = B.prepare(tiny_model, scene)
+    np.testing.assert_allclose(setup.box_M, np.tile([0.1, 1.0], (4, 1)))
+    s = initial_state(tiny_model, scene)
+    V = setup.op.volume
+    before = np.sum(V * s.M)
+    for _ in range(20):
+        B.step(s, setup, setup.bound)
+    assert s.clamp_count == 0
+    np.testing.assert_allclose(np.sum(V * s.M), before, rtol=1e-12)

@@ -14,6 +14,7 @@ from importlib import resources
 from pathlib import Path
 
 import click
+import numpy as np
 
 from .errors import InputError
 
@@ -78,6 +79,8 @@ def _bio_report(bio, scene) -> dict:
         "dt_bio_days": scene.time.dt_bio,
         "stability_bound_days": float(bio.bound),
         "substeps": substeps(scene.time.dt_bio, bio.bound),
+        "transport_fit_error_p99": float(np.percentile(bio.op.fit_error, 99)),
+        "transport_chain_saturated": bio.op.chain_saturated,
     }
 
 
@@ -100,6 +103,8 @@ def _print_report(rep: dict) -> None:
         b = rep["biology"]
         lines.append(f"biology step     dt_bio {b['dt_bio_days']:g} d, explicit bound {b['stability_bound_days']:.4g} d"
                      f" -> {b['substeps']} substep(s) per step")
+        lines.append(f"transport fit    across-grain moment error p99 {b['transport_fit_error_p99']:.3g},"
+                     f" {b['transport_chain_saturated']} element(s) with saturated chains")
     click.echo("\n".join(lines))
 
 

@@ -589,6 +589,13 @@ def _check_moisture(fungi: Mapping, moisture: Mapping, ctx: _Ctx, prefix: str,
         raise fail((("moisture", "M_init"), ("moisture", "M_2"), ("moisture", "M_1")),
                    f"M_init = {format_value(mi)} kg/kg must lie in [M_2, M_1] = "
                    f"[{format_value(m2)}, {format_value(m1)}] kg/kg")
+    rows = moisture.get("schedule") or ()
+    if rows:  # the schedule replaces M_1, M_2: M_init must lie in its range
+        lo_s, hi_s = min(r[2] for r in rows), max(r[1] for r in rows)
+        if not lo_s <= mi <= hi_s:
+            raise fail((("moisture", "M_init"), ("moisture", "schedule")),
+                       f"M_init = {format_value(mi)} kg/kg must lie in the schedule's range "
+                       f"[{format_value(lo_s)}, {format_value(hi_s)}] kg/kg")
 
 
 def _resolve_tissues(raw: Any, values: dict[str, dict[str, Any]], ctx: _Ctx) -> FrozenMap:

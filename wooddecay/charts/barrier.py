@@ -6,8 +6,8 @@ the growth window, for inhibition-to-induction ratios beta/kappa in {0, 0.5, 1, 
 (beta_w = beta_b = ratio * kappa). The run uses the real biology step on the block's rod graph.
 
 Plateau (our definition, SPEC §7 asks for one): after the onset peak of the mass-loss rate, the
-time during which the rate stays below ``FRAC`` (30%) of that peak while the mass loss is still
-intermediate (below ``ML_MAX``, 50%). Exhaustion of the substrate at high mass loss is not a
+longest stretch during which the rate stays below ``FRAC`` (30%) of that peak while the mass loss
+is still intermediate (below ``ML_MAX``, 50%). Exhaustion of the substrate at high mass loss is not a
 plateau; a stall at intermediate mass loss, ended by renewed growth or the end of the run, is.
 Appendix B explains it: defences pin the activity near a slow manifold whose residence time grows
 with beta/kappa.
@@ -87,13 +87,24 @@ class BarrierRun:
 
 
 def plateau(t: np.ndarray, mass_loss: np.ndarray) -> tuple[float, np.ndarray]:
-    """Length (days) and mask of the intermediate plateau (module docstring)."""
+    """Length (days) and mask of the intermediate plateau: the longest contiguous stretch after
+    the onset peak of the rate (the first local maximum above half the global one) during which
+    the rate stays below FRAC of that peak with mass loss below ML_MAX (module docstring)."""
     rate = np.gradient(mass_loss, t)
-    onset = int(np.argmax(rate[: max(1, len(rate) // 3)]))
+    strong = np.flatnonzero(rate >= 0.5 * rate.max())
+    onset = int(strong[0]) if len(strong) else 0
+    while onset + 1 < len(rate) and rate[onset + 1] >= rate[onset]:
+        onset += 1  # climb to the first peak
+    low = np.zeros(len(t), dtype=bool)
+    low[onset:] = (rate[onset:] < FRAC * rate[onset]) & (mass_loss[onset:] < ML_MAX)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], low.astype(np.int8), [0]])))
     mask = np.zeros(len(t), dtype=bool)
-    mask[onset:] = (rate[onset:] < FRAC * rate[onset]) & (mass_loss[onset:] < ML_MAX)
-    dt = np.gradient(t)
-    return float(np.sum(dt[mask])), mask
+    if len(edges):
+        starts, stops = edges[::2], edges[1::2]
+        k = int(np.argmax(t[stops - 1] - t[starts]))
+        mask[starts[k]:stops[k]] = True
+        return float(t[stops[k] - 1] - t[starts[k]]), mask
+    return 0.0, mask
 
 
 def run_barrier(ratio: float, days: float = 1500.0, dt: float = 1.0) -> BarrierRun:

@@ -67,7 +67,7 @@ class BioSetup:
     bd: np.ndarray  # (n,) bark distance
     kappa: np.ndarray  # (n, 3) diffusivities of R_w, R_b, C (with wfac)
     schedules: tuple  # per tissue: (days, M_1, M_2) arrays, or constants as 1-row arrays
-    box_M: np.ndarray  # (n_tissues, 2) envelope [min M_2, max M_1] over the schedule
+    box_M: np.ndarray  # (n_tissues, 2) the envelope [min M_2, max M_1] over tissues and schedules
     bound: float  # explicit-step stability bound in days (stability_bound)
 
 
@@ -105,7 +105,10 @@ def prepare(model, scene) -> BioSetup:
     wfac = 1.0 + scene.weakpoints.k_W * (2.0 * model.W - 1.0)
     kappa = np.stack([P[tissue, D_W], P[tissue, D_B], P[tissue, D_C]], axis=1) * wfac[:, None]
     schedules = tuple(_schedule(scene, t) for t in TISSUES)
-    box_M = np.array([[m2.min(), m1.max()] for _, m1, m2 in schedules])
+    # one envelope for every tissue: diffusion mixes tissues with different bounds, and only a
+    # common box makes each explicit update a convex combination of values inside it
+    envelope = [min(m2.min() for _, _, m2 in schedules), max(m1.max() for _, m1, _ in schedules)]
+    box_M = np.tile(envelope, (len(schedules), 1))
     setup = BioSetup(op=op, P=P, tissue=tissue, wfac=wfac, bd=model.bark_distance.copy(),
                      kappa=np.ascontiguousarray(kappa), schedules=schedules, box_M=box_M, bound=0.0)
     return replace(setup, bound=stability_bound(setup))

@@ -36,7 +36,7 @@ class Simulation:
 
     ``mechanics=False`` is the biology-only mode (the only mode until the mechanics module
     lands; asking for mechanics raises NotImplementedError rather than silently skipping it).
-    ``history`` collects the diagnostics of every biology step.
+    ``history`` collects the diagnostics at day 0 and after every biology step.
     """
 
     def __init__(self, model, scene, mechanics: bool = False):
@@ -45,7 +45,7 @@ class Simulation:
         self.model, self.scene = model, scene
         self.setup = biology.prepare(model, scene)
         self.state: SimState = initial_state(model, scene)
-        self.history: list[dict] = []
+        self.history: list[dict] = [diagnostics(self.state, self.setup)]
 
     @property
     def substeps(self) -> int:
@@ -53,14 +53,20 @@ class Simulation:
         return biology.substeps(self.scene.time.dt_bio, self.setup.bound)
 
     def advance(self, days: float) -> None:
-        """Advance by ``days`` in equal biology steps of at most ``time.dt_bio``."""
+        """Advance by ``days`` in biology steps of at most ``time.dt_bio``, equal between the
+        days on which an inoculation falls (so it is applied on its day, not up to a step late)."""
         if days <= 0.0:
             return
-        n = max(1, int(np.ceil(days / self.scene.time.dt_bio - 1e-9)))
-        for _ in range(n):
-            biology.step(self.state, self.setup, days / n)
-            inoculate(self.model, self.scene, self.state)
-            self.history.append(diagnostics(self.state, self.setup))
+        t0 = self.state.t_days
+        stops = sorted({t0 + days} | {ino["day"] for ino in self.scene.inoculations
+                                      if t0 + 1e-9 < ino["day"] < t0 + days - 1e-9})
+        for stop in stops:
+            span = stop - self.state.t_days
+            n = max(1, int(np.ceil(span / self.scene.time.dt_bio - 1e-9)))
+            for _ in range(n):
+                biology.step(self.state, self.setup, span / n)
+                inoculate(self.model, self.scene, self.state)
+                self.history.append(diagnostics(self.state, self.setup))
 
     def frame(self, index: int) -> Frame:
         return Frame(index=index, t_days=self.state.t_days,

@@ -1,0 +1,145 @@
+"""Transport accuracy studies on synthetic wood blocks (SPEC §7; used by tests and benchmarks).
+
+The rod graph is the real one (packing, random phases, staggered REG); only the wood frame is
+replaced by a constant one so that planar fronts and heat kernels have fixed principal axes.
+
+* :func:`heat_kernel_ratio`: a point release of R_b (no growth); the slope of its variance along
+  the direction over 2 D a_dir (1 is exact).
+* :func:`fisher_speed_ratio`: R_b with H_c = 1, no defence, open moisture window is Fisher-KPP;
+  the planar front's speed over 2 sqrt(alpha D a_dir), fitted over t in [17, 34] / alpha with
+  Bramson's log correction (an ideal 1D finite-difference solver gives 0.993 on that window).
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from .sim import biology
+from .sim.state import initial_state
+from .sim.transport import assemble
+
+X, Y, Z = np.eye(3)
+#: rows (e_r, e_t, e_l), all right-handed; the name is the world axis carrying that direction
+FRAMES = {
+    "l": np.array([Y, Z, X]),   # grain along x
+    "r": np.array([Y, Z, X]),   # radial along y
+    "t": np.array([-Z, Y, X]),  # tangential along y
+}
+AXIS = {"l": 0, "r": 1, "t": 1}
+
+FISHER = """
+[scene]
+seed = 5
+[[skeleton.node]]
+id = "a"
+position = [0.0, 0.0, 0.0]
+profile = {{ kind = "polygon", points = [[{u0}, {v0}], [{u1}, {v0}], [{u1}, {v1}], [{u0}, {v1}]] }}
+[[skeleton.node]]
+id = "b"
+position = [{length}, 0.0, 0.0]
+parent = "a"
+profile = {{ kind = "polygon", points = [[{u0}, {v0}], [{u1}, {v0}], [{u1}, {v1}], [{u0}, {v1}]] }}
+[strands]
+r_s = 0.005
+rod_length = {rod}
+[bsp]
+cells = 0
+[weakpoints]
+k_W = 0.0
+[fungi]
+alpha_b0 = {alpha}
+D_b = {D}
+D_w = {D}
+D_C = {D}
+beta_b = 0.0
+gamma_cb = 0.0
+gamma_cw = 0.0
+kappa = 0.0
+[moisture]
+D_M0 = {D}
+k_in0 = 0.0
+k_out0 = 0.0
+"""
+
+
+def block(length, width, thickness, rod, alpha=1.0, D=1e-3):
+    """A straight block along x, cross-section width (world y) x thickness (world z)."""
+    text = FISHER.format(u0=-width / 2, u1=width / 2, v0=-thickness / 2, v1=thickness / 2,
+                         length=length, rod=rod, alpha=alpha, D=D)
+    from .model import build_model
+    from .scene import parse_scene
+
+    scene = parse_scene(text, source="block.toml")
+    return scene, build_model(scene)
+
+
+def constant_frame_setup(model, scene, direction):
+    """BioSetup whose transport uses a constant wood frame (FRAMES[direction])."""
+    setup = biology.prepare(model, scene)
+    n = model.n_elements
+    frames = np.broadcast_to(FRAMES[direction], (n, 3, 3)).copy()
+    aniso = biology.tissue_table(scene, ("a_r", "a_t", "a_l"))[setup.tissue]
+    kind = model.transport_kind[model.transport_edge_of]
+    st = scene.strands
+    op = assemble(model.centers, frames, model.particles[model.first_particle],
+                  model.particles[model.first_particle + 1], np.pi * st.r_s**2 / st.phi_pack,
+                  model.transport_indptr, model.transport_indices, kind == 1, aniso)
+    setup = replace(setup, op=op)
+    return replace(setup, bound=biology.stability_bound(setup))
+
+
+#: principal factors a_dir of the default [transport] section
+A_DIR = {"l": 4.0, "r": 0.25, "t": 1.0}
+
+
+def heat_kernel_ratio(direction: str, D: float = 1e-3, t_end: float = 0.6) -> tuple[float, int]:
+    """(measured d var/dt) / (2 D a_dir) for a point release in a 0.8 x 0.24 x 0.24 m block, and
+    the clamp count (0 expected)."""
+    scene, model = block(0.8, 0.24, 0.24, 0.015, alpha=0.0, D=D)
+    setup = constant_frame_setup(model, scene, direction)
+    axis = AXIS[direction]
+    c = model.centers
+    i0 = int(np.argmin(np.linalg.norm(c - [0.4, 0.0, 0.0], axis=1)))
+    s = initial_state(model, scene)
+    s.R_b[:] = 0.0
+    s.R_b[i0] = 1.0
+    V = setup.op.volume
+    x = c[:, axis] - c[i0, axis]
+    ts, vs = [], []
+    while s.t_days < t_end - 1e-12:
+        biology.step(s, setup, 0.01)
+        w = V * s.R_b / np.sum(V * s.R_b)
+        mu = np.sum(w * x)
+        ts.append(s.t_days)
+        vs.append(np.sum(w * (x - mu) ** 2))
+    ts, vs = np.array(ts), np.array(vs)
+    late = ts >= t_end / 3  # after the release has spread over a few neighbours
+    return float(np.polyfit(ts[late], vs[late], 1)[0] / (2 * D * A_DIR[direction])), s.clamp_count
+
+
+def fisher_speed_ratio(direction: str, alpha: float = 1.0) -> tuple[float, int]:
+    """(fitted front speed) / (2 sqrt(alpha D_dir)) and the clamp count (module docstring)."""
+    a = A_DIR[direction]
+    D_dir = 0.0025 if direction == "l" else 0.0016
+    if direction == "l":
+        scene, model = block(4.0, 0.05, 0.05, 0.01, alpha, D_dir / a)
+    else:
+        scene, model = block(0.06, 3.4, 0.04, 0.015, alpha, D_dir / a)
+    setup = constant_frame_setup(model, scene, direction)
+    x = model.centers[:, AXIS[direction]]
+    x = x - x.min()
+    s = initial_state(model, scene)
+    s.R_b[:] = np.where(x < 0.2, 1.0, 0.0)
+    V = setup.op.volume
+    area = V.sum() / x.max()
+    ts, X = [], []
+    while s.t_days < 34.0 / alpha - 1e-9:
+        biology.step(s, setup, 0.1 / alpha)
+        ts.append(s.t_days)
+        X.append(np.sum(V * s.R_b) / area)
+    ts, X = np.array(ts), np.array(X)
+    late = ts >= 17.0 / alpha
+    corrected = X + 1.5 * np.sqrt(D_dir / alpha) * np.log(alpha * ts)
+    v = np.polyfit(ts[late], corrected[late], 1)[0]
+    return float(v / (2 * np.sqrt(alpha * D_dir))), s.clamp_count
