@@ -288,23 +288,24 @@ def _run(scene):
     return sim
 
 
+def _rot_from_root_end(fungus: str):
+    """State after the fast log run with ``fungus`` at the root end, and its rotted mask."""
+    sim = _run(_log_with(f'[[inoculation]]\nfungus = "{fungus}"\nactivity = 0.3\n'
+                         'region = { kind = "end", which = "root", depth = 0.1 }\n', _FAST))
+    rotted = sim.state.H_c < 0.3
+    assert rotted.sum() > 100
+    return sim.state, rotted
+
+
 @pytest.mark.slow
 def test_brown_rot_keeps_lignin():
-    sim = _run(_log_with('[[inoculation]]\nfungus = "brown"\nactivity = 0.3\n'
-                         'region = { kind = "end", which = "root", depth = 0.1 }\n', _FAST))
-    s = sim.state
-    rotted = s.H_c < 0.3
-    assert rotted.sum() > 100
+    s, rotted = _rot_from_root_end("brown")
     assert np.all(s.H_l[rotted] >= 0.9)
 
 
 @pytest.mark.slow
 def test_white_rot_takes_both():
-    sim = _run(_log_with('[[inoculation]]\nfungus = "white"\nactivity = 0.3\n'
-                         'region = { kind = "end", which = "root", depth = 0.1 }\n', _FAST))
-    s = sim.state
-    rotted = s.H_c < 0.3
-    assert rotted.sum() > 100
+    s, rotted = _rot_from_root_end("white")
     assert np.median(s.H_l[rotted]) < 0.5
 
 
