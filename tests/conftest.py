@@ -1,6 +1,7 @@
 """Shared fixtures: sample scenes and their models, built once per session."""
 from __future__ import annotations
 
+from functools import cache
 from pathlib import Path
 
 import pytest
@@ -11,6 +12,13 @@ ROOT = Path(__file__).resolve().parent.parent
 SAMPLES = ROOT / "samples"
 
 
+@cache
+def sample(name: str):
+    """(scene, model) of ``samples/<name>.toml``, built once per session."""
+    scene = wd.load_scene(SAMPLES / f"{name}.toml")
+    return scene, wd.build_model(scene)
+
+
 @pytest.fixture(scope="session")
 def samples_dir() -> Path:
     return SAMPLES
@@ -18,24 +26,24 @@ def samples_dir() -> Path:
 
 @pytest.fixture(scope="session")
 def tiny_scene():
-    return wd.load_scene(SAMPLES / "tiny.toml")
+    return sample("tiny")[0]
 
 
 @pytest.fixture(scope="session")
-def tiny_model(tiny_scene):
-    return wd.build_model(tiny_scene)
+def tiny_model():
+    return sample("tiny")[1]
 
 
 @pytest.fixture(scope="session")
 def log_scene():
-    return wd.load_scene(SAMPLES / "log.toml")
+    return sample("log")[0]
 
 
 @pytest.fixture(scope="session")
-def log_model(log_scene):
-    return wd.build_model(log_scene)
+def log_model():
+    return sample("log")[1]
 
 
 @pytest.fixture(scope="session")
 def board_model():
-    return wd.build_model(wd.load_scene(SAMPLES / "board.toml"))
+    return sample("board")[1]
