@@ -100,17 +100,3 @@ def test_is_simple():
     assert not pf.is_simple(np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [1.5, 1.0], [1.0, 0.0], [0.0, 1.0]]))
     # degenerate fold-back spike
     assert not pf.is_simple(np.array([[0.0, 0.0], [2.0, 0.0], [1.0, 0.0]]))
-
-
-def test_resample_even_arc_length_from_angle_zero():
-    out = pf.resample(SQUARE, 8)
-    assert out.shape == (8, 2)
-    np.testing.assert_allclose(out[0], [1.0, 0.5])  # the +u ray from the centroid (0.5, 0.5)
-    steps = np.linalg.norm(np.roll(out, -1, axis=0) - out, axis=1)
-    expected = np.array([[1.0, 0.5], [1.0, 1.0], [0.5, 1.0], [0.0, 1.0], [0.0, 0.5], [0.0, 0.0], [0.5, 0.0],
-                         [1.0, 0.0]])
-    np.testing.assert_allclose(out, expected, atol=1e-15)
-    np.testing.assert_allclose(steps, 0.5)
-    c = pf.resample(pf.circle(1.0).polygon, 100)
-    assert pf.is_ccw(c)
-    np.testing.assert_allclose(c[0], [1.0, 0.0])

@@ -69,11 +69,6 @@ class Param:
         """Dotted key, e.g. ``strands.r_s``."""
         return f"{self.section}.{self.name}"
 
-    @property
-    def range_text(self) -> str:
-        """Allowed values in words, e.g. ``(0, 1] m`` or ``one of 'draft', 'final'``."""
-        return format_range(self)
-
 
 # ---------------------------------------------------------------------------------------------
 # The compact literal. Row: (name, default, unit, range, doc[, kind]).

@@ -18,7 +18,7 @@ from matplotlib.path import Path as _MplPath
 from scipy.spatial import cKDTree
 
 from .assignment import assign_sites
-from .profiles import Profile
+from .profiles import Profile, closest_edge
 
 #: separation actually enforced, a hair above 2 r_s so the invariant survives round-off
 SEPARATION_SLACK = 1.0 + 1e-6
@@ -90,18 +90,6 @@ def _edge_vectors(poly: np.ndarray) -> np.ndarray:
     return np.roll(poly, -1, axis=0) - poly
 
 
-def _closest_edges(poly: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Index of the boundary edge closest to each point and the parameter t in [0, 1] of the
-    closest point on it."""
-    d = _edge_vectors(poly)
-    len2 = np.maximum(np.sum(d * d, axis=1), 1e-300)
-    rel = pts[:, None, :] - poly[None, :, :]
-    t = np.clip(np.sum(rel * d[None], axis=2) / len2, 0.0, 1.0)
-    dist2 = np.sum((rel - t[..., None] * d[None]) ** 2, axis=2)
-    edge = np.argmin(dist2, axis=1)
-    return edge, t[np.arange(len(pts)), edge]
-
-
 def _inward_normals(poly: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unit inward normals of the edges (left normals: the polygon is counter-clockwise) and
     unit inward bisectors at the vertices (vertex i joins edges i - 1 and i)."""
@@ -122,7 +110,7 @@ def _project_inside(profile: Profile, pts: np.ndarray) -> np.ndarray:
     if not out.any():
         return pts
     eps = 1e-9 * profile.equivalent_radius
-    edge, t = _closest_edges(poly, pts[out])
+    edge, t = closest_edge(poly, pts[out])
     d = _edge_vectors(poly)
     foot = poly[edge] + t[:, None] * d[edge]
     edge_n, vert_n = _inward_normals(poly)

@@ -254,31 +254,38 @@ def _blocks(n: int, k: int):
         yield slice(start, min(n, start + step))
 
 
-def _nearest_on_edges(poly: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Closest boundary point and its distance for each point.
+def closest_edge(poly: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Index of the boundary edge closest to each point and the parameter t in [0, 1] of the
+    closest point on it (edge i runs from vertex i to vertex i + 1).
 
     Returns
     -------
-    closest : np.ndarray
-        ``(n, 2)``.
-    dist : np.ndarray
-        ``(n,)`` unsigned distances.
+    edge : np.ndarray
+        ``(n,)`` edge indices.
+    t : np.ndarray
+        ``(n,)`` position of the closest point along that edge.
     """
     a, d = _edges(poly)
     len2 = np.sum(d * d, axis=1)
     len2 = np.where(len2 > 0.0, len2, 1.0)
-    closest = np.empty_like(pts)
-    dist = np.empty(len(pts))
+    edge = np.empty(len(pts), dtype=np.int64)
+    t_best = np.empty(len(pts))
     for sl in _blocks(len(pts), len(a)):
         rel = pts[sl, None, :] - a[None, :, :]
         t = np.clip(np.sum(rel * d[None], axis=2) / len2, 0.0, 1.0)
-        foot = a[None] + t[..., None] * d[None]
-        dist2 = np.sum((pts[sl, None, :] - foot) ** 2, axis=2)
+        dist2 = np.sum((rel - t[..., None] * d[None]) ** 2, axis=2)
         best = np.argmin(dist2, axis=1)
-        rows = np.arange(len(best))
-        closest[sl] = foot[rows, best]
-        dist[sl] = np.sqrt(dist2[rows, best])
-    return closest, dist
+        edge[sl] = best
+        t_best[sl] = t[np.arange(len(best)), best]
+    return edge, t_best
+
+
+def _nearest_on_edges(poly: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Closest boundary point ``(n, 2)`` and its unsigned distance ``(n,)`` for each point."""
+    a, d = _edges(poly)
+    edge, t = closest_edge(poly, pts)
+    closest = a[edge] + t[:, None] * d[edge]
+    return closest, np.linalg.norm(pts - closest, axis=1)
 
 
 def _crossing_parity(poly: np.ndarray, pts: np.ndarray) -> np.ndarray:
@@ -416,33 +423,3 @@ def ray_extent(poly: np.ndarray, origin, angles) -> np.ndarray:
         ``(n,)`` distances in m; 0 where a ray meets no boundary.
     """
     return _ray_hits(poly, origin, angles)[0]
-
-
-def resample(poly: np.ndarray, k: int) -> np.ndarray:
-    """Resample a closed polygon to ``k`` vertices evenly spaced by arc length.
-
-    The first vertex is where the ray from the centroid at angle 0 (direction +u) meets the
-    boundary, so resampled profiles of different shapes correspond vertex by vertex.
-
-    Parameters
-    ----------
-    poly : np.ndarray
-        ``(k0, 2)`` vertices.
-    k : int
-        Number of output vertices.
-
-    Returns
-    -------
-    np.ndarray
-        ``(k, 2)`` vertices in the same orientation as ``poly``.
-    """
-    a, d = _edges(poly)
-    seg = np.sqrt(np.sum(d * d, axis=1))
-    cum = np.concatenate([[0.0], np.cumsum(seg)])
-    total = cum[-1]
-    _, edge, t = _ray_hits(a, polygon_centroid(a), [0.0])
-    start = cum[edge[0]] + t[0] * seg[edge[0]] if edge[0] >= 0 else 0.0
-    s = np.mod(start + total * np.arange(k) / k, total)
-    i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(a) - 1)
-    frac = np.where(seg[i] > 0.0, (s - cum[i]) / np.where(seg[i] > 0.0, seg[i], 1.0), 0.0)
-    return a[i] + frac[:, None] * d[i]
