@@ -75,7 +75,7 @@ import hashlib, sys, numpy as np, wooddecay as wd
 from wooddecay.sim import biology as B
 B.PARALLEL_MIN_ELEMENTS = 0
 scene = wd.load_scene(sys.argv[1], overrides={"fungi.alpha_b0": 0.1, "fungi.D_b": 3e-5})
-sim = wd.Simulation(wd.build_model(scene), scene)
+sim = wd.Simulation(wd.build_model(scene), scene, mechanics=False)
 sim.advance(20.0)
 h = hashlib.sha256()
 for f in ("R_w", "R_b", "H_c", "H_l", "C", "M"):
@@ -282,7 +282,7 @@ gamma_lw = 0.03
 
 
 def _run(scene):
-    sim = wd.Simulation(wd.build_model(scene), scene)
+    sim = wd.Simulation(wd.build_model(scene), scene, mechanics=False)
     for _ in sim.run():
         pass
     return sim
@@ -330,7 +330,7 @@ C_init = 0.0
 
 
 def test_simulation_frames_and_diagnostics(tiny_model, tiny_scene):
-    sim = wd.Simulation(tiny_model, tiny_scene)
+    sim = wd.Simulation(tiny_model, tiny_scene, mechanics=False)
     frames = list(sim.run())
     assert [f.index for f in frames] == list(range(tiny_scene.time.frames))
     np.testing.assert_allclose([f.t_days for f in frames], np.linspace(0, tiny_scene.time.days, tiny_scene.time.frames))
@@ -340,5 +340,3 @@ def test_simulation_frames_and_diagnostics(tiny_model, tiny_scene):
     ml = [h["mass_loss"] for h in sim.history]
     assert np.all(np.diff(ml) >= -1e-15)  # no recovery (rho = 1e-4 is slower than depletion)
     assert len(sim.history) == 1 + int(np.ceil(tiny_scene.time.days / tiny_scene.time.dt_bio))  # day 0 + steps
-    with pytest.raises(NotImplementedError):
-        wd.Simulation(tiny_model, tiny_scene, mechanics=True)

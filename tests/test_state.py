@@ -55,7 +55,7 @@ day = 2.0
 region = { kind = "end", which = "tip", depth = 0.05 }
 """
     scene = wd.parse_scene(text, source="tiny.toml")
-    sim = wd.Simulation(tiny_model, scene)
+    sim = wd.Simulation(tiny_model, scene, mechanics=False)
     root = tiny_model.wood_coords[:, 2] <= 0.05
     assert np.all(sim.state.R_w[root] == 0.4) and not sim.state.R_b.any()
     sim.advance(1.0)
@@ -85,7 +85,7 @@ day = 2.0
 region = { kind = "end", which = "root", depth = 0.05 }
 """
     scene = wd.parse_scene(text, source="tiny.toml", overrides={"time.dt_bio": 50.0})
-    sim = wd.Simulation(tiny_model, scene)
+    sim = wd.Simulation(tiny_model, scene, mechanics=False)
     sim.advance(2.0)
     assert sim.state.t_days == 2.0 and sim.state.R_b.max() == 0.3
     sim.advance(48.0)

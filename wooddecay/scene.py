@@ -21,6 +21,10 @@ Sections
                    (default 0.1), ``day`` >= 0 (default 0), ``region`` (required, below).
 ``[[load]]``       ``region``, ``force`` [x, y, z] N, ``days`` [start, end] with
                    0 <= start < end (all required).
+``[[collider]]``   a solid obstacle for the rods (woodstock §5.1): ``kind`` = ``plane``
+                   (``point``, ``normal``), ``box`` (axis-aligned ``min``, ``max``), ``sphere``
+                   (``center``, ``radius``) or ``cylinder`` (axis ``a`` to ``b``, ``radius``).
+                   The ground plane is ``[mechanics] ground`` / ``ground_height``.
 
 A region is a table with ``kind`` and ``space`` (``world`` | ``wood``, default ``world``):
 ``box`` (``min``, ``max``: [x, y, z], min < max componentwise), ``sphere`` (``center``,
@@ -95,7 +99,7 @@ DRAFT_SCALE = 1.5
 CONNECT_FACTOR = 2.5
 CONNECT_MIN_FACTOR = 2.0
 
-_TOP_LEVEL = tuple(SECTIONS) + ("skeleton", "tissue", "inoculation", "load")
+_TOP_LEVEL = tuple(SECTIONS) + ("skeleton", "tissue", "inoculation", "load", "collider")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -214,6 +218,7 @@ class Scene:
     tissues: FrozenMap  # tissue -> FrozenMap of overrides (all four tissues present)
     inoculations: tuple[FrozenMap, ...]
     loads: tuple[FrozenMap, ...]
+    colliders: tuple[FrozenMap, ...]
 
     def section(self, name: str) -> Section:
         """The :class:`Section` called ``name`` (``scene`` gives name/seed/quality/description)."""
@@ -259,6 +264,7 @@ class Scene:
         out["tissue"] = self.tissues.as_dict()
         out["inoculation"] = [m.as_dict() for m in self.inoculations]
         out["load"] = [m.as_dict() for m in self.loads]
+        out["collider"] = [m.as_dict() for m in self.colliders]
         out["path"] = None if self.path is None else str(self.path)
         out["base_dir"] = str(self.base_dir)
         return out
@@ -529,6 +535,7 @@ def _resolve(data: dict, ctx: _Ctx, base_dir: Path, path: Path | None, default_n
     # -- inoculations and loads
     inoculations = _resolve_list(data, "inoculation", _inoculation, ctx, skeleton)
     loads = _resolve_list(data, "load", _load, ctx, skeleton)
+    colliders = _resolve_list(data, "collider", _collider, ctx, skeleton)
 
     # -- quality preset (after validation)
     scene_vals = values["scene"]
@@ -550,6 +557,7 @@ def _resolve(data: dict, ctx: _Ctx, base_dir: Path, path: Path | None, default_n
         tissues=tissues,
         inoculations=inoculations,
         loads=loads,
+        colliders=colliders,
         **sections,
     )
 
@@ -744,3 +752,32 @@ def _load(raw: dict, prefix: str, file: str, skeleton: Any) -> FrozenMap:
         raise InputError(file, key, f"start {format_value(start)} must be < end {format_value(end)} "
                          f"(0 <= start < end, days)")
     return FrozenMap({"region": region, "force": force, "days": (start, end)})
+
+
+_P_COLLIDER = make_param("collider", "kind", None, "", "", "Collider kind.", "enum:plane|box|sphere|cylinder")
+#: Collider kind -> its keys (all required).
+COLLIDER_KINDS: dict[str, dict[str, Any]] = {
+    "plane": {"point": _P_VEC, "normal": _P_VEC},
+    "box": {"min": _P_VEC, "max": _P_VEC},
+    "sphere": {"center": _P_VEC, "radius": _P_LENGTH},
+    "cylinder": {"a": _P_VEC, "b": _P_VEC, "radius": _P_LENGTH},
+}
+
+
+def _collider(raw: dict, prefix: str, file: str, skeleton: Any) -> FrozenMap:
+    if "kind" not in raw:
+        raise InputError(file, f"{prefix}.kind", f"missing required key 'kind' ({format_range(_P_COLLIDER)})")
+    kind = validate_value(_P_COLLIDER, raw["kind"], file, f"{prefix}.kind")
+    spec = COLLIDER_KINDS[kind]
+    _check_table(raw, ("kind",) + tuple(spec), tuple(spec), file, prefix, f"a {kind} collider")
+    out: dict[str, Any] = {"kind": kind}
+    for k, p in spec.items():
+        out[k] = validate_value(p, raw[k], file, f"{prefix}.{k}")
+    if kind == "plane" and not any(out["normal"]):
+        raise InputError(file, f"{prefix}.normal", "the plane normal must not be [0, 0, 0]")
+    if kind == "box" and not all(lo < hi for lo, hi in zip(out["min"], out["max"])):
+        raise InputError(file, f"{prefix}.max", f"box max {format_value(list(out['max']))} must exceed min "
+                         f"{format_value(list(out['min']))} in every component")
+    if kind == "cylinder" and out["a"] == out["b"]:
+        raise InputError(file, f"{prefix}.b", "the cylinder axis has zero length (a == b)")
+    return FrozenMap(out)

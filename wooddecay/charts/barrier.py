@@ -113,7 +113,7 @@ def run_barrier(ratio: float, days: float = 1500.0, dt: float = 1.0) -> BarrierR
 
     scene = wd.parse_scene(BLOCK.format(kappa=KAPPA, beta=ratio * KAPPA, days=days, dt=dt),
                            source="barrier-block.toml")
-    sim = wd.Simulation(wd.build_model(scene), scene)
+    sim = wd.Simulation(wd.build_model(scene), scene, mechanics=False)
     for _ in sim.run():
         pass
     t = np.array([h["t_days"] for h in sim.history])

@@ -1,28 +1,44 @@
 """The simulation loop (woodstock §8.2, Algorithm 1) behind ``wd.Simulation``.
 
-This version runs the biology only (Algorithm 1 lines 9-11: one biology step per macro step),
-for years of decay on a static wood model; mechanics and coupling (lines 4-8, 12-13) come with
-the mechanics module. Frames are yielded at ``scene.time.frames`` times evenly spaced over
+Each macro step: ``N_mech`` mechanics substeps of ``dt_mech`` (lines 4-8,
+:mod:`wooddecay.sim.mechanics`), one biology step of ``dt_bio`` (lines 9-11,
+:mod:`wooddecay.sim.biology`), then the coupling of moisture and decay back to the rods
+(lines 12-13, :mod:`wooddecay.sim.coupling`). ``mechanics=False`` runs the biology alone (years of
+decay on a static model). Frames are yielded at ``scene.time.frames`` times evenly spaced over
 [0, scene.time.days] (the first frame is the initial state when frames > 1).
+
+Checkpoints: with ``checkpoint_dir`` and ``checkpoint_every = K`` the whole state is written
+after every K-th frame (``frame_<k>.npz``, written to a temporary name and renamed).
+:meth:`Simulation.resume` continues from one; the frames that follow are bit-identical to an
+uninterrupted run (all kernels are deterministic and the contact list is rebuilt from the state at
+the start of every macro step).
 """
 from __future__ import annotations
 
+import json
+import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from . import biology
+from . import biology, coupling
+from . import mechanics as mech
 from .diagnostics import diagnostics
 from .state import FIELDS, SimState, initial_state, inoculate
+
+CHECKPOINT_VERSION = 1
 
 
 @dataclass(frozen=True, eq=False)
 class Frame:
-    """A snapshot: frame index, time, copies of the fields and the diagnostics."""
+    """A snapshot: frame index, time, copies of the fields, of the rod state (``mech``: x, q,
+    component, element_ok, edge_ok, integrity; empty without mechanics) and the diagnostics."""
 
     index: int
     t_days: float
     fields: dict
+    mech: dict
     diagnostics: dict
 
 
@@ -31,30 +47,62 @@ def frame_times(days: float, frames: int) -> np.ndarray:
     return np.array([days]) if frames == 1 else np.linspace(0.0, days, frames)
 
 
+def mech_diagnostics(ms: mech.MechState) -> dict:
+    """Crack statistics of the rod state."""
+    return {"components": int(ms.component.max(initial=-1) + 1),
+            "broken_connections": int(np.count_nonzero(~ms.edge_ok[:, 0])),
+            "broken_elements": int(np.count_nonzero(~ms.element_ok)),
+            "failures": int(ms.failures),
+            "max_speed": float(np.sqrt(np.max(np.sum(ms.v**2, axis=1), initial=0.0)))}
+
+
 class Simulation:
-    """``Simulation(model, scene).run()`` yields :class:`Frame` objects.
+    """``Simulation(model, scene).run()`` yields :class:`Frame` objects (module docstring).
+    ``history`` collects the diagnostics at day 0 and after every macro step."""
 
-    ``mechanics=False`` is the biology-only mode (the only mode until the mechanics module
-    lands; asking for mechanics raises NotImplementedError rather than silently skipping it).
-    ``history`` collects the diagnostics at day 0 and after every biology step.
-    """
-
-    def __init__(self, model, scene, mechanics: bool = False):
-        if mechanics:
-            raise NotImplementedError("mechanics are not implemented yet; use mechanics=False")
+    def __init__(self, model, scene, mechanics: bool = True, checkpoint_dir=None, checkpoint_every: int = 0):
         self.model, self.scene = model, scene
         self.setup = biology.prepare(model, scene)
         self.state: SimState = initial_state(model, scene)
-        self.history: list[dict] = [diagnostics(self.state, self.setup)]
+        self.mechanics = mechanics
+        self.checkpoint_dir = None if checkpoint_dir is None else Path(checkpoint_dir)
+        self.checkpoint_every = int(checkpoint_every)
+        self.last_frame = -1
+        if mechanics:
+            self.mech_setup = mech.prepare(model, scene)
+            self.coupling = coupling.prepare(model, scene)
+            self.state.mech = mech.initial_state(model, self.mech_setup)
+            self._couple()
+        self.history: list[dict] = [self._diagnostics()]
 
     @property
     def substeps(self) -> int:
         """Biology substeps per ``dt_bio`` (1 when dt_bio is within the stability bound)."""
         return biology.substeps(self.scene.time.dt_bio, self.setup.bound)
 
+    def _couple(self) -> None:
+        M12 = biology.moisture_bounds(self.setup, self.state.t_days)
+        coupling.apply(self.coupling, self.mech_setup, self.state.mech, self.state, M12, self.setup.tissue)
+
+    def _diagnostics(self) -> dict:
+        d = diagnostics(self.state, self.setup)
+        if self.mechanics:
+            d["mechanics"] = mech_diagnostics(self.state.mech)
+        return d
+
+    def macro_step(self, dt_bio: float) -> None:
+        """Algorithm 1 lines 4-13 with a biology step of ``dt_bio`` days."""
+        if self.mechanics:
+            mech.macro_step(self.mech_setup, self.state.mech, self.state.t_days, int(self.scene.mechanics.N_mech))
+        biology.step(self.state, self.setup, dt_bio)
+        inoculate(self.model, self.scene, self.state)
+        if self.mechanics:
+            self._couple()
+        self.history.append(self._diagnostics())
+
     def advance(self, days: float) -> None:
-        """Advance by ``days`` in biology steps of at most ``time.dt_bio``, equal between the
-        days on which an inoculation falls (so it is applied on its day, not up to a step late)."""
+        """Advance by ``days`` in macro steps of at most ``time.dt_bio``, equal between the days
+        on which an inoculation falls (so it is applied on its day, not up to a step late)."""
         if days <= 0.0:
             return
         t0 = self.state.t_days
@@ -64,17 +112,65 @@ class Simulation:
             span = stop - self.state.t_days
             n = max(1, int(np.ceil(span / self.scene.time.dt_bio - 1e-9)))
             for _ in range(n):
-                biology.step(self.state, self.setup, span / n)
-                inoculate(self.model, self.scene, self.state)
-                self.history.append(diagnostics(self.state, self.setup))
+                self.macro_step(span / n)
 
     def frame(self, index: int) -> Frame:
+        rods = {}
+        if self.mechanics:
+            ms = self.state.mech
+            rods = {k: getattr(ms, k).copy() for k in ("x", "q", "component", "element_ok", "edge_ok", "integrity")}
         return Frame(index=index, t_days=self.state.t_days,
-                     fields={f: getattr(self.state, f).copy() for f in FIELDS},
-                     diagnostics=diagnostics(self.state, self.setup))
+                     fields={f: getattr(self.state, f).copy() for f in FIELDS}, mech=rods,
+                     diagnostics=self._diagnostics())
 
     def run(self):
-        """Yield a frame at every frame time (module docstring)."""
+        """Yield a frame at every frame time after the last one yielded (module docstring)."""
         for k, t in enumerate(frame_times(self.scene.time.days, self.scene.time.frames)):
+            if k <= self.last_frame:
+                continue
             self.advance(t - self.state.t_days)
+            self.last_frame = k
+            if self.checkpoint_dir is not None and self.checkpoint_every > 0 and k % self.checkpoint_every == 0:
+                self.save_checkpoint(self.checkpoint_dir / f"frame_{k:05d}.npz")
             yield self.frame(k)
+
+    # ------------------------------------------------------------------ checkpoints
+    def save_checkpoint(self, path) -> Path:
+        """Write the whole state (fields, clock, rods, history) atomically to ``path``."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        s = self.state
+        arrays = {f"field_{f}": getattr(s, f) for f in FIELDS}
+        if self.mechanics:
+            arrays.update({f"mech_{k}": v for k, v in s.mech.arrays().items()})
+        meta = {"version": CHECKPOINT_VERSION, "scene_hash": self.scene.hash, "mechanics": self.mechanics,
+                "frame": self.last_frame, "t_days": s.t_days, "clamp_count": s.clamp_count,
+                "applied": sorted(s.applied), "history": self.history,
+                "t_seconds": s.mech.t_seconds if self.mechanics else 0.0,
+                "failures": s.mech.failures if self.mechanics else 0}
+        tmp = path.with_name(path.name + ".tmp")
+        with open(tmp, "wb") as fh:
+            np.savez(fh, meta=np.array(json.dumps(meta)), **arrays)
+        os.replace(tmp, path)
+        return path
+
+    @classmethod
+    def resume(cls, model, scene, path, **kwargs) -> "Simulation":
+        """A simulation continuing from the checkpoint ``path`` of the same scene."""
+        with np.load(path) as z:
+            meta = json.loads(str(z["meta"]))
+            arrays = {k: z[k].copy() for k in z.files if k != "meta"}
+        if meta.get("version") != CHECKPOINT_VERSION or meta["scene_hash"] != scene.hash:
+            raise ValueError(f"{path}: checkpoint of another scene or version; cannot resume")
+        sim = cls(model, scene, mechanics=meta["mechanics"], **kwargs)
+        s = sim.state
+        for f in FIELDS:
+            setattr(s, f, arrays[f"field_{f}"])
+        s.t_days, s.clamp_count, s.applied = meta["t_days"], meta["clamp_count"], set(meta["applied"])
+        if sim.mechanics:
+            for k in s.mech.arrays():
+                setattr(s.mech, k, arrays[f"mech_{k}"])
+            s.mech.t_seconds, s.mech.failures = meta["t_seconds"], meta["failures"]
+        sim.history = meta["history"]
+        sim.last_frame = meta["frame"]
+        return sim

@@ -34,13 +34,25 @@ class SimState:
     t_days: float = 0.0
     clamp_count: int = 0
     applied: set = field(default_factory=set)  # inoculations already applied (by index)
+    mech: object = None  # the rods' MechState (wooddecay.sim.mechanics), None for biology only
+
+    @property
+    def integrity(self):
+        """I_ij per REG edge (Eq. 21); needs mechanics."""
+        return self.mech.integrity
+
+    @property
+    def component(self):
+        """Connected-component label per element; needs mechanics."""
+        return self.mech.component
 
     def fields(self) -> dict[str, np.ndarray]:
         return {name: getattr(self, name) for name in FIELDS}
 
     def copy(self) -> "SimState":
         return SimState(**{k: v.copy() for k, v in self.fields().items()}, t_days=self.t_days,
-                        clamp_count=self.clamp_count, applied=set(self.applied))
+                        clamp_count=self.clamp_count, applied=set(self.applied),
+                        mech=None if self.mech is None else self.mech.copy())
 
 
 def tissue_values(scene, tissue: np.ndarray, name: str) -> np.ndarray:

@@ -1,0 +1,217 @@
+"""Mechanics: rod kernels against their numpy references, determinism, accuracy (cantilever,
+buckling), stability, coupling (Eqs. 16-19, 21), failure and checkpoints."""
+from __future__ import annotations
+
+import hashlib
+
+import numba
+import numpy as np
+import pytest
+
+import wooddecay as wd
+from wooddecay import mech_validation as mv
+from wooddecay.sim import coupling, failure, mechanics, rods
+from wooddecay.sim.quaternion import normalize_np
+
+from .conftest import sample
+
+
+def _perturbed(name="tiny", seed=0):
+    scene, model = sample(name)
+    setup = mechanics.prepare(model, scene)
+    ms = mechanics.initial_state(model, setup)
+    rng = np.random.default_rng(seed)
+    ms.x += rng.normal(scale=1e-3, size=ms.x.shape) * (ms.w_p > 0)[:, None]
+    ms.q = normalize_np(ms.q + rng.normal(scale=0.02, size=ms.q.shape) * (ms.w_q > 0)[:, None])
+    ms.integrity = rng.uniform(0.2, 1.0, len(setup.edges))
+    return setup, ms
+
+
+def test_rod_kernels_equal_numpy_reference():
+    setup, ms = _perturbed()
+    dt = 1e-3
+    kreg = mechanics.reg_stiffness(setup, ms)
+    results = []
+    for kernels in ((rods.stretch_shear, rods.bend_twist, rods.reg_pass),
+                    (rods.stretch_shear_reference, rods.bend_twist_reference, rods.reg_pass_reference)):
+        x, q = ms.x.copy(), ms.q.copy()
+        lam = mechanics._multipliers(setup)
+        ss, bt, rp = kernels
+        for elems in setup.elems:
+            ss(elems, setup.fp, x, q, ms.w_p, ms.w_q, ms.rest_length, setup.k_stretch, setup.k_shear,
+               ms.element_ok, lam["s"], lam["sh"], dt)
+        for idx in setup.joint_sets:
+            bt(setup.joints, idx, q, ms.w_q, setup.joint_rest, setup.joint_length, setup.joint_kb,
+               setup.joint_kt, lam["j"], dt)
+        ptr, order = setup.colors
+        for c in range(len(ptr) - 1):
+            rp(setup.edges, order[ptr[c]:ptr[c + 1]], setup.fp, x, q, ms.w_p, ms.w_q, ms.rest_offset, kreg[0],
+               setup.edge_rest, setup.edge_length, kreg[1], kreg[2], lam["c"], lam["p"], dt)
+        results.append((x, q, lam))
+    (x1, q1, l1), (x2, q2, l2) = results
+    assert np.abs(x1 - ms.x).max() > 1e-6  # the projections did something
+    np.testing.assert_allclose(x1, x2, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(q1, q2, rtol=0, atol=1e-12)
+    for k in l1:
+        np.testing.assert_allclose(l1[k], l2[k], rtol=1e-9, atol=1e-15)
+
+
+def test_reg_colouring_has_no_shared_particle():
+    scene, model = sample("log")
+    setup = mechanics.prepare(model, scene)
+    ptr, order = setup.colors
+    assert sorted(order.tolist()) == list(range(len(setup.edges)))
+    for c in range(len(ptr) - 1):
+        e = setup.edges[order[ptr[c]:ptr[c + 1]]]
+        parts = np.concatenate([setup.fp[e[:, 0]], setup.fp[e[:, 0]] + 1, setup.fp[e[:, 1]], setup.fp[e[:, 1]] + 1])
+        assert len(np.unique(parts)) == len(parts)
+    assert len(ptr) - 1 < 80
+
+
+def _digest(ms) -> str:
+    h = hashlib.sha256()
+    for a in (ms.x, ms.v, ms.q, ms.omega, ms.component, ms.edge_ok, ms.element_ok):
+        h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
+
+
+def _run_tiny(substeps=30):
+    setup, ms = _perturbed(seed=3)
+    ms.limit_elem[:] = 2e-3  # some failures happen
+    ms.limit_edge[:] = 2e-3
+    f = np.zeros((setup.n_particles, 3))
+    for _ in range(substeps):
+        mechanics.substep(setup, ms, 1e-3, f)
+    return ms
+
+
+def test_same_result_with_one_or_two_threads():
+    n0 = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        a = _run_tiny()
+        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        b = _run_tiny()
+    finally:
+        numba.set_num_threads(n0)
+    assert a.failures > 0
+    assert _digest(a) == _digest(b)
+
+
+def test_cantilever_deflection_within_3_percent():
+    r = mv.cantilever(dt=2e-4, iterations=2, seconds=1.0)
+    assert r["error"] < 0.03, r
+
+
+@pytest.mark.slow
+def test_fixed_free_buckling_load_within_5_percent():
+    below = mv.buckles(0.95, dt=2e-4, iterations=2, seconds=1.0)["lateral_over_L"]
+    above = mv.buckles(1.05, dt=2e-4, iterations=2, seconds=1.0)["lateral_over_L"]
+    assert below < 0.05 and above > 0.2, (below, above)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("dt", [0.001, 0.005, 0.01, 0.02, 0.05])
+def test_stability_on_the_log(dt):
+    """No NaN and no energy growth without input (no gravity, no ground, random velocities)."""
+    scene, model = sample("log")
+    scene = wd.load_scene(scene.path, overrides={"mechanics.gravity": [0, 0, 0], "mechanics.ground": False})
+    setup = mechanics.prepare(model, scene)
+    for iterations in (1, 2, 5, 10):
+        from dataclasses import replace
+        st = replace(setup, iterations=iterations)
+        ms = mechanics.initial_state(model, st)
+        ms.v = np.random.default_rng(1).normal(scale=0.01, size=ms.v.shape) * (ms.w_p > 0)[:, None]
+        ke0 = 0.5 * np.sum(ms.mass_p * np.sum(ms.v**2, axis=1))
+        f = np.zeros((st.n_particles, 3))
+        for _ in range(10):
+            mechanics.substep(st, ms, dt, f)
+            ke = 0.5 * np.sum(ms.mass_p * np.sum(ms.v**2, axis=1))
+            assert np.isfinite(ms.x).all() and np.isfinite(ms.q).all()
+            assert ke <= ke0 * 1.0001, (dt, iterations, ke, ke0)
+
+
+def test_coupling_equations():
+    scene, model = sample("tiny")
+    cs = coupling.prepare(model, scene)
+    setup = mechanics.prepare(model, scene)
+    ms = mechanics.initial_state(model, setup)
+    from wooddecay.sim.state import initial_state
+    state = initial_state(model, scene)
+    M_0 = scene.mechanics.M_0
+    state.M[:] = M_0 - 0.1
+    state.H_c[:] = 0.5
+    state.H_l[:] = 1.0
+    M12 = np.array([[1.0, 0.1]] * 4)
+    coupling.apply(cs, setup, ms, state, M12, model.tissue)
+    np.testing.assert_allclose(ms.rest_length, setup.rest_length0 * (1 - 0.1 * scene.mechanics.s))  # Eq. 17
+    mech = scene.mechanics
+    S_edge = mech.S_R * model.reg_dir_weights[:, 0] + mech.S_T * model.reg_dir_weights[:, 1] + mech.S_L * model.reg_dir_weights[:, 2]
+    np.testing.assert_allclose(ms.rest_offset, setup.offset0 * (1 - 0.1 * mech.S * S_edge))  # Eq. 16
+    expect_I = np.where(model.reg_theta == 1, 1 - mech.k_c * 0.5, 1.0)  # Eq. 21, H_l = 1
+    np.testing.assert_allclose(ms.integrity, expect_I)
+    f = ((M_0 - 0.1 - 0.1) / 0.9) ** mech.p_l_stretch  # Eq. 19
+    np.testing.assert_allclose(ms.limit_elem[:, 0], mech.L_0_stretch * f)
+    assert coupling.limit_factor(np.array(0.05), 1.0, 0.1, 4.0) == 0.0
+    assert coupling.limit_factor(np.array(1.5), 1.0, 0.1, 4.0) == 1.0
+
+
+def test_failure_flags_are_permanent_and_components_split():
+    setup, ms = _perturbed(seed=5)
+    ms.limit_elem[:] = np.inf
+    ms.limit_edge[:] = np.inf
+    # pull the two halves of the tiny log apart along x
+    half = ms.x[:, 0] > np.median(ms.x[:, 0])
+    ms.x[half, 0] += 0.05
+    ms.limit_elem[:] = 0.5
+    ms.limit_edge[:] = 0.5
+    new = failure.update(setup, ms)
+    assert new > 0 and ms.component.max() >= 1
+    assert ms.component[0] == 0  # labels in order of the smallest element
+    broken = (~ms.edge_ok).copy()
+    ms.x[half, 0] -= 0.05  # closing the gap does not heal anything
+    failure.update(setup, ms)
+    assert np.all(~ms.edge_ok[broken])
+
+
+def test_checkpoint_resume_is_bit_exact(tmp_path):
+    scene = wd.load_scene(sample("tiny")[0].path, overrides={"time.days": 4, "time.frames": 5,
+                                                             "mechanics.N_mech": 5})
+    model = sample("tiny")[1]
+    full = list(wd.Simulation(model, scene).run())
+    sim = wd.Simulation(model, scene, checkpoint_dir=tmp_path, checkpoint_every=2)
+    for frame in sim.run():
+        if frame.index == 2:
+            break
+    resumed = wd.Simulation.resume(model, scene, tmp_path / "frame_00002.npz")
+    rest = list(resumed.run())
+    assert [f.index for f in rest] == [3, 4]
+    for a, b in zip(full[3:], rest):
+        for k in a.fields:
+            assert np.array_equal(a.fields[k], b.fields[k])
+        for k in a.mech:
+            assert np.array_equal(a.mech[k], b.mech[k])
+    other = wd.load_scene(sample("tiny")[0].path, overrides={"time.days": 5})
+    with pytest.raises(ValueError):
+        wd.Simulation.resume(model, other, tmp_path / "frame_00002.npz")
+
+
+def test_ground_holds_a_resting_log():
+    scene, model = sample("tiny")
+    sim = wd.Simulation(model, scene)
+    ms, st = sim.state.mech, sim.mech_setup
+    ms.limit_elem[:] = np.inf
+    ms.limit_edge[:] = np.inf
+    f = np.zeros((st.n_particles, 3))
+    for _ in range(200):
+        mechanics.substep(st, ms, st.dt, f)
+    assert ms.x[:, 2].min() > 0.9 * scene.strands.r_s  # at most 10% of r_s into the ground
+
+
+def test_collider_scene_validation():
+    text = (sample("tiny")[0].path).read_text()
+    with pytest.raises(wd.InputError, match="collider\\[0\\].kind"):
+        wd.parse_scene(text + '\n[[collider]]\nkind = "cone"\n')
+    s = wd.parse_scene(text + '\n[[collider]]\nkind = "sphere"\ncenter = [0, 0, 1]\nradius = 0.2\n')
+    setup = mechanics.prepare(sample("tiny")[1], s)
+    assert setup.colliders.shape[0] == 2  # the ground and the sphere

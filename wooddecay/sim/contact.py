@@ -1,0 +1,821 @@
+"""Contact between detached components and against colliders (woodstock §5.4, Eqs. 3-7; SPEC §4).
+
+Capsules. Rod element i is a capsule of radius r_i around the segment from particle
+``first_particle[i]`` to ``first_particle[i] + 1``. For elements i, j of different components with
+closest points at parameters s on i and t on j, dist(i, j) the distance of those points and n_ij the
+unit direction from i to j:
+
+    phi_ij = max((r_i + r_j) - dist(i, j), 0)      (Eq. 3)
+    F_i = -k_col phi_ij^2 n_ij,   F_j = -F_i        (Eq. 4)
+
+Implicit penalty. At dt = 0.01 s an explicit quadratic penalty is unstable, so Eq. 4 is applied as
+an XPBD compliant constraint C = phi with the secant compliance alpha = 1 / (k_col phi). One XPBD
+step from lambda = 0 gives
+
+    dlambda = phi / (W + alpha / dt^2) = k_col phi^2 dt^2 / (1 + W k_col phi dt^2),
+    W = sum_k w_k g_k^2,   g = (1 - s, s) on the particles of i, (1 - t, t) on those of j,
+
+and moves particle k of i by -w_k g_k dlambda n_ij and particle k of j by +w_k g_k dlambda n_ij. The
+constraint force dlambda / dt^2 tends to phi / alpha = k_col phi^2 at rest: the force of Eq. 4
+(a particle resting on the ground settles at phi = sqrt(m g / k_col)). Pairs are projected together
+(Jacobi): the corrections of each pair are computed independently, then every particle sums its
+own in a fixed order and divides by the number of active contacts it takes part in (constraint
+averaging). Colliders use the same step per particle along the collider normal, with
+phi = particle_radius - sd (sd the signed distance to the solid) and W = w_p, one collider after
+the other.
+
+Friction (Eqs. 5-7). v -= min(1, mu_f |dF| dt / (m max(|v|, eps))) v (Eq. 7), where |dF| is the
+normal contact force the particle received in the projections of this substep (capsule pairs and
+colliders, accumulated in ``force`` as g_k dlambda / dt^2) instead of the particle-capsule force of
+Eqs. 5-6: once Eq. 3 is resolved a particle of i lies at r_i + r_j from the axis of j, so
+phi_ikj = max(r_j - dist(p_ik, j), 0) of Eq. 5 vanishes and resting contacts would slide freely.
+
+Broad phase. :func:`candidate_pairs` bins element centres in a uniform hash grid (Teschner et al.
+2003; cell h = longest segment + 2 max radius + margin, so partners lie in the 27 cells around) by
+a counting sort, then visits each element's own cell and its 13 forward neighbours, two passes
+(count, then fill) in parallel over elements, each writing only its own rows.
+
+Determinism. Every parallel loop writes only its own element, pair or particle; sums over a
+particle's contacts run in a fixed order (CSR of particle -> pair incidences by pair index). Results
+are bit-identical for any thread count. The ``*_reference`` functions are the plain numpy/scipy
+versions the tests compare against.
+
+Colliders: a float64 table (k, COLLIDER_COLUMNS), one solid obstacle per row, unused columns 0:
+
+    PLANE     [0, px, py, pz, nx, ny, nz, 0, 0, 0]   a point, the unit normal (solid opposite n)
+    BOX       [1, x0, y0, z0, x1, y1, z1, 0, 0, 0]   axis-aligned, min and max corners
+    SPHERE    [2, cx, cy, cz, R,  0,  0,  0, 0, 0]   centre, radius
+    CYLINDER  [3, ax, ay, az, bx, by, bz, R, 0, 0]   axis end points, radius; flat end caps
+"""
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+from scipy.spatial import cKDTree
+
+PLANE, BOX, SPHERE, CYLINDER = 0, 1, 2, 3
+#: columns of a collider row: the kind, then up to 8 parameters (module docstring)
+COLLIDER_COLUMNS = 10
+#: parameters used by each kind
+COLLIDER_PARAMS = {PLANE: 6, BOX: 6, SPHERE: 4, CYLINDER: 7}
+
+#: squared lengths (m^2) at or below this are degenerate (a point)
+TINY = 1e-30
+#: segments with sin^2(angle) at or below this are parallel
+PARALLEL = 1e-12
+#: partners per element the broad phase's count pass keeps for its fill pass
+KEPT = 8
+#: own cell first, then the 13 neighbour cells lexicographically after it
+_OFFSETS = np.array([(0, 0, 0)] + [(a, b, c) for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)
+                                   if (a, b, c) > (0, 0, 0)], dtype=np.int64)
+
+
+def collider_row(kind: int, *params: float) -> np.ndarray:
+    """One collider row (module docstring); a plane's normal is normalised."""
+    if kind not in COLLIDER_PARAMS or len(params) != COLLIDER_PARAMS[kind]:
+        raise ValueError(f"collider kind {kind} takes {COLLIDER_PARAMS.get(kind)} parameters, got {len(params)}")
+    row = np.zeros(COLLIDER_COLUMNS)
+    row[0] = kind
+    row[1:1 + len(params)] = params
+    if kind == PLANE:
+        row[4:7] /= np.linalg.norm(row[4:7])
+    return row
+
+
+# ----------------------------------------------------------------------------- closest points
+
+
+@nb.njit(cache=True, inline="always")
+def _clamp01(v):
+    return min(max(v, 0.0), 1.0)
+
+
+@nb.njit(cache=True, inline="always")
+def _sub(X, i, j):
+    """X[i] - X[j] as scalars (rows of a (m, 3) array: no views, no allocation)."""
+    return X[i, 0] - X[j, 0], X[i, 1] - X[j, 1], X[i, 2] - X[j, 2]
+
+
+@nb.njit(cache=True, inline="always")
+def closest_point_segment(X, p, a, b):
+    """Parameter t in [0, 1] of the point of segment X[a] X[b] closest to X[p] (rows of X; 0 for
+    a degenerate segment)."""
+    dx, dy, dz = _sub(X, b, a)
+    dd = dx * dx + dy * dy + dz * dz
+    if dd <= TINY:
+        return 0.0
+    vx, vy, vz = _sub(X, p, a)
+    return _clamp01((vx * dx + vy * dy + vz * dz) / dd)
+
+
+@nb.njit(cache=True, inline="always")
+def closest_segment_segment(X, p1, q1, p2, q2):
+    """Parameters (s, t) of the closest points X[p1] + s (X[q1] - X[p1]) and X[p2] + t (X[q2] - X[p2])
+    (rows of X; Ericson, Real-Time Collision Detection §5.1.9). Degenerate segments reduce to
+    point-segment; parallel ones (sin^2 of the angle <= PARALLEL) take s at the middle of the
+    overlap of segment 2 projected on segment 1, so a contact along parallel capsules acts at its
+    centre."""
+    d1x, d1y, d1z = _sub(X, q1, p1)
+    d2x, d2y, d2z = _sub(X, q2, p2)
+    a = d1x * d1x + d1y * d1y + d1z * d1z
+    e = d2x * d2x + d2y * d2y + d2z * d2z
+    if a <= TINY:
+        return 0.0, closest_point_segment(X, p1, p2, q2)
+    if e <= TINY:
+        return closest_point_segment(X, p2, p1, q1), 0.0
+    rx, ry, rz = _sub(X, p1, p2)
+    b = d1x * d2x + d1y * d2y + d1z * d2z
+    c = d1x * rx + d1y * ry + d1z * rz
+    f = d2x * rx + d2y * ry + d2z * rz
+    den = a * e - b * b
+    if den <= PARALLEL * a * e:
+        s0 = -c / a
+        s1 = (b - c) / a
+        s = _clamp01(0.5 * (max(min(s0, s1), 0.0) + min(max(s0, s1), 1.0)))
+    else:
+        s = _clamp01((b * f - c * e) / den)
+    t = (b * s + f) / e
+    if t < 0.0:
+        return closest_point_segment(X, p2, p1, q1), 0.0
+    if t > 1.0:
+        return closest_point_segment(X, q2, p1, q1), 1.0
+    return s, t
+
+
+@nb.njit(cache=True, inline="always")
+def _gap(X, p1, q1, p2, q2, s, t):
+    """(X[p2] + t d2) - (X[p1] + s d1): from the point at s on segment 1 to the point at t on 2."""
+    d1x, d1y, d1z = _sub(X, q1, p1)
+    d2x, d2y, d2z = _sub(X, q2, p2)
+    return (X[p2, 0] + t * d2x - (X[p1, 0] + s * d1x), X[p2, 1] + t * d2y - (X[p1, 1] + s * d1y),
+            X[p2, 2] + t * d2z - (X[p1, 2] + s * d1z))
+
+
+@nb.njit(cache=True, inline="always")
+def _perp(ux, uy, uz):
+    """A unit vector perpendicular to the non-zero u: u x e_k, e_k its least aligned axis."""
+    ax, ay, az = abs(ux), abs(uy), abs(uz)
+    if ax <= ay and ax <= az:
+        vx, vy, vz = 0.0, uz, -uy
+    elif ay <= az:
+        vx, vy, vz = -uz, 0.0, ux
+    else:
+        vx, vy, vz = uy, -ux, 0.0
+    m = np.sqrt(vx * vx + vy * vy + vz * vz)
+    return vx / m, vy / m, vz / m
+
+
+@nb.njit(cache=True, inline="always")
+def capsule_contact(X, p1, q1, r1, p2, q2, r2):
+    """(s, t, nx, ny, nz, phi) of the capsules of radii r1, r2 around segments X[p1] X[q1] and
+    X[p2] X[q2]: closest parameters, unit normal from 1 to 2 and penetration phi (Eq. 3). When the
+    axes touch (distance <= 1e-12 (r1 + r2)) the normal is d1 x d2, or perpendicular to the axes
+    when they are parallel, turned towards centre 2."""
+    s, t = closest_segment_segment(X, p1, q1, p2, q2)
+    nx, ny, nz = _gap(X, p1, q1, p2, q2, s, t)
+    dist = np.sqrt(nx * nx + ny * ny + nz * nz)
+    if dist > 1e-12 * (r1 + r2):
+        return s, t, nx / dist, ny / dist, nz / dist, max(r1 + r2 - dist, 0.0)
+    d1x, d1y, d1z = _sub(X, q1, p1)
+    d2x, d2y, d2z = _sub(X, q2, p2)
+    a = d1x * d1x + d1y * d1y + d1z * d1z
+    e = d2x * d2x + d2y * d2y + d2z * d2z
+    cx, cy, cz = d1y * d2z - d1z * d2y, d1z * d2x - d1x * d2z, d1x * d2y - d1y * d2x
+    cc = cx * cx + cy * cy + cz * cz
+    if cc > PARALLEL * a * e and a > TINY and e > TINY:
+        m = np.sqrt(cc)
+        nx, ny, nz = cx / m, cy / m, cz / m
+    elif a > TINY:
+        nx, ny, nz = _perp(d1x, d1y, d1z)
+    elif e > TINY:
+        nx, ny, nz = _perp(d2x, d2y, d2z)
+    else:
+        nx, ny, nz = 0.0, 0.0, 1.0
+    ox, oy, oz = _sub(X, p2, p1)
+    qx, qy, qz = _sub(X, q2, q1)
+    if nx * (ox + qx) + ny * (oy + qy) + nz * (oz + qz) < 0.0:
+        nx, ny, nz = -nx, -ny, -nz
+    return s, t, nx, ny, nz, max(r1 + r2 - dist, 0.0)
+
+
+def _clamp01_ref(v):
+    return np.clip(v, 0.0, 1.0)
+
+
+def _dot(u, v):
+    return u[:, 0] * v[:, 0] + u[:, 1] * v[:, 1] + u[:, 2] * v[:, 2]
+
+
+def closest_point_segment_reference(p, a, b):
+    """Vectorised :func:`closest_point_segment` (rows are points and segments)."""
+    d = b - a
+    dd = _dot(d, d)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(dd <= TINY, 0.0, _clamp01_ref(_dot(p - a, d) / dd))
+
+
+def closest_segment_segment_reference(p1, q1, p2, q2):
+    """Vectorised :func:`closest_segment_segment` (rows are segment pairs)."""
+    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    a, e, b, c, f = _dot(d1, d1), _dot(d2, d2), _dot(d1, d2), _dot(d1, r), _dot(d2, r)
+    den = a * e - b * b
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s0, s1 = -c / a, (b - c) / a
+        s_par = _clamp01_ref(0.5 * (np.maximum(np.minimum(s0, s1), 0.0) + np.minimum(np.maximum(s0, s1), 1.0)))
+        s = np.where(den <= PARALLEL * a * e, s_par, _clamp01_ref((b * f - c * e) / den))
+        t = (b * s + f) / e
+    s = np.where(t < 0.0, closest_point_segment_reference(p2, p1, q1),
+                 np.where(t > 1.0, closest_point_segment_reference(q2, p1, q1), s))
+    t = _clamp01_ref(t)
+    s_deg1 = np.where(e <= TINY, closest_point_segment_reference(p2, p1, q1), s)
+    t = np.where(e <= TINY, 0.0, t)
+    s = np.where(a <= TINY, 0.0, s_deg1)
+    t = np.where(a <= TINY, closest_point_segment_reference(p1, p2, q2), t)
+    return s, t
+
+
+def _perp_reference(u):
+    k = np.argmin(np.abs(u), axis=1)
+    axis = np.eye(3)[k]
+    v = np.cross(u, axis)
+    return v / np.linalg.norm(v, axis=1)[:, None]
+
+
+def capsule_contact_reference(p1, q1, r1, p2, q2, r2):
+    """Vectorised :func:`capsule_contact`: (s, t, n (m, 3), phi)."""
+    s, t = closest_segment_segment_reference(p1, q1, p2, q2)
+    d1, d2 = q1 - p1, q2 - p2
+    diff = (p2 + t[:, None] * d2) - (p1 + s[:, None] * d1)
+    dist = np.sqrt(_dot(diff, diff))
+    a, e = _dot(d1, d1), _dot(d2, d2)
+    cr = np.cross(d1, d2)
+    cc = _dot(cr, cr)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        fall = np.where((cc > PARALLEL * a * e)[:, None] & (a > TINY)[:, None] & (e > TINY)[:, None],
+                        cr / np.sqrt(cc)[:, None],
+                        np.where((a > TINY)[:, None], _perp_reference(d1),
+                                 np.where((e > TINY)[:, None], _perp_reference(d2), [0.0, 0.0, 1.0])))
+        o = (p2 - p1) + (q2 - q1)
+        fall = np.where((_dot(fall, o) < 0.0)[:, None], -fall, fall)
+        n = np.where((dist > 1e-12 * (r1 + r2))[:, None], diff / dist[:, None], fall)
+    return s, t, n, np.maximum(r1 + r2 - dist, 0.0)
+
+
+# ----------------------------------------------------------------------------- broad phase
+
+
+@nb.njit(cache=True, inline="always")
+def _bucket(cx, cy, cz, mask):
+    return ((cx * 73856093) ^ (cy * 19349663) ^ (cz * 83492791)) & mask
+
+
+@nb.njit(parallel=True, cache=True)
+def _element_boxes(x, first_particle, radius, grow, center, box, ext):
+    """Per element: segment centre, bounds grown by r + ``grow`` (lo, hi) and length + 2 r."""
+    for e in nb.prange(len(first_particle)):
+        a = first_particle[e]
+        dx, dy, dz = _sub(x, a + 1, a)
+        ext[e] = np.sqrt(dx * dx + dy * dy + dz * dz) + 2.0 * radius[e]
+        g = radius[e] + grow
+        for k in range(3):
+            center[e, k] = 0.5 * (x[a, k] + x[a + 1, k])
+            box[e, k] = min(x[a, k], x[a + 1, k]) - g
+            box[e, 3 + k] = max(x[a, k], x[a + 1, k]) + g
+
+
+@nb.njit(cache=True)
+def _hash_grid(center, box, axis, h, cell, bucket, start, order):
+    """Cells of side h, then a counting sort of the elements by the hash bucket of their cell,
+    each bucket sorted by box lower bound along ``axis`` (ties: element order). Fills ``cell``,
+    ``bucket``, ``start`` (n_buckets + 1, zeros on entry) and ``order``; returns the grid dims."""
+    n = len(center)
+    mask = len(start) - 2
+    lx, ly, lz = center[:, 0].min(), center[:, 1].min(), center[:, 2].min()
+    dx = dy = dz = 1
+    for e in range(n):
+        cx = int(np.floor((center[e, 0] - lx) / h))
+        cy = int(np.floor((center[e, 1] - ly) / h))
+        cz = int(np.floor((center[e, 2] - lz) / h))
+        cell[e, 0], cell[e, 1], cell[e, 2] = cx, cy, cz
+        dx, dy, dz = max(dx, cx + 1), max(dy, cy + 1), max(dz, cz + 1)
+        bucket[e] = _bucket(cx, cy, cz, mask)
+        start[bucket[e]] += 1
+    for b in range(mask + 1):
+        start[b + 1] += start[b]
+    for e in range(n - 1, -1, -1):  # start[b] ends as the first slot of bucket b
+        start[bucket[e]] -= 1
+        order[start[bucket[e]]] = e
+    for b in range(mask + 1):
+        for u in range(start[b] + 1, start[b + 1]):
+            e = order[u]
+            w = u - 1
+            while w >= start[b] and box[order[w], axis] > box[e, axis]:
+                order[w + 1] = order[w]
+                w -= 1
+            order[w + 1] = e
+    return dx, dy, dz
+
+
+@nb.njit(parallel=True, cache=True)
+def _sorted_segments(first_particle, component, order, box, cell, dims, box_s, comp_s, fp_s, key_s):
+    """Gather into grid order: boxes, component, first particle and linear cell key."""
+    for a in nb.prange(len(order)):
+        e = order[a]
+        comp_s[a], fp_s[a] = component[e], first_particle[e]
+        for k in range(6):
+            box_s[a, k] = box[e, k]
+        key_s[a] = (cell[e, 0] * dims[1] + cell[e, 1]) * dims[2] + cell[e, 2]
+
+
+@nb.njit(cache=True, inline="always")
+def _apart(box_u, u, box_v, v):
+    """Boxes (lo, hi) row u of box_u and row v of box_v do not overlap."""
+    return (box_u[u, 0] > box_v[v, 3] or box_u[u, 3] < box_v[v, 0] or box_u[u, 1] > box_v[v, 4]
+            or box_u[u, 4] < box_v[v, 1] or box_u[u, 2] > box_v[v, 5] or box_u[u, 5] < box_v[v, 2])
+
+
+@nb.njit(cache=True, inline="always")
+def _overlap(box_u, u, box_v, v):
+    """not _apart, without short-circuit branches."""
+    return ((box_u[u, 0] <= box_v[v, 3]) & (box_u[u, 3] >= box_v[v, 0]) & (box_u[u, 1] <= box_v[v, 4])
+            & (box_u[u, 4] >= box_v[v, 1]) & (box_u[u, 2] <= box_v[v, 5]) & (box_u[u, 5] >= box_v[v, 2]))
+
+
+@nb.njit(parallel=True, cache=True)
+def _bucket_boxes(box, start, out):
+    """Bounding box of the element boxes of each bucket (empty: inverted, overlaps nothing)."""
+    for b in nb.prange(len(start) - 1):
+        for k in range(3):
+            out[b, k] = np.inf
+            out[b, 3 + k] = -np.inf
+        for m in range(start[b], start[b + 1]):
+            for k in range(3):
+                out[b, k] = min(out[b, k], box[m, k])
+                out[b, 3 + k] = max(out[b, 3 + k], box[m, 3 + k])
+
+
+@nb.njit(cache=True, inline="always")
+def _lower_bound(box, axis, lo, hi, value):
+    """First m in [lo, hi) with box[m, axis] >= value (the range is sorted on that column)."""
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if box[mid, axis] < value:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@nb.njit(parallel=True, cache=True)
+def _pairs_pass(x, radius, box, bucket_box, comp, fp, elem, key, start, dims, axis, width, margin,
+                counts, kept, base, out, fill):
+    """Count (fill=False) or write (fill=True) the pairs owned by each element, in grid order:
+    partners after it in its own cell and those of its 13 forward cells. A pair in reach has
+    overlapping ``box`` (segment bounds grown by r + margin / 2): a bucket whose ``bucket_box``
+    misses the element's box is skipped whole, and in a bucket (sorted by box lower bound along
+    ``axis``, no box wider than ``width`` there) only the window of lower bounds in
+    [lo - width, hi] is visited. The exact test is the capsule gap. The count pass keeps the first
+    KEPT partners of each element in ``kept``; the fill pass copies them and searches again only
+    for elements with more."""
+    mask = len(start) - 2
+    for a in nb.prange(len(box)):
+        if fill and counts[a] <= KEPT:
+            for k in range(counts[a]):
+                out[base[a] + k, 0] = min(elem[a], kept[a, k])
+                out[base[a] + k, 1] = max(elem[a], kept[a, k])
+            continue
+        k = 0
+        lo, hi = box[a, axis], box[a, 3 + axis]
+        ca, pa = comp[a], fp[a]
+        cx, cy, cz = key[a] // (dims[1] * dims[2]), (key[a] // dims[2]) % dims[1], key[a] % dims[2]
+        for o in range(len(_OFFSETS)):
+            u = cx + _OFFSETS[o, 0]
+            v = cy + _OFFSETS[o, 1]
+            w = cz + _OFFSETS[o, 2]
+            if u < 0 or u >= dims[0] or v < 0 or v >= dims[1] or w < 0 or w >= dims[2]:
+                continue
+            b = _bucket(u, v, w, mask)
+            if o == 0:
+                m0 = a + 1
+            elif _apart(bucket_box, b, box, a):
+                continue
+            else:
+                m0 = _lower_bound(box, axis, start[b], start[b + 1], lo - width)
+            nkey = (u * dims[1] + v) * dims[2] + w
+            for m in range(m0, start[b + 1]):
+                if box[m, axis] > hi:
+                    break
+                # one well-predicted branch: & evaluates every test (most entries fail one at random)
+                pm = fp[m]
+                if not ((comp[m] != ca) & (key[m] == nkey) & (abs(pm - pa) > 1) & _overlap(box, m, box, a)):
+                    continue
+                s, t = closest_segment_segment(x, pa, pa + 1, pm, pm + 1)
+                ex, ey, ez = _gap(x, pa, pa + 1, pm, pm + 1, s, t)
+                lim = radius[elem[a]] + radius[elem[m]] + margin
+                if ex * ex + ey * ey + ez * ez < lim * lim:
+                    if fill:
+                        out[base[a] + k, 0] = min(elem[a], elem[m])
+                        out[base[a] + k, 1] = max(elem[a], elem[m])
+                    elif k < KEPT:
+                        kept[a, k] = elem[m]
+                    k += 1
+        if not fill:
+            counts[a] = k
+
+
+@nb.njit(parallel=True, cache=True)
+def _sort_pairs(raw, indptr, out):
+    """``raw`` (rows i < j) into ``out`` sorted lexicographically: a counting sort by i (``indptr``
+    (n + 1,) zeros on entry), then each row by j."""
+    n = len(indptr) - 1
+    for q in range(len(raw)):
+        indptr[raw[q, 0]] += 1
+    for i in range(n):
+        indptr[i + 1] += indptr[i]
+    for q in range(len(raw) - 1, -1, -1):
+        i = raw[q, 0]
+        indptr[i] -= 1
+        out[indptr[i], 0] = i
+        out[indptr[i], 1] = raw[q, 1]
+    for i in nb.prange(n):
+        for u in range(indptr[i] + 1, indptr[i + 1]):
+            v = out[u, 1]
+            w = u - 1
+            while w >= indptr[i] and out[w, 1] > v:
+                out[w + 1, 1] = out[w, 1]
+                w -= 1
+            out[w + 1, 1] = v
+
+
+def candidate_pairs(x, first_particle, radius, component, margin) -> np.ndarray:
+    """(k, 2) int64 element pairs i < j, sorted lexicographically, with component[i] !=
+    component[j], no shared particle, and capsule gap dist(i, j) < r_i + r_j + margin (Eq. 3 with a
+    margin, so the pairs can be reused over the substeps of a step).
+
+    Grid cell h = max(length + 2 r) + margin: a pair in reach has centres closer than h. All
+    arrays are allocated here (numpy), the kernels only fill them."""
+    n = len(first_particle)
+    if n < 2 or np.all(component == component[0]):
+        return np.zeros((0, 2), dtype=np.int64)
+    center, box, ext = np.empty((n, 3)), np.empty((n, 6)), np.empty(n)
+    slack = 1e-9 * (float(np.abs(x).max()) + margin)  # the box tests only prune: never below round-off
+    _element_boxes(x, first_particle, radius, 0.5 * margin + slack, center, box, ext)
+    h = float(ext.max()) + margin
+    widths = box[:, 3:] - box[:, :3]
+    axis = int(np.argmin(widths.sum(axis=0)))  # the thinnest boxes: the sweep prunes most
+    width = float(widths[:, axis].max()) + slack
+    start = np.zeros((1 << max(1, (n // 2).bit_length())) + 1, dtype=np.int64)  # >= n / 2 buckets
+    cell, bucket, order = np.empty((n, 3), dtype=np.int64), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    dims = np.array(_hash_grid(center, box, axis, h, cell, bucket, start, order), dtype=np.int64)
+    box_s, comp_s, fp_s, key_s = (np.empty((n, 6)), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64),
+                                  np.empty(n, dtype=np.int64))
+    _sorted_segments(first_particle, component, order, box, cell, dims, box_s, comp_s, fp_s, key_s)
+    bucket_box = np.empty((len(start) - 1, 6))
+    _bucket_boxes(box_s, start, bucket_box)
+    args = (x, radius, box_s, bucket_box, comp_s, fp_s, order, key_s, start, dims, axis, width, float(margin))
+    counts, kept = np.empty(n, dtype=np.int64), np.empty((n, KEPT), dtype=np.int64)
+    _pairs_pass(*args, counts, kept, counts, np.zeros((0, 2), dtype=np.int64), False)
+    base = np.concatenate(([0], np.cumsum(counts)))
+    raw, out = np.empty((base[-1], 2), dtype=np.int64), np.empty((base[-1], 2), dtype=np.int64)
+    _pairs_pass(*args, counts, kept, base, raw, True)
+    _sort_pairs(raw, np.zeros(n + 1, dtype=np.int64), out)
+    return out
+
+
+def candidate_pairs_reference(x, first_particle, radius, component, margin) -> np.ndarray:
+    """scipy/numpy version of :func:`candidate_pairs`: cKDTree on the centres, vectorised capsule gap."""
+    n = len(first_particle)
+    if n < 2:
+        return np.zeros((0, 2), dtype=np.int64)
+    pa, pb = x[first_particle], x[first_particle + 1]
+    half = 0.5 * np.linalg.norm(pb - pa, axis=1)
+    h = (2.0 * half.max() + 2.0 * radius.max() + margin) * (1.0 + 1e-9)
+    cand = cKDTree(0.5 * (pa + pb)).query_pairs(h, output_type="ndarray").astype(np.int64)
+    i, j = cand[:, 0], cand[:, 1]
+    keep = (component[i] != component[j]) & (np.abs(first_particle[i] - first_particle[j]) > 1)
+    i, j = i[keep], j[keep]
+    s, t = closest_segment_segment_reference(pa[i], pb[i], pa[j], pb[j])
+    d = (pa[j] + t[:, None] * (pb[j] - pa[j])) - (pa[i] + s[:, None] * (pb[i] - pa[i]))
+    lim = radius[i] + radius[j] + margin
+    keep = _dot(d, d) < lim * lim
+    out = np.sort(np.stack([i[keep], j[keep]], axis=1), axis=1)
+    return out[np.lexsort((out[:, 1], out[:, 0]))]
+
+
+# ----------------------------------------------------------------------------- capsule contacts
+
+
+@nb.njit(cache=True, inline="always")
+def _dlambda(phi, W, k_col, dt2):
+    """XPBD multiplier of C = phi with compliance alpha = 1 / (k_col phi): phi / (W + alpha / dt^2)."""
+    return k_col * phi * phi * dt2 / (1.0 + W * k_col * phi * dt2)
+
+
+@nb.njit(parallel=True, cache=True)
+def _pair_corrections(x, w_p, first_particle, radius, pairs, k_col, dt, disp, fmag, phi):
+    """Per pair: penetration (Eq. 3) and, if active, the displacement (4, 3) and normal force (4,)
+    of its four particles (i's two, then j's two)."""
+    dt2 = dt * dt
+    for q in nb.prange(len(pairs)):
+        i, j = pairs[q, 0], pairs[q, 1]
+        a, b = first_particle[i], first_particle[j]
+        s, t, nx, ny, nz, ph = capsule_contact(x, a, a + 1, radius[i], b, b + 1, radius[j])
+        phi[q] = ph
+        g = (1.0 - s, s, 1.0 - t, t)
+        parts = (a, a + 1, b, b + 1)
+        W = 0.0
+        for k in range(4):
+            W += w_p[parts[k]] * g[k] * g[k]
+        dl = _dlambda(ph, W, k_col, dt2) if ph > 0.0 else 0.0
+        for k in range(4):
+            c = (-1.0 if k < 2 else 1.0) * w_p[parts[k]] * g[k] * dl
+            disp[q, k, 0] = c * nx
+            disp[q, k, 1] = c * ny
+            disp[q, k, 2] = c * nz
+            fmag[q, k] = g[k] * dl / dt2
+
+
+@nb.njit(cache=True)
+def _incidences(pairs, first_particle, active, n_particles):
+    """CSR particle -> incidences q * 4 + slot of the active pairs, in increasing q (counting sort)."""
+    indptr = np.zeros(n_particles + 1, dtype=np.int64)
+    for q in active:
+        a, b = first_particle[pairs[q, 0]], first_particle[pairs[q, 1]]
+        indptr[a + 1] += 1
+        indptr[a + 2] += 1
+        indptr[b + 1] += 1
+        indptr[b + 2] += 1
+    for p in range(n_particles):
+        indptr[p + 1] += indptr[p]
+    cursor = indptr[:-1].copy()
+    inc = np.empty(indptr[-1], dtype=np.int64)
+    for q in active:
+        a, b = first_particle[pairs[q, 0]], first_particle[pairs[q, 1]]
+        parts = (a, a + 1, b, b + 1)
+        for k in range(4):
+            inc[cursor[parts[k]]] = q * 4 + k
+            cursor[parts[k]] += 1
+    return indptr, inc
+
+
+@nb.njit(parallel=True, cache=True)
+def _gather(x, force, indptr, inc, disp, fmag):
+    """x_p += mean of its contact displacements; force_p += sum of its normal forces."""
+    for p in nb.prange(len(x)):
+        lo, hi = indptr[p], indptr[p + 1]
+        if hi == lo:
+            continue
+        ax = ay = az = f = 0.0
+        for e in range(lo, hi):
+            q, k = inc[e] // 4, inc[e] % 4
+            ax += disp[q, k, 0]
+            ay += disp[q, k, 1]
+            az += disp[q, k, 2]
+            f += fmag[q, k]
+        cnt = hi - lo
+        x[p, 0] += ax / cnt
+        x[p, 1] += ay / cnt
+        x[p, 2] += az / cnt
+        force[p] += f
+
+
+def project_contacts(x, w_p, first_particle, radius, pairs, k_col, dt, force) -> tuple[int, float]:
+    """One Jacobi XPBD projection of the capsule contacts of ``pairs`` (Eqs. 3-4, module docstring).
+
+    Moves ``x`` (P, 3) in place (particles with w_p = 0 never move) and adds to ``force`` (P,) the
+    normal force magnitude g_k dlambda / dt^2 each particle receives. Returns (number of pairs with
+    phi > 0, largest phi), measured on the positions before the projection; k_col <= 0 means no
+    contact: nothing changes and (0, 0.0) is returned."""
+    if k_col <= 0.0 or len(pairs) == 0:
+        return 0, 0.0
+    m = len(pairs)
+    disp, fmag, phi = np.empty((m, 4, 3)), np.empty((m, 4)), np.empty(m)
+    _pair_corrections(x, w_p, first_particle, radius, pairs, float(k_col), float(dt), disp, fmag, phi)
+    active = np.flatnonzero(phi > 0.0)
+    indptr, inc = _incidences(pairs, first_particle, active, len(x))
+    _gather(x, force, indptr, inc, disp, fmag)
+    return len(active), float(phi.max())
+
+
+def project_contacts_reference(x, w_p, first_particle, radius, pairs, k_col, dt, force) -> tuple[int, float]:
+    """numpy version of :func:`project_contacts`."""
+    if k_col <= 0.0 or len(pairs) == 0:
+        return 0, 0.0
+    a, b = first_particle[pairs[:, 0]], first_particle[pairs[:, 1]]
+    s, t, n, phi = capsule_contact_reference(x[a], x[a + 1], radius[pairs[:, 0]], x[b], x[b + 1], radius[pairs[:, 1]])
+    act = phi > 0.0
+    a, b, s, t, n, ph = a[act], b[act], s[act], t[act], n[act], phi[act]
+    parts = np.stack([a, a + 1, b, b + 1], axis=1)
+    g = np.stack([1.0 - s, s, 1.0 - t, t], axis=1)
+    w = w_p[parts]
+    W = w[:, 0] * g[:, 0] ** 2 + w[:, 1] * g[:, 1] ** 2 + w[:, 2] * g[:, 2] ** 2 + w[:, 3] * g[:, 3] ** 2
+    dt2 = dt * dt
+    dl = k_col * ph * ph * dt2 / (1.0 + W * k_col * ph * dt2)
+    c = np.array([-1.0, -1.0, 1.0, 1.0]) * w * g * dl[:, None]
+    acc = np.zeros_like(x)
+    fsum = np.zeros(len(x))
+    np.add.at(acc, parts.ravel(), (c[:, :, None] * n[:, None, :]).reshape(-1, 3))
+    np.add.at(fsum, parts.ravel(), (g * dl[:, None] / dt2).ravel())
+    cnt = np.bincount(parts.ravel(), minlength=len(x))
+    hit = cnt > 0
+    x[hit] += acc[hit] / cnt[hit, None]
+    force[hit] += fsum[hit]
+    return int(act.sum()), float(phi.max())
+
+
+# ----------------------------------------------------------------------------- colliders
+
+
+@nb.njit(cache=True)
+def collider_distance(row, px, py, pz):
+    """(sd, nx, ny, nz): signed distance of point p to the solid of a collider row (negative
+    inside) and the unit outward normal of the closest surface point. Inside a box the nearest
+    face wins (ties: x before y before z, min side first)."""
+    kind = int(row[0])
+    if kind == PLANE:
+        nx, ny, nz = row[4], row[5], row[6]
+        return (px - row[1]) * nx + (py - row[2]) * ny + (pz - row[3]) * nz, nx, ny, nz
+    if kind == BOX:
+        qx, qy, qz = min(max(px, row[1]), row[4]), min(max(py, row[2]), row[5]), min(max(pz, row[3]), row[6])
+        dx, dy, dz = px - qx, py - qy, pz - qz
+        d = np.sqrt(dx * dx + dy * dy + dz * dz)
+        if d > 0.0:
+            return d, dx / d, dy / d, dz / d
+        p = (px, py, pz)
+        best, axis, sgn = np.inf, 0, -1.0
+        for k in range(3):
+            for side in (-1.0, 1.0):
+                depth = row[4 + k] - p[k] if side > 0.0 else p[k] - row[1 + k]
+                if depth < best:
+                    best, axis, sgn = depth, k, side
+        return -best, sgn * (axis == 0), sgn * (axis == 1), sgn * (axis == 2)
+    if kind == SPHERE:
+        dx, dy, dz = px - row[1], py - row[2], pz - row[3]
+        d = np.sqrt(dx * dx + dy * dy + dz * dz)
+        if d > 0.0:
+            return d - row[4], dx / d, dy / d, dz / d
+        return -row[4], 0.0, 0.0, 1.0
+    # CYLINDER: axial coordinate t along u, radial distance rho
+    ux, uy, uz = row[4] - row[1], row[5] - row[2], row[6] - row[3]
+    h = np.sqrt(ux * ux + uy * uy + uz * uz)
+    ux, uy, uz = ux / h, uy / h, uz / h
+    vx, vy, vz = px - row[1], py - row[2], pz - row[3]
+    t = vx * ux + vy * uy + vz * uz
+    rx, ry, rz = vx - t * ux, vy - t * uy, vz - t * uz
+    rho = np.sqrt(rx * rx + ry * ry + rz * rz)
+    if rho > 0.0:
+        ex, ey, ez = rx / rho, ry / rho, rz / rho
+    else:
+        ex, ey, ez = _perp(ux, uy, uz)
+    dr = rho - row[7]
+    if t < 0.5 * h:
+        dz, cx, cy, cz = -t, -ux, -uy, -uz
+    else:
+        dz, cx, cy, cz = t - h, ux, uy, uz
+    if dr > 0.0 or dz > 0.0:
+        a, b = max(dr, 0.0), max(dz, 0.0)
+        d = np.sqrt(a * a + b * b)
+        return d, (a * ex + b * cx) / d, (a * ey + b * cy) / d, (a * ez + b * cz) / d
+    if dr > dz:
+        return dr, ex, ey, ez
+    return dz, cx, cy, cz
+
+
+@nb.njit(parallel=True, cache=True)
+def _colliders_kernel(x, w_p, particle_radius, colliders, k_col, dt, force, n_active, pen):
+    dt2 = dt * dt
+    for p in nb.prange(len(x)):
+        na = 0
+        mp = 0.0
+        for c in range(len(colliders)):
+            sd, nx, ny, nz = collider_distance(colliders[c], x[p, 0], x[p, 1], x[p, 2])
+            ph = particle_radius[p] - sd
+            if ph <= 0.0:
+                continue
+            na += 1
+            mp = max(mp, ph)
+            dl = _dlambda(ph, w_p[p], k_col, dt2)
+            x[p, 0] += w_p[p] * dl * nx
+            x[p, 1] += w_p[p] * dl * ny
+            x[p, 2] += w_p[p] * dl * nz
+            force[p] += dl / dt2
+        n_active[p] = na
+        pen[p] = mp
+
+
+def _check_colliders(colliders):
+    if colliders.ndim != 2 or colliders.shape[1] != COLLIDER_COLUMNS:
+        raise ValueError(f"colliders must be (k, {COLLIDER_COLUMNS}), got {colliders.shape}")
+    if not np.isin(colliders[:, 0], list(COLLIDER_PARAMS)).all():
+        raise ValueError(f"collider kinds must be in {sorted(COLLIDER_PARAMS)}")
+
+
+def project_colliders(x, w_p, particle_radius, colliders, k_col, dt, force) -> tuple[int, float]:
+    """Keep each particle outside every collider at clearance ``particle_radius`` (P,): per
+    particle, one collider after the other, phi = particle_radius - sd and the secant-compliance
+    XPBD step along the collider normal with W = w_p (module docstring). Moves ``x`` in place,
+    adds the normal force dlambda / dt^2 to ``force``. Returns (number of particle-collider
+    contacts with phi > 0, largest phi); k_col <= 0 or no colliders: nothing, (0, 0.0)."""
+    if k_col <= 0.0 or len(colliders) == 0 or len(x) == 0:
+        return 0, 0.0
+    _check_colliders(colliders)
+    n_active, pen = np.empty(len(x), dtype=np.int64), np.empty(len(x))
+    _colliders_kernel(x, w_p, particle_radius, colliders, float(k_col), float(dt), force, n_active, pen)
+    return int(n_active.sum()), float(pen.max())
+
+
+def collider_distance_reference(row, p):
+    """Vectorised :func:`collider_distance`: (sd (m,), n (m, 3))."""
+    kind = int(row[0])
+    if kind == PLANE:
+        n = np.broadcast_to(row[4:7], p.shape)
+        return _dot(p - row[1:4], n), n
+    if kind == BOX:
+        d = p - np.clip(p, row[1:4], row[4:7])
+        dist = np.sqrt(_dot(d, d))
+        depth = np.concatenate([p - row[1:4], row[4:7] - p], axis=1)[:, [0, 3, 1, 4, 2, 5]]
+        f = np.argmin(depth, axis=1)
+        n_in = np.zeros_like(p)
+        n_in[np.arange(len(p)), f // 2] = np.where(f % 2 == 1, 1.0, -1.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out = dist > 0.0
+            return np.where(out, dist, -depth.min(axis=1)), np.where(out[:, None], d / dist[:, None], n_in)
+    if kind == SPHERE:
+        d = p - row[1:4]
+        dist = np.sqrt(_dot(d, d))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return dist - row[4], np.where((dist > 0.0)[:, None], d / dist[:, None], [0.0, 0.0, 1.0])
+    u = row[4:7] - row[1:4]
+    h = np.sqrt(u @ u)
+    u = u / h
+    v = p - row[1:4]
+    t = v[:, 0] * u[0] + v[:, 1] * u[1] + v[:, 2] * u[2]
+    r = v - t[:, None] * u
+    rho = np.sqrt(_dot(r, r))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        er = np.where((rho > 0.0)[:, None], r / rho[:, None], _perp_reference(u[None])[0])
+        dr = rho - row[7]
+        low = t < 0.5 * h
+        dz = np.where(low, -t, t - h)
+        ec = np.where(low[:, None], -u, u)
+        a, b = np.maximum(dr, 0.0), np.maximum(dz, 0.0)
+        d = np.sqrt(a * a + b * b)
+        n_out = (a[:, None] * er + b[:, None] * ec) / d[:, None]
+    outside = (dr > 0.0) | (dz > 0.0)
+    sd = np.where(outside, d, np.maximum(dr, dz))
+    n = np.where(outside[:, None], n_out, np.where((dr > dz)[:, None], er, ec))
+    return sd, n
+
+
+def project_colliders_reference(x, w_p, particle_radius, colliders, k_col, dt, force) -> tuple[int, float]:
+    """numpy version of :func:`project_colliders`."""
+    if k_col <= 0.0 or len(colliders) == 0 or len(x) == 0:
+        return 0, 0.0
+    _check_colliders(colliders)
+    dt2 = dt * dt
+    n_active, pen = 0, 0.0
+    for row in colliders:
+        sd, n = collider_distance_reference(row, x)
+        ph = particle_radius - sd
+        act = ph > 0.0
+        if not act.any():
+            continue
+        n_active += int(act.sum())
+        pen = max(pen, float(ph[act].max()))
+        w, ph = w_p[act], ph[act]
+        dl = k_col * ph * ph * dt2 / (1.0 + w * k_col * ph * dt2)
+        x[act] += (w * dl)[:, None] * n[act]
+        force[act] += dl / dt2
+    return n_active, pen
+
+
+# ----------------------------------------------------------------------------- friction
+
+
+@nb.njit(parallel=True, cache=True)
+def _friction_kernel(v, force, mass_p, mu_f, dt, eps):
+    for p in nb.prange(len(v)):
+        if force[p] <= 0.0:
+            continue
+        speed = np.sqrt(v[p, 0] * v[p, 0] + v[p, 1] * v[p, 1] + v[p, 2] * v[p, 2])
+        c = min(1.0, mu_f * force[p] * dt / (mass_p[p] * max(speed, eps)))
+        for k in range(3):
+            v[p, k] -= c * v[p, k]
+
+
+def apply_friction(v, force, mass_p, mu_f, dt, eps) -> None:
+    """Eq. 7 in place: v -= min(1, mu_f |dF| dt / (m max(|v|, eps))) v per particle, |dF| = force
+    (P,), the normal contact force of this substep (module docstring: it stands for Eq. 6's dF).
+    Particles without contact force are left alone; mass_p > 0, eps > 0."""
+    if mu_f > 0.0 and len(v):
+        _friction_kernel(v, force, mass_p, float(mu_f), float(dt), float(eps))
+
+
+def apply_friction_reference(v, force, mass_p, mu_f, dt, eps) -> None:
+    """numpy version of :func:`apply_friction`."""
+    if mu_f <= 0.0 or len(v) == 0:
+        return
+    hit = force > 0.0
+    speed = np.sqrt(_dot(v, v))
+    c = np.minimum(1.0, mu_f * force * dt / (mass_p * np.maximum(speed, eps)))
+    v[hit] -= c[hit, None] * v[hit]

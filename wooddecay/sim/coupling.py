@@ -1,0 +1,89 @@
+"""Coupling of moisture and decay back to the mechanics (woodstock §7, Eqs. 16-19 and 21;
+Algorithm 1 lines 12-13; SPEC §4).
+
+After each biology step, with (x)^+ = max(x, 0):
+
+* Eq. 16 with the direction-dependent gain of SPEC §4 (Table 2, Fig. 6): REG rest offsets
+  dp = dp_0 (1 - (M_0 - M)^+ S S_edge), S_edge = S_R n_r^2 + S_T n_t^2 + S_L n_l^2;
+* Eq. 17: rest lengths l_r = l_r0 (1 - (M_0 - M)^+ s);
+* Eqs. 18-19: strain limits L(M) = L_0 f(M - M_2), f(x) = clip(x / (M_1 - M_2), 0, 1)^p_l, per
+  constraint type (stretch, shear on elements; bundle, bend, twist on REG pairs), with M_1, M_2
+  the tissue's bounds on the current day (seasonal schedule);
+* Eq. 21: I_ij = (1 - theta_ij k_c (1 - H_c)) (1 - k_l (1 - H_l)), clipped to [0, 1]. It scales
+  the pair's stiffness (SPEC §4) and, as the paper's "connection strength", its strain limits:
+  with stiff wood and dt = 0.01 s a connection is effectively rigid until I_ij is tiny, so the
+  stiffness alone would not let decay concentrate failure on the weakened pairs
+  (docs/decisions.md);
+* the element masses rho_dry (1 + M) pi r^2 l (SPEC §2).
+
+Pair quantities (M, H_c, H_l and the per-tissue parameters) are the mean of the two elements.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .mechanics import MechSetup, MechState, per_element, set_masses
+
+#: constraint types of L_0 and p_l, in column order (elements: 0, 1; pairs: 2, 3, 4)
+LIMIT_TYPES = ("stretch", "shear", "bundle", "bend", "twist")
+
+
+@dataclass(frozen=True, eq=False)
+class CouplingSetup:
+    M_0: np.ndarray  # (n,)
+    s: np.ndarray  # (n,) rest-length gain
+    S_pair: np.ndarray  # (m,) S * S_edge (pair means)
+    M_0_pair: np.ndarray  # (m,)
+    L_0: np.ndarray  # (n, 5) per LIMIT_TYPES
+    p_l: np.ndarray  # (n, 5)
+    k_c: np.ndarray  # (m,) theta_ij k_c (pair mean)
+    k_l: np.ndarray  # (m,)
+
+
+def prepare(model, scene) -> CouplingSetup:
+    t = model.tissue.astype(np.int64)
+    i, j = model.reg_edges[:, 0], model.reg_edges[:, 1]
+
+    def pair(name):
+        v = per_element(scene, t, name)
+        return 0.5 * (v[i] + v[j])
+
+    dw = model.reg_dir_weights
+    S_edge = pair("S_R") * dw[:, 0] + pair("S_T") * dw[:, 1] + pair("S_L") * dw[:, 2]
+    return CouplingSetup(
+        M_0=per_element(scene, t, "M_0"), s=per_element(scene, t, "s"),
+        S_pair=pair("S") * S_edge, M_0_pair=pair("M_0"),
+        L_0=np.stack([per_element(scene, t, f"L_0_{k}") for k in LIMIT_TYPES], axis=1),
+        p_l=np.stack([per_element(scene, t, f"p_l_{k}") for k in LIMIT_TYPES], axis=1),
+        k_c=model.reg_theta * pair("k_c"), k_l=pair("k_l"),
+    )
+
+
+def limit_factor(M: np.ndarray, M_1: np.ndarray, M_2: np.ndarray, p_l: np.ndarray) -> np.ndarray:
+    """f(M - M_2) of Eq. 19: 0 at or below M_2, 1 at or above M_1, a power p_l between."""
+    return np.clip((M - M_2) / (M_1 - M_2), 0.0, 1.0) ** p_l
+
+
+def integrity(cs: CouplingSetup, H_c_pair: np.ndarray, H_l_pair: np.ndarray) -> np.ndarray:
+    """I_ij of Eq. 21, clipped to [0, 1]."""
+    I = (1.0 - cs.k_c * (1.0 - H_c_pair)) * (1.0 - cs.k_l * (1.0 - H_l_pair))
+    return np.clip(I, 0.0, 1.0)
+
+
+def apply(cs: CouplingSetup, setup: MechSetup, ms: MechState, state, M12: np.ndarray,
+          tissue: np.ndarray) -> None:
+    """Update rest data, limits, integrity and masses of ``ms`` from the fields of ``state``;
+    ``M12`` (n_tissues, 2) holds each tissue's [M_1, M_2] on the current day."""
+    M = state.M
+    i, j = setup.edges[:, 0], setup.edges[:, 1]
+    M_pair = 0.5 * (M[i] + M[j])
+    ms.rest_offset = setup.offset0 * (1.0 - np.maximum(cs.M_0_pair - M_pair, 0.0) * cs.S_pair)
+    ms.rest_length = setup.rest_length0 * (1.0 - np.maximum(cs.M_0 - M, 0.0) * cs.s)
+    f = limit_factor(M[:, None], M12[tissue, 0][:, None], M12[tissue, 1][:, None], cs.p_l)
+    L = cs.L_0 * f
+    ms.integrity = integrity(cs, 0.5 * (state.H_c[i] + state.H_c[j]), 0.5 * (state.H_l[i] + state.H_l[j]))
+    ms.limit_elem = np.ascontiguousarray(L[:, :2])
+    ms.limit_edge = np.ascontiguousarray(0.5 * (L[i, 2:] + L[j, 2:]) * ms.integrity[:, None])
+    set_masses(setup, ms, M)

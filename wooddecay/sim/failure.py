@@ -1,0 +1,124 @@
+"""Failure and connectivity (woodstock §5.3; limits L(M) of Eqs. 18-19 from
+:mod:`wooddecay.sim.coupling`).
+
+Strains are measured after every substep:
+
+* element stretch |p_b - p_a| / l_r - 1 (tension) and shear |gamma - (gamma . d3) d3| with
+  gamma = (p_b - p_a) / l_r, against the element's limits. A failed element cuts its strand: its
+  stretch, shear and joint constraints and all its REG connections are switched off (the strand
+  separates there; the element stays with the strand part before it);
+* pair (REG edge) bundle strain (|c_j - c_i| - dp) / max(dp_0, r_s) (tension), bend and twist angles of the
+  relative rotation conj(Omega_0) conj(q_i) q_j (bend: about axes across the grain, twist: about
+  d3), against the pair's limits. Bend or twist over its limit clears that flag; bundle over its
+  limit (or a failed end element) clears all three, since a separated pair transmits no moment.
+
+Flags never come back. After a substep with a new element or connection failure the connected
+components (strand links of unbroken elements plus intact REG connections) are recomputed;
+labels are numbered in order of each component's smallest element id, so they are
+deterministic. The kernels write only their own element's or edge's entries (race-free).
+"""
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from .quaternion import mul, rotate
+
+
+@nb.njit(parallel=True, cache=True)
+def element_strains(fp, x, q, rest_length):
+    """(n, 2) stretch and shear strain of every element."""
+    n = len(fp)
+    out = np.empty((n, 2))
+    for e in nb.prange(n):
+        a = fp[e]
+        b = a + 1
+        l = rest_length[e]
+        gx, gy, gz = (x[b, 0] - x[a, 0]) / l, (x[b, 1] - x[a, 1]) / l, (x[b, 2] - x[a, 2]) / l
+        out[e, 0] = math.sqrt(gx * gx + gy * gy + gz * gz) - 1.0
+        d3 = rotate(q[e, 0], q[e, 1], q[e, 2], q[e, 3], 0.0, 0.0, 1.0)
+        g3 = gx * d3[0] + gy * d3[1] + gz * d3[2]
+        sx, sy, sz = gx - g3 * d3[0], gy - g3 * d3[1], gz - g3 * d3[2]
+        out[e, 1] = math.sqrt(sx * sx + sy * sy + sz * sz)
+    return out
+
+
+@nb.njit(parallel=True, cache=True)
+def pair_strains(edges, fp, x, q, rest_offset, edge_length, edge_rest):
+    """(m, 3) bundle strain, bend angle and twist angle of every REG edge."""
+    m = len(edges)
+    out = np.empty((m, 3))
+    for k in nb.prange(m):
+        i, j = edges[k, 0], edges[k, 1]
+        ai, aj = fp[i], fp[j]
+        dx = 0.5 * (x[aj, 0] + x[aj + 1, 0] - x[ai, 0] - x[ai + 1, 0])
+        dy = 0.5 * (x[aj, 1] + x[aj + 1, 1] - x[ai, 1] - x[ai + 1, 1])
+        dz = 0.5 * (x[aj, 2] + x[aj + 1, 2] - x[ai, 2] - x[ai + 1, 2])
+        out[k, 0] = (math.sqrt(dx * dx + dy * dy + dz * dz) - rest_offset[k]) / edge_length[k]
+        om = mul(q[i, 0], -q[i, 1], -q[i, 2], -q[i, 3], q[j, 0], q[j, 1], q[j, 2], q[j, 3])
+        r = mul(edge_rest[k, 0], -edge_rest[k, 1], -edge_rest[k, 2], -edge_rest[k, 3], om[0], om[1], om[2], om[3])
+        s = 1.0 if r[0] >= 0.0 else -1.0
+        vn = math.sqrt(r[1] * r[1] + r[2] * r[2] + r[3] * r[3])
+        angle = 2.0 * math.atan2(vn, s * r[0])
+        f = angle / vn if vn > 0.0 else 0.0
+        out[k, 1] = f * math.sqrt(r[1] * r[1] + r[2] * r[2])
+        out[k, 2] = f * abs(r[3])
+    return out
+
+
+@nb.njit(parallel=True, cache=True)
+def _flag_elements(strain, limit, element_ok):
+    n = len(strain)
+    new = np.zeros(n, dtype=np.bool_)
+    for e in nb.prange(n):
+        if element_ok[e] and (strain[e, 0] > limit[e, 0] or strain[e, 1] > limit[e, 1]):
+            element_ok[e] = False
+            new[e] = True
+    return new
+
+
+@nb.njit(parallel=True, cache=True)
+def _flag_edges(edges, strain, limit, element_ok, edge_ok):
+    """New failures per edge: 0 none, 1 bend / twist only, 2 connection (all flags)."""
+    m = len(edges)
+    new = np.zeros(m, dtype=np.int8)
+    for k in nb.prange(m):
+        if not edge_ok[k, 0]:
+            continue
+        if (not element_ok[edges[k, 0]]) or (not element_ok[edges[k, 1]]) or strain[k, 0] > limit[k, 0]:
+            edge_ok[k, 0] = edge_ok[k, 1] = edge_ok[k, 2] = False
+            new[k] = 2
+            continue
+        for c in (1, 2):
+            if edge_ok[k, c] and strain[k, c] > limit[k, c]:
+                edge_ok[k, c] = False
+                new[k] = 1
+    return new
+
+
+def components(setup, ms) -> np.ndarray:
+    """Connected-component label per element (module docstring)."""
+    n = setup.n_elements
+    links = setup.chain[ms.element_ok[setup.chain[:, 0]]]
+    reg = setup.edges[ms.edge_ok[:, 0]]
+    e = np.concatenate([links, reg])
+    g = sp.coo_matrix((np.ones(len(e), dtype=np.int8), (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
+    return connected_components(g, directed=False)[1].astype(np.int64)
+
+
+def update(setup, ms) -> int:
+    """Flag the constraints over their limits; recompute components if anything separated.
+    Returns the number of new failures (elements plus edges)."""
+    new_e = _flag_elements(element_strains(setup.fp, ms.x, ms.q, ms.rest_length), ms.limit_elem,
+                           ms.element_ok)
+    strain = pair_strains(setup.edges, setup.fp, ms.x, ms.q, ms.rest_offset, setup.edge_length, setup.edge_rest)
+    new_k = _flag_edges(setup.edges, strain, ms.limit_edge, ms.element_ok, ms.edge_ok)
+    count = int(new_e.sum()) + int(np.count_nonzero(new_k))
+    if new_e.any() or (new_k == 2).any():
+        ms.component = components(setup, ms)
+    ms.failures += count
+    return count

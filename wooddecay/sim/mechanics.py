@@ -1,0 +1,370 @@
+"""Mechanics: XPBD Cosserat strands coupled on the REG (woodstock §5, Eqs. 1-2; Algorithm 1
+lines 4-8).
+
+One substep of length dt (``substep``):
+
+1. external forces (gravity, ``[[load]]`` forces), viscous damping, prediction of particle
+   positions and element quaternions (angular velocity in the body frame);
+2. ``iterations`` sweeps (:mod:`wooddecay.sim.rods`) of: Stage 1 per strand (stretch and shear of even then odd elements,
+   bend-twist of even then odd joints: a red-black order along each chain), Stage 2 on the REG
+   one colour class at a time (connection of Eq. 2 scaled by I_ij, pair bend-twist by the rest
+   Darboux vector), colliders and capsule contact (:mod:`wooddecay.sim.contact`, Eqs. 3-4);
+3. velocities from the positions, particle friction (Eqs. 5-7);
+4. failure against the limits L(M) and recomputed components (:mod:`wooddecay.sim.failure`).
+
+Anchored elements (a stump) have zero inverse mass and inertia. Stiffnesses come from the strand's
+E A, G A, E I, G J (``[mechanics] E, G``, radius r_s); a REG connection has stiffness
+G A_c / dp_0 with A_c = 2 r_s l the strands' contact area, and its pair bend-twist coupling the
+strand's E I, G J over dp_0. :func:`substep_reference` is the same substep in plain numpy.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+
+import numba as nb
+import numpy as np
+
+from ..strands.rings import TISSUES
+from . import contact, failure, rods
+from .quaternion import conj_np, mul, mul_np, rotate
+
+#: contact candidate pairs are searched with this margin (in r_s) and rebuilt once a particle
+#: has moved half of it (a Verlet list)
+CONTACT_MARGIN = 2.0
+
+
+@dataclass(frozen=True, eq=False)
+class MechSetup:
+    """Static data of the rod system, derived once from (model, scene)."""
+
+    fp: np.ndarray  # (n,) first particle of each element (the second is fp + 1)
+    n_particles: int
+    elems: tuple  # (even, odd) element ids: the two colour classes of Stage 1 stretch-shear
+    joints: np.ndarray  # (J, 2) consecutive elements (e, e + 1) of a strand
+    joint_sets: tuple  # (even, odd) joint ids
+    joint_rest: np.ndarray  # (J, 4) rest Darboux quaternion conj(q_e) q_{e+1}
+    joint_length: np.ndarray  # (J,) mean rest length of the two elements
+    joint_kb: np.ndarray  # (J,) E I
+    joint_kt: np.ndarray  # (J,) G J
+    rest_length0: np.ndarray  # (n,) l_r0
+    radius: np.ndarray
+    k_stretch: np.ndarray  # (n,) E A
+    k_shear: np.ndarray  # (n,) G A
+    inertia_factor: np.ndarray  # (n,) I_rot / m = inertia_scale (r^2 / 4 + l^2 / 12)
+    dry_mass: np.ndarray  # (n,) rho_dry pi r^2 l_r0 (element mass = dry_mass (1 + M))
+    anchored_p: np.ndarray  # (P,) pinned particles
+    anchored_e: np.ndarray  # (n,) elements without rotation
+    edges: np.ndarray  # (m, 2) REG
+    edge_rest: np.ndarray  # (m, 4) rest Darboux
+    offset0: np.ndarray  # (m,) dp_0
+    edge_length: np.ndarray  # (m,) max(dp_0, r_s): the lever of the pair bend-twist
+    k_conn0: np.ndarray  # (m,) connection stiffness at I = 1
+    k_pb0: np.ndarray  # (m,) pair bend stiffness at I = 1
+    k_pt0: np.ndarray  # (m,) pair twist stiffness at I = 1
+    colors: tuple  # (ptr, order) of the REG colouring (rods.color_edges)
+    chain: np.ndarray  # (J, 2) = joints (for components)
+    gravity: np.ndarray
+    damping: float
+    dt: float
+    iterations: int
+    colliders: np.ndarray  # (k, contact.COLLIDER_COLUMNS)
+    k_col: float
+    mu_f: float
+    epsilon: float
+    loads: tuple  # of (day0, day1, (P, 3) particle forces)
+    radius_p: np.ndarray = None  # (P,) particle radius (collider clearance)
+    torque: np.ndarray | None = None  # (n, 3) world torques per element (validation only)
+
+    @property
+    def n_elements(self) -> int:
+        return len(self.fp)
+
+
+@dataclass(eq=False)
+class MechState:
+    """The mechanical part of the SimState (DESIGN: positions, velocities, quaternions,
+    angular velocities, current rest data, I_ij, failure flags, component labels)."""
+
+    x: np.ndarray  # (P, 3) particle positions
+    v: np.ndarray  # (P, 3)
+    q: np.ndarray  # (n, 4) element orientations (w, x, y, z)
+    omega: np.ndarray  # (n, 3) angular velocities, body frame
+    w_p: np.ndarray  # (P,) inverse masses
+    mass_p: np.ndarray  # (P,)
+    w_q: np.ndarray  # (n,) inverse quaternion inertia 1 / (4 I_rot)
+    rest_length: np.ndarray  # (n,) l_r (Eq. 17)
+    rest_offset: np.ndarray  # (m,) dp (Eq. 16)
+    integrity: np.ndarray  # (m,) I_ij (Eq. 21)
+    limit_elem: np.ndarray  # (n, 2) stretch, shear limits L(M) (Eq. 18)
+    limit_edge: np.ndarray  # (m, 3) bundle, bend, twist limits
+    element_ok: np.ndarray  # (n,) bool: stretch / shear intact
+    edge_ok: np.ndarray  # (m, 3) bool: connection, bend, twist intact
+    component: np.ndarray  # (n,) int64 connected-component label
+    t_seconds: float = 0.0
+    failures: int = 0  # failure events so far (elements + edge flags)
+    pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))  # contact list
+    pairs_x: np.ndarray | None = None  # positions when ``pairs`` was built
+
+    def copy(self) -> "MechState":
+        return MechState(**{f.name: (getattr(self, f.name).copy() if isinstance(getattr(self, f.name), np.ndarray)
+                                     else getattr(self, f.name)) for f in fields(self)})
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The arrays a checkpoint needs (the contact list is rebuilt from them)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)
+                if isinstance(getattr(self, f.name), np.ndarray) and f.name not in ("pairs", "pairs_x")}
+
+
+def per_element(scene, tissue: np.ndarray, name: str) -> np.ndarray:
+    """Per-element value of a per-tissue parameter."""
+    return np.array([scene.tissue_param(t, name) for t in TISSUES], dtype=np.float64)[tissue]
+
+
+def _colliders(scene) -> np.ndarray:
+    rows = []
+    mech = scene.mechanics
+    if mech.ground:
+        rows.append(contact.collider_row(contact.PLANE, 0.0, 0.0, mech.ground_height, 0.0, 0.0, 1.0))
+    for c in scene.colliders:
+        kind = c["kind"]
+        if kind == "plane":
+            rows.append(contact.collider_row(contact.PLANE, *c["point"], *c["normal"]))
+        elif kind == "box":
+            rows.append(contact.collider_row(contact.BOX, *c["min"], *c["max"]))
+        elif kind == "sphere":
+            rows.append(contact.collider_row(contact.SPHERE, *c["center"], c["radius"]))
+        else:
+            rows.append(contact.collider_row(contact.CYLINDER, *c["a"], *c["b"], c["radius"]))
+    return np.array(rows, dtype=np.float64).reshape(-1, contact.COLLIDER_COLUMNS)
+
+
+def _joint_length(l0: np.ndarray, anchored: np.ndarray, je: np.ndarray) -> np.ndarray:
+    """Length over which a joint's curvature is integrated: half of each adjoining element, but
+    only of free ones, so the clamp joint spans half the first free element (the anchored one is
+    part of the wall); a full length there would bend the strand as if clamped half an element
+    further out (2 / n too much tip deflection)."""
+    free = ~anchored
+    half = 0.5 * (l0[je] * free[je] + l0[je + 1] * free[je + 1])
+    return np.where(half > 0.0, half, 0.5 * (l0[je] + l0[je + 1]))
+
+
+def _particle_radius(fp: np.ndarray, r: np.ndarray, P: int) -> np.ndarray:
+    rp = np.zeros(P)
+    np.maximum.at(rp, fp, r)
+    np.maximum.at(rp, fp + 1, r)
+    return rp
+
+
+def _parity_sets(ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return (np.ascontiguousarray(ids[ids % 2 == 0]), np.ascontiguousarray(ids[ids % 2 == 1]))
+
+
+def prepare(model, scene) -> MechSetup:
+    """Stiffnesses, colour classes, rest data, colliders and load forces of the rod system."""
+    from .state import region_mask  # the regions of [[load]] are those of [[inoculation]]
+
+    n = model.n_elements
+    mech = scene.mechanics
+    tissue = model.tissue.astype(np.int64)
+    fp = model.first_particle.astype(np.int64)
+    P = len(model.particles)
+    E, G = per_element(scene, tissue, "E"), per_element(scene, tissue, "G")
+    r = model.radius
+    A, I_b = np.pi * r**2, np.pi * r**4 / 4.0
+    l0 = model.rest_length
+    last = np.zeros(n, dtype=bool)
+    last[model.element_offsets[1:] - 1] = True
+    je = np.flatnonzero(~last)
+    joints = np.stack([je, je + 1], axis=1)
+    ij = model.reg_edges.astype(np.int64)
+    r_s = scene.strands.r_s
+    edge_length = np.maximum(model.reg_rest_offset, r_s)
+    Em, Gm = 0.5 * (E[ij[:, 0]] + E[ij[:, 1]]), 0.5 * (G[ij[:, 0]] + G[ij[:, 1]])
+    lm = 0.5 * (l0[ij[:, 0]] + l0[ij[:, 1]])
+    rho = per_element(scene, tissue, "rho_dry")
+    anchored_p = np.zeros(P, dtype=bool)
+    anchored_p[fp[model.anchored]] = True
+    anchored_p[fp[model.anchored] + 1] = True
+    dry = rho * A * l0
+    loads = []
+    for ld in scene.loads:
+        mask = region_mask(model, scene, ld["region"])
+        pm = np.zeros(P)
+        np.add.at(pm, fp[mask], 0.5 * dry[mask])
+        np.add.at(pm, fp[mask] + 1, 0.5 * dry[mask])
+        pm[anchored_p] = 0.0
+        share = pm / pm.sum() if pm.sum() > 0 else pm
+        loads.append((ld["days"][0], ld["days"][1], share[:, None] * np.asarray(ld["force"])[None, :]))
+    return MechSetup(
+        fp=fp, n_particles=P, elems=_parity_sets(np.arange(n)), joints=joints,
+        joint_sets=_parity_sets(np.arange(len(joints))),
+        joint_rest=_conj_mul(model.rest_quat[je], model.rest_quat[je + 1]),
+        joint_length=_joint_length(l0, model.anchored, je),
+        joint_kb=0.5 * (E[je] + E[je + 1]) * I_b[je], joint_kt=0.5 * (G[je] + G[je + 1]) * 2 * I_b[je],
+        rest_length0=l0.copy(), radius=r.copy(), k_stretch=E * A, k_shear=G * A,
+        inertia_factor=mech.inertia_scale * (r**2 / 4.0 + l0**2 / 12.0), dry_mass=dry, anchored_p=anchored_p,
+        anchored_e=model.anchored.copy(), edges=ij, edge_rest=model.reg_rest_darboux.copy(),
+        offset0=model.reg_rest_offset.copy(), edge_length=edge_length,
+        k_conn0=Gm * 2.0 * r_s * lm / edge_length,
+        k_pb0=Em * np.pi * r_s**4 / 4.0, k_pt0=Gm * np.pi * r_s**4 / 2.0,
+        colors=rods.color_edges(ij, fp, P), chain=joints,
+        gravity=np.asarray(mech.gravity, dtype=np.float64), damping=float(mech.damping),
+        dt=float(mech.dt_mech), iterations=int(mech.iterations), colliders=_colliders(scene),
+        radius_p=_particle_radius(fp, r, P), k_col=float(mech.k_col), mu_f=float(mech.mu_f), epsilon=float(mech.epsilon), loads=tuple(loads),
+    )
+
+
+def _conj_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return mul_np(conj_np(a), b)
+
+
+def initial_state(model, setup: MechSetup) -> MechState:
+    """Rest configuration, at rest; masses and limits are set by :func:`coupling.apply`."""
+    n, m, P = setup.n_elements, len(setup.edges), setup.n_particles
+    ms = MechState(
+        x=model.particles.astype(np.float64).copy(), v=np.zeros((P, 3)), q=model.rest_quat.copy(),
+        omega=np.zeros((n, 3)), w_p=np.zeros(P), mass_p=np.zeros(P), w_q=np.zeros(n),
+        rest_length=setup.rest_length0.copy(), rest_offset=setup.offset0.copy(), integrity=np.ones(m),
+        limit_elem=np.full((n, 2), np.inf), limit_edge=np.full((m, 3), np.inf),
+        element_ok=np.ones(n, dtype=bool), edge_ok=np.ones((m, 3), dtype=bool),
+        component=np.zeros(n, dtype=np.int64),
+    )
+    set_masses(setup, ms, np.zeros(n))
+    ms.component = failure.components(setup, ms)
+    return ms
+
+
+def set_masses(setup: MechSetup, ms: MechState, M: np.ndarray) -> None:
+    """Element mass rho_dry (1 + M) pi r^2 l (SPEC §2), half to each particle; inverse masses
+    and quaternion weights 1 / (4 I_rot) (zero where anchored)."""
+    m_e = setup.dry_mass * (1.0 + M)
+    mass_p = np.zeros(setup.n_particles)
+    np.add.at(mass_p, setup.fp, 0.5 * m_e)
+    np.add.at(mass_p, setup.fp + 1, 0.5 * m_e)
+    ms.mass_p = mass_p
+    ms.w_p = np.where(setup.anchored_p | (mass_p <= 0), 0.0, 1.0 / np.maximum(mass_p, 1e-300))
+    ms.w_q = np.where(setup.anchored_e, 0.0, 1.0 / (4.0 * m_e * setup.inertia_factor))
+
+
+def external_forces(setup: MechSetup, t_days: float) -> np.ndarray:
+    """(P, 3) load forces active at ``t_days`` ([[load]] days [start, end))."""
+    f = np.zeros((setup.n_particles, 3))
+    for d0, d1, fl in setup.loads:
+        if d0 <= t_days < d1:
+            f += fl
+    return f
+
+
+@nb.njit(parallel=True, cache=True)
+def _predict(x, v, q, omega, w_p, w_q, mass_p, force, gravity, torque, damp, dt, x_old, q_old):
+    for p in nb.prange(len(x)):
+        for c in range(3):
+            x_old[p, c] = x[p, c]
+        if w_p[p] == 0.0:
+            v[p, 0] = v[p, 1] = v[p, 2] = 0.0
+            continue
+        for c in range(3):
+            v[p, c] = damp * v[p, c] + dt * (gravity[c] + force[p, c] / mass_p[p])
+            x[p, c] += dt * v[p, c]
+    for e in nb.prange(len(q)):
+        for c in range(4):
+            q_old[e, c] = q[e, c]
+        if w_q[e] == 0.0:
+            omega[e, 0] = omega[e, 1] = omega[e, 2] = 0.0
+            continue
+        q0, q1, q2, q3 = q[e, 0], q[e, 1], q[e, 2], q[e, 3]
+        # body-frame torque conj(q) tau q, I^-1 = 4 w_q
+        tb = rotate(q0, -q1, -q2, -q3, torque[e, 0], torque[e, 1], torque[e, 2])
+        w0 = damp * omega[e, 0] + dt * 4.0 * w_q[e] * tb[0]
+        w1 = damp * omega[e, 1] + dt * 4.0 * w_q[e] * tb[1]
+        w2 = damp * omega[e, 2] + dt * 4.0 * w_q[e] * tb[2]
+        omega[e, 0], omega[e, 1], omega[e, 2] = w0, w1, w2
+        d = mul(q0, q1, q2, q3, 0.0, w0, w1, w2)
+        n0, n1, n2, n3 = q0 + 0.5 * dt * d[0], q1 + 0.5 * dt * d[1], q2 + 0.5 * dt * d[2], q3 + 0.5 * dt * d[3]
+        s = 1.0 / np.sqrt(n0 * n0 + n1 * n1 + n2 * n2 + n3 * n3)
+        q[e, 0], q[e, 1], q[e, 2], q[e, 3] = n0 * s, n1 * s, n2 * s, n3 * s
+
+
+@nb.njit(parallel=True, cache=True)
+def _velocities(x, v, q, omega, x_old, q_old, w_p, w_q, dt):
+    for p in nb.prange(len(x)):
+        if w_p[p] > 0.0:
+            for c in range(3):
+                v[p, c] = (x[p, c] - x_old[p, c]) / dt
+    for e in nb.prange(len(q)):
+        if w_q[e] > 0.0:
+            d = mul(q_old[e, 0], -q_old[e, 1], -q_old[e, 2], -q_old[e, 3], q[e, 0], q[e, 1], q[e, 2], q[e, 3])
+            sgn = 1.0 if d[0] >= 0.0 else -1.0
+            omega[e, 0] = 2.0 * sgn * d[1] / dt
+            omega[e, 1] = 2.0 * sgn * d[2] / dt
+            omega[e, 2] = 2.0 * sgn * d[3] / dt
+
+
+def reg_stiffness(setup: MechSetup, ms: MechState) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Connection and pair bend / twist stiffness: base times I_ij, zero where failed."""
+    ok = ms.edge_ok
+    I = ms.integrity
+    return (np.where(ok[:, 0], I * setup.k_conn0, 0.0), np.where(ok[:, 1], I * setup.k_pb0, 0.0),
+            np.where(ok[:, 2], I * setup.k_pt0, 0.0))
+
+
+def _multipliers(setup: MechSetup) -> dict[str, np.ndarray]:
+    """XPBD multipliers of one substep: stretch, shear, joints, REG connection, REG bend-twist."""
+    n, m = setup.n_elements, len(setup.edges)
+    return {"s": np.zeros(n), "sh": np.zeros((n, 2)), "j": np.zeros((len(setup.joints), 3)),
+            "c": np.zeros(m), "p": np.zeros((m, 3))}
+
+
+def _project(setup: MechSetup, ms: MechState, kreg, lam: dict, dt: float) -> None:
+    """One sweep of Stage 1 and Stage 2."""
+    fp, x, q = setup.fp, ms.x, ms.q
+    for elems in setup.elems:
+        rods.stretch_shear(elems, fp, x, q, ms.w_p, ms.w_q, ms.rest_length, setup.k_stretch, setup.k_shear,
+                           ms.element_ok, lam["s"], lam["sh"], dt)
+    on = ms.element_ok[setup.joints[:, 0]] & ms.element_ok[setup.joints[:, 1]]
+    kb, kt = np.where(on, setup.joint_kb, 0.0), np.where(on, setup.joint_kt, 0.0)
+    for idx in setup.joint_sets:
+        rods.bend_twist(setup.joints, idx, q, ms.w_q, setup.joint_rest, setup.joint_length, kb, kt,
+                        lam["j"], dt)
+    ptr, order = setup.colors
+    for c in range(len(ptr) - 1):
+        rods.reg_pass(setup.edges, order[ptr[c]:ptr[c + 1]], fp, x, q, ms.w_p, ms.w_q, ms.rest_offset,
+                      kreg[0], setup.edge_rest, setup.edge_length, kreg[1], kreg[2], lam["c"], lam["p"],
+                      dt)
+
+
+def substep(setup: MechSetup, ms: MechState, dt: float, force: np.ndarray) -> int:
+    """One XPBD substep (module docstring); returns the number of new failures."""
+    x_old, q_old = np.empty_like(ms.x), np.empty_like(ms.q)
+    torque = setup.torque if setup.torque is not None else np.zeros((setup.n_elements, 3))
+    _predict(ms.x, ms.v, ms.q, ms.omega, ms.w_p, ms.w_q, ms.mass_p, force, setup.gravity, torque,
+             np.exp(-setup.damping * dt), dt, x_old, q_old)
+    kreg = reg_stiffness(setup, ms)
+    lam = _multipliers(setup)
+    fn = np.zeros(setup.n_particles)
+    refresh_pairs(setup, ms)
+    for _ in range(setup.iterations):
+        _project(setup, ms, kreg, lam, dt)
+        contact.project_colliders(ms.x, ms.w_p, setup.radius_p, setup.colliders, setup.k_col, dt, fn)
+        contact.project_contacts(ms.x, ms.w_p, setup.fp, setup.radius, ms.pairs, setup.k_col, dt, fn)
+    _velocities(ms.x, ms.v, ms.q, ms.omega, x_old, q_old, ms.w_p, ms.w_q, dt)
+    contact.apply_friction(ms.v, fn, ms.mass_p, setup.mu_f, dt, setup.epsilon)
+    ms.t_seconds += dt
+    return failure.update(setup, ms)
+
+
+def refresh_pairs(setup: MechSetup, ms: MechState) -> None:
+    """Contact candidates between components (a Verlet list with margin CONTACT_MARGIN r_s),
+    rebuilt when a particle has moved half the margin since the last build."""
+    margin = CONTACT_MARGIN * float(setup.radius.max(initial=0.0))
+    if ms.pairs_x is not None and np.max(np.abs(ms.x - ms.pairs_x), initial=0.0) < 0.5 * margin:
+        return
+    ms.pairs = contact.candidate_pairs(ms.x, setup.fp, setup.radius, ms.component, margin)
+    ms.pairs_x = ms.x.copy()
+
+
+def macro_step(setup: MechSetup, ms: MechState, t_days: float, n_sub: int) -> int:
+    """Algorithm 1 lines 4-8: ``n_sub`` substeps of ``setup.dt``; returns new failures."""
+    force = external_forces(setup, t_days)
+    ms.pairs_x = None  # rebuild the contact list from this state (resumable bit-exactly)
+    return sum(substep(setup, ms, setup.dt, force) for _ in range(n_sub))
