@@ -8,6 +8,10 @@ unit direction from i to j:
     phi_ij = max((r_i + r_j) - dist(i, j), 0)      (Eq. 3)
     F_i = -k_col phi_ij^2 n_ij,   F_j = -F_i        (Eq. 4)
 
+Elements that share a particle (a strand split between components) are never a pair: their axes
+meet at that particle. The closest-point helpers take a points array and row indices (no array
+views inside the kernels).
+
 Implicit penalty. At dt = 0.01 s an explicit quadratic penalty is unstable, so Eq. 4 is applied as
 an XPBD compliant constraint C = phi with the secant compliance alpha = 1 / (k_col phi). One XPBD
 step from lambda = 0 gives
@@ -31,16 +35,21 @@ Eqs. 5-6: once Eq. 3 is resolved a particle of i lies at r_i + r_j from the axis
 phi_ikj = max(r_j - dist(p_ik, j), 0) of Eq. 5 vanishes and resting contacts would slide freely.
 
 Broad phase. :func:`candidate_pairs` bins element centres in a uniform hash grid (Teschner et al.
-2003; cell h = longest segment + 2 max radius + margin, so partners lie in the 27 cells around) by
-a counting sort, then visits each element's own cell and its 13 forward neighbours, two passes
-(count, then fill) in parallel over elements, each writing only its own rows.
+2003) of cell h = max(length + 2 r) + margin, so the partners of an element lie in the 27 cells
+around its own. A counting sort orders the elements by bucket, each bucket by the lower bound of
+the element boxes (segment bounds grown by r + margin / 2) along the axis where boxes are thinnest.
+Each element visits its own cell and the 13 cells after it (every pair once), skips buckets whose
+bounding box misses its box and, in a bucket, the entries outside the sweep window on that axis.
+Two passes run in parallel over elements (count, then fill), each writing only its own rows; the
+count pass keeps up to KEPT partners per element, so the fill pass mostly copies.
 
 Determinism. Every parallel loop writes only its own element, pair or particle; sums over a
 particle's contacts run in a fixed order (CSR of particle -> pair incidences by pair index). Results
 are bit-identical for any thread count. The ``*_reference`` functions are the plain numpy/scipy
 versions the tests compare against.
 
-Colliders: a float64 table (k, COLLIDER_COLUMNS), one solid obstacle per row, unused columns 0:
+Colliders: a float64 table (k, COLLIDER_COLUMNS), one solid obstacle per row, unused columns 0;
+particles are kept outside each at a clearance of their radius:
 
     PLANE     [0, px, py, pz, nx, ny, nz, 0, 0, 0]   a point, the unit normal (solid opposite n)
     BOX       [1, x0, y0, z0, x1, y1, z1, 0, 0, 0]   axis-aligned, min and max corners
@@ -306,10 +315,15 @@ def _hash_grid(center, box, axis, h, cell, bucket, start, order):
         start[bucket[e]] -= 1
         order[start[bucket[e]]] = e
     for b in range(mask + 1):
-        for u in range(start[b] + 1, start[b + 1]):
+        lo, hi = start[b], start[b + 1]
+        if hi - lo > 32:  # crowded bucket: merge sort (stable)
+            members = order[lo:hi].copy()
+            order[lo:hi] = members[np.argsort(box[members, axis], kind="mergesort")]
+            continue
+        for u in range(lo + 1, hi):  # insertion sort (stable)
             e = order[u]
             w = u - 1
-            while w >= start[b] and box[order[w], axis] > box[e, axis]:
+            while w >= lo and box[order[w], axis] > box[e, axis]:
                 order[w + 1] = order[w]
                 w -= 1
             order[w + 1] = e
@@ -438,10 +452,14 @@ def _sort_pairs(raw, indptr, out):
         out[indptr[i], 0] = i
         out[indptr[i], 1] = raw[q, 1]
     for i in nb.prange(n):
-        for u in range(indptr[i] + 1, indptr[i + 1]):
+        lo, hi = indptr[i], indptr[i + 1]
+        if hi - lo > 32:  # crowded row
+            out[lo:hi, 1].sort()
+            continue
+        for u in range(lo + 1, hi):  # insertion sort
             v = out[u, 1]
             w = u - 1
-            while w >= indptr[i] and out[w, 1] > v:
+            while w >= lo and out[w, 1] > v:
                 out[w + 1, 1] = out[w, 1]
                 w -= 1
             out[w + 1, 1] = v
@@ -452,8 +470,9 @@ def candidate_pairs(x, first_particle, radius, component, margin) -> np.ndarray:
     component[j], no shared particle, and capsule gap dist(i, j) < r_i + r_j + margin (Eq. 3 with a
     margin, so the pairs can be reused over the substeps of a step).
 
-    Grid cell h = max(length + 2 r) + margin: a pair in reach has centres closer than h. All
-    arrays are allocated here (numpy), the kernels only fill them."""
+    A pair in reach has centres closer than the cell h (module docstring). Every array is allocated
+    here with numpy and filled by the kernels: large allocations inside numba kernels page-faulted
+    on every call (several ms at 50k elements)."""
     n = len(first_particle)
     if n < 2 or np.all(component == component[0]):
         return np.zeros((0, 2), dtype=np.int64)
@@ -461,12 +480,16 @@ def candidate_pairs(x, first_particle, radius, component, margin) -> np.ndarray:
     slack = 1e-9 * (float(np.abs(x).max()) + margin)  # the box tests only prune: never below round-off
     _element_boxes(x, first_particle, radius, 0.5 * margin + slack, center, box, ext)
     h = float(ext.max()) + margin
+    if h <= 0.0:  # points of radius 0: nothing is closer than 0
+        return np.zeros((0, 2), dtype=np.int64)
     widths = box[:, 3:] - box[:, :3]
     axis = int(np.argmin(widths.sum(axis=0)))  # the thinnest boxes: the sweep prunes most
     width = float(widths[:, axis].max()) + slack
     start = np.zeros((1 << max(1, (n // 2).bit_length())) + 1, dtype=np.int64)  # >= n / 2 buckets
     cell, bucket, order = np.empty((n, 3), dtype=np.int64), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
     dims = np.array(_hash_grid(center, box, axis, h, cell, bucket, start, order), dtype=np.int64)
+    if float(np.prod(dims.astype(np.float64))) >= 2.0**62:
+        raise ValueError(f"hash grid of {dims} cells of {h} m: linear cell keys overflow")
     box_s, comp_s, fp_s, key_s = (np.empty((n, 6)), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64),
                                   np.empty(n, dtype=np.int64))
     _sorted_segments(first_particle, component, order, box, cell, dims, box_s, comp_s, fp_s, key_s)
@@ -512,55 +535,45 @@ def _dlambda(phi, W, k_col, dt2):
 
 
 @nb.njit(parallel=True, cache=True)
-def _pair_corrections(x, w_p, first_particle, radius, pairs, k_col, dt, disp, fmag, phi):
-    """Per pair: penetration (Eq. 3) and, if active, the displacement (4, 3) and normal force (4,)
-    of its four particles (i's two, then j's two)."""
+def _pair_multipliers(x, w_p, first_particle, radius, pairs, k_col, dt, pc, phi):
+    """Per pair: penetration phi (Eq. 3) and ``pc`` = (n_ij, dlambda, s, t) (dlambda 0 if inactive)."""
     dt2 = dt * dt
     for q in nb.prange(len(pairs)):
         i, j = pairs[q, 0], pairs[q, 1]
         a, b = first_particle[i], first_particle[j]
         s, t, nx, ny, nz, ph = capsule_contact(x, a, a + 1, radius[i], b, b + 1, radius[j])
+        W = (w_p[a] * (1.0 - s) * (1.0 - s) + w_p[a + 1] * s * s + w_p[b] * (1.0 - t) * (1.0 - t)
+             + w_p[b + 1] * t * t)
         phi[q] = ph
-        g = (1.0 - s, s, 1.0 - t, t)
-        parts = (a, a + 1, b, b + 1)
-        W = 0.0
-        for k in range(4):
-            W += w_p[parts[k]] * g[k] * g[k]
-        dl = _dlambda(ph, W, k_col, dt2) if ph > 0.0 else 0.0
-        for k in range(4):
-            c = (-1.0 if k < 2 else 1.0) * w_p[parts[k]] * g[k] * dl
-            disp[q, k, 0] = c * nx
-            disp[q, k, 1] = c * ny
-            disp[q, k, 2] = c * nz
-            fmag[q, k] = g[k] * dl / dt2
+        pc[q, 0], pc[q, 1], pc[q, 2] = nx, ny, nz
+        pc[q, 3] = _dlambda(ph, W, k_col, dt2) if ph > 0.0 else 0.0
+        pc[q, 4], pc[q, 5] = s, t
 
 
 @nb.njit(cache=True)
-def _incidences(pairs, first_particle, active, n_particles):
-    """CSR particle -> incidences q * 4 + slot of the active pairs, in increasing q (counting sort)."""
-    indptr = np.zeros(n_particles + 1, dtype=np.int64)
+def _incidences(pairs, first_particle, active, indptr, inc):
+    """CSR particle -> incidences q * 4 + slot of the ``active`` pairs, increasing q in each row
+    (a counting sort; ``indptr`` (P + 1,) zeros on entry, ``inc`` (4 len(active),))."""
     for q in active:
         a, b = first_particle[pairs[q, 0]], first_particle[pairs[q, 1]]
-        indptr[a + 1] += 1
-        indptr[a + 2] += 1
-        indptr[b + 1] += 1
-        indptr[b + 2] += 1
-    for p in range(n_particles):
+        for p in (a, a + 1, b, b + 1):
+            indptr[p] += 1
+    for p in range(len(indptr) - 1):
         indptr[p + 1] += indptr[p]
-    cursor = indptr[:-1].copy()
-    inc = np.empty(indptr[-1], dtype=np.int64)
-    for q in active:
+    for u in range(len(active) - 1, -1, -1):  # indptr[p] ends as the first slot of row p
+        q = active[u]
         a, b = first_particle[pairs[q, 0]], first_particle[pairs[q, 1]]
         parts = (a, a + 1, b, b + 1)
-        for k in range(4):
-            inc[cursor[parts[k]]] = q * 4 + k
-            cursor[parts[k]] += 1
-    return indptr, inc
+        for k in range(3, -1, -1):
+            indptr[parts[k]] -= 1
+            inc[indptr[parts[k]]] = q * 4 + k
 
 
 @nb.njit(parallel=True, cache=True)
-def _gather(x, force, indptr, inc, disp, fmag):
-    """x_p += mean of its contact displacements; force_p += sum of its normal forces."""
+def _gather(x, w_p, force, indptr, inc, pc, dt):
+    """Per particle, over its incidences (pair q, slot k) in CSR order: x += mean of the
+    corrections -+ w g_k dlambda n_ij (- on i's particles, slots 0-1), force += sum of g_k dlambda / dt^2."""
+    dt2 = dt * dt
     for p in nb.prange(len(x)):
         lo, hi = indptr[p], indptr[p + 1]
         if hi == lo:
@@ -568,10 +581,13 @@ def _gather(x, force, indptr, inc, disp, fmag):
         ax = ay = az = f = 0.0
         for e in range(lo, hi):
             q, k = inc[e] // 4, inc[e] % 4
-            ax += disp[q, k, 0]
-            ay += disp[q, k, 1]
-            az += disp[q, k, 2]
-            f += fmag[q, k]
+            u = pc[q, 4] if k < 2 else pc[q, 5]
+            g = u if k % 2 else 1.0 - u
+            c = (-1.0 if k < 2 else 1.0) * w_p[p] * g * pc[q, 3]
+            ax += c * pc[q, 0]
+            ay += c * pc[q, 1]
+            az += c * pc[q, 2]
+            f += g * pc[q, 3] / dt2
         cnt = hi - lo
         x[p, 0] += ax / cnt
         x[p, 1] += ay / cnt
@@ -580,7 +596,8 @@ def _gather(x, force, indptr, inc, disp, fmag):
 
 
 def project_contacts(x, w_p, first_particle, radius, pairs, k_col, dt, force) -> tuple[int, float]:
-    """One Jacobi XPBD projection of the capsule contacts of ``pairs`` (Eqs. 3-4, module docstring).
+    """One Jacobi XPBD projection of the capsule contacts of ``pairs`` (k, 2) (element pairs i, j
+    as from :func:`candidate_pairs`; Eqs. 3-4, module docstring).
 
     Moves ``x`` (P, 3) in place (particles with w_p = 0 never move) and adds to ``force`` (P,) the
     normal force magnitude g_k dlambda / dt^2 each particle receives. Returns (number of pairs with
@@ -588,12 +605,12 @@ def project_contacts(x, w_p, first_particle, radius, pairs, k_col, dt, force) ->
     contact: nothing changes and (0, 0.0) is returned."""
     if k_col <= 0.0 or len(pairs) == 0:
         return 0, 0.0
-    m = len(pairs)
-    disp, fmag, phi = np.empty((m, 4, 3)), np.empty((m, 4)), np.empty(m)
-    _pair_corrections(x, w_p, first_particle, radius, pairs, float(k_col), float(dt), disp, fmag, phi)
+    pc, phi = np.empty((len(pairs), 6)), np.empty(len(pairs))
+    _pair_multipliers(x, w_p, first_particle, radius, pairs, float(k_col), float(dt), pc, phi)
     active = np.flatnonzero(phi > 0.0)
-    indptr, inc = _incidences(pairs, first_particle, active, len(x))
-    _gather(x, force, indptr, inc, disp, fmag)
+    indptr, inc = np.zeros(len(x) + 1, dtype=np.int64), np.empty(4 * len(active), dtype=np.int64)
+    _incidences(pairs, first_particle, active, indptr, inc)
+    _gather(x, w_p, force, indptr, inc, pc, float(dt))
     return len(active), float(phi.max())
 
 
@@ -608,7 +625,7 @@ def project_contacts_reference(x, w_p, first_particle, radius, pairs, k_col, dt,
     parts = np.stack([a, a + 1, b, b + 1], axis=1)
     g = np.stack([1.0 - s, s, 1.0 - t, t], axis=1)
     w = w_p[parts]
-    W = w[:, 0] * g[:, 0] ** 2 + w[:, 1] * g[:, 1] ** 2 + w[:, 2] * g[:, 2] ** 2 + w[:, 3] * g[:, 3] ** 2
+    W = w[:, 0] * g[:, 0] * g[:, 0] + w[:, 1] * g[:, 1] * g[:, 1] + w[:, 2] * g[:, 2] * g[:, 2] + w[:, 3] * g[:, 3] * g[:, 3]
     dt2 = dt * dt
     dl = k_col * ph * ph * dt2 / (1.0 + W * k_col * ph * dt2)
     c = np.array([-1.0, -1.0, 1.0, 1.0]) * w * g * dl[:, None]
@@ -627,39 +644,38 @@ def project_contacts_reference(x, w_p, first_particle, radius, pairs, k_col, dt,
 
 
 @nb.njit(cache=True)
-def collider_distance(row, px, py, pz):
-    """(sd, nx, ny, nz): signed distance of point p to the solid of a collider row (negative
+def collider_distance(colliders, c, px, py, pz):
+    """(sd, nx, ny, nz): signed distance of point p to the solid of collider row c (negative
     inside) and the unit outward normal of the closest surface point. Inside a box the nearest
     face wins (ties: x before y before z, min side first)."""
-    kind = int(row[0])
+    kind = int(colliders[c, 0])
+    ax, ay, az = colliders[c, 1], colliders[c, 2], colliders[c, 3]  # point, min corner, centre, end
+    bx, by, bz = colliders[c, 4], colliders[c, 5], colliders[c, 6]  # normal, max corner, end
     if kind == PLANE:
-        nx, ny, nz = row[4], row[5], row[6]
-        return (px - row[1]) * nx + (py - row[2]) * ny + (pz - row[3]) * nz, nx, ny, nz
+        return (px - ax) * bx + (py - ay) * by + (pz - az) * bz, bx, by, bz
     if kind == BOX:
-        qx, qy, qz = min(max(px, row[1]), row[4]), min(max(py, row[2]), row[5]), min(max(pz, row[3]), row[6])
-        dx, dy, dz = px - qx, py - qy, pz - qz
+        dx, dy, dz = px - min(max(px, ax), bx), py - min(max(py, ay), by), pz - min(max(pz, az), bz)
         d = np.sqrt(dx * dx + dy * dy + dz * dz)
         if d > 0.0:
             return d, dx / d, dy / d, dz / d
-        p = (px, py, pz)
-        best, axis, sgn = np.inf, 0, -1.0
-        for k in range(3):
-            for side in (-1.0, 1.0):
-                depth = row[4 + k] - p[k] if side > 0.0 else p[k] - row[1 + k]
-                if depth < best:
-                    best, axis, sgn = depth, k, side
-        return -best, sgn * (axis == 0), sgn * (axis == 1), sgn * (axis == 2)
+        depth = (px - ax, bx - px, py - ay, by - py, pz - az, bz - pz)
+        f = 0
+        for k in range(1, 6):
+            if depth[k] < depth[f]:
+                f = k
+        sgn = 1.0 if f % 2 else -1.0
+        return -depth[f], sgn * (f // 2 == 0), sgn * (f // 2 == 1), sgn * (f // 2 == 2)
     if kind == SPHERE:
-        dx, dy, dz = px - row[1], py - row[2], pz - row[3]
+        dx, dy, dz = px - ax, py - ay, pz - az
         d = np.sqrt(dx * dx + dy * dy + dz * dz)
         if d > 0.0:
-            return d - row[4], dx / d, dy / d, dz / d
-        return -row[4], 0.0, 0.0, 1.0
-    # CYLINDER: axial coordinate t along u, radial distance rho
-    ux, uy, uz = row[4] - row[1], row[5] - row[2], row[6] - row[3]
+            return d - bx, dx / d, dy / d, dz / d
+        return -bx, 0.0, 0.0, 1.0
+    # CYLINDER from a to b: axial coordinate t along u, radial distance rho
+    ux, uy, uz = bx - ax, by - ay, bz - az
     h = np.sqrt(ux * ux + uy * uy + uz * uz)
     ux, uy, uz = ux / h, uy / h, uz / h
-    vx, vy, vz = px - row[1], py - row[2], pz - row[3]
+    vx, vy, vz = px - ax, py - ay, pz - az
     t = vx * ux + vy * uy + vz * uz
     rx, ry, rz = vx - t * ux, vy - t * uy, vz - t * uz
     rho = np.sqrt(rx * rx + ry * ry + rz * rz)
@@ -667,7 +683,7 @@ def collider_distance(row, px, py, pz):
         ex, ey, ez = rx / rho, ry / rho, rz / rho
     else:
         ex, ey, ez = _perp(ux, uy, uz)
-    dr = rho - row[7]
+    dr = rho - colliders[c, 7]
     if t < 0.5 * h:
         dz, cx, cy, cz = -t, -ux, -uy, -uz
     else:
@@ -683,12 +699,13 @@ def collider_distance(row, px, py, pz):
 
 @nb.njit(parallel=True, cache=True)
 def _colliders_kernel(x, w_p, particle_radius, colliders, k_col, dt, force, n_active, pen):
+    """Per particle, collider after collider: the XPBD step of phi = particle_radius - sd."""
     dt2 = dt * dt
     for p in nb.prange(len(x)):
         na = 0
         mp = 0.0
         for c in range(len(colliders)):
-            sd, nx, ny, nz = collider_distance(colliders[c], x[p, 0], x[p, 1], x[p, 2])
+            sd, nx, ny, nz = collider_distance(colliders, c, x[p, 0], x[p, 1], x[p, 2])
             ph = particle_radius[p] - sd
             if ph <= 0.0:
                 continue
@@ -704,10 +721,17 @@ def _colliders_kernel(x, w_p, particle_radius, colliders, k_col, dt, force, n_ac
 
 
 def _check_colliders(colliders):
+    """Shape, kinds, unit plane normals and cylinders of positive length."""
     if colliders.ndim != 2 or colliders.shape[1] != COLLIDER_COLUMNS:
         raise ValueError(f"colliders must be (k, {COLLIDER_COLUMNS}), got {colliders.shape}")
-    if not np.isin(colliders[:, 0], list(COLLIDER_PARAMS)).all():
+    kind = colliders[:, 0]
+    if not np.isin(kind, list(COLLIDER_PARAMS)).all():
         raise ValueError(f"collider kinds must be in {sorted(COLLIDER_PARAMS)}")
+    if not np.allclose(np.linalg.norm(colliders[kind == PLANE, 4:7], axis=1), 1.0, atol=1e-9):
+        raise ValueError("plane normals must be unit vectors")
+    cyl = colliders[kind == CYLINDER]
+    if not (np.linalg.norm(cyl[:, 4:7] - cyl[:, 1:4], axis=1) > 0.0).all():
+        raise ValueError("cylinder end points must differ")
 
 
 def project_colliders(x, w_p, particle_radius, colliders, k_col, dt, force) -> tuple[int, float]:
@@ -794,6 +818,7 @@ def project_colliders_reference(x, w_p, particle_radius, colliders, k_col, dt, f
 
 @nb.njit(parallel=True, cache=True)
 def _friction_kernel(v, force, mass_p, mu_f, dt, eps):
+    """Eq. 7 per particle with a contact force."""
     for p in nb.prange(len(v)):
         if force[p] <= 0.0:
             continue

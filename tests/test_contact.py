@@ -1,0 +1,377 @@
+"""Contact (woodstock §5.4, Eqs. 3-7): numba kernels against their numpy references, analytic
+equilibria, collider normals, pinned particles and thread-count invariance."""
+from __future__ import annotations
+
+import numba
+import numpy as np
+import pytest
+
+from wooddecay.sim import contact as C
+
+G = 9.81
+DT = 0.01
+
+
+def _brute_distance(p1, q1, p2, q2, n=801):
+    s = np.linspace(0, 1, n)
+    a = p1 + (q1 - p1) * s[:, None]
+    b = p2 + (q2 - p2) * s[:, None]
+    return np.min(np.linalg.norm(a[:, None] - b[None], axis=-1))
+
+
+def _segment_soup(seed, n_seg=600, n_comp=6):
+    """Random segments in a unit box with parallel, collinear and degenerate ones mixed in:
+    (x, first_particle, radius, component). Every segment owns its two particles."""
+    rng = np.random.default_rng(seed)
+    p = rng.random((n_seg, 3))
+    d = rng.normal(size=(n_seg, 3)) * 0.04
+    d[: n_seg // 4] = [0.05, 0.0, 0.0]  # parallel
+    d[n_seg // 4: n_seg // 3, 1:] = 0.0  # parallel to x, different lengths
+    d[n_seg // 3: n_seg // 3 + 20] = 0.0  # points
+    p[:40, 1:] = 0.5  # collinear along x
+    x = np.stack([p, p + d], axis=1).reshape(-1, 3)
+    fp = np.arange(0, 2 * n_seg, 2, dtype=np.int64)
+    return x, fp, rng.uniform(0.005, 0.03, n_seg), rng.integers(0, n_comp, n_seg).astype(np.int64)
+
+
+def _chains(seed, n_strands=40, n_seg=15):
+    """Strands (chains sharing particles) of random components crossing a small box."""
+    rng = np.random.default_rng(seed)
+    xs = []
+    for _ in range(n_strands):
+        start, step = rng.random(3) * 0.3, rng.normal(size=3)
+        xs.append(start + np.outer(np.arange(n_seg + 1), 0.02 * step / np.linalg.norm(step)))
+    x = np.concatenate(xs)
+    fp = (np.arange(n_strands)[:, None] * (n_seg + 1) + np.arange(n_seg)).ravel().astype(np.int64)
+    comp = np.repeat(rng.integers(0, 4, n_strands), n_seg).astype(np.int64)
+    comp[5:9] = 7  # a strand split into components: neighbours sharing a particle are no pair
+    return x, fp, np.full(len(fp), 0.012), comp
+
+
+def _rows(*pts):
+    return np.array(pts, dtype=np.float64)
+
+
+# ----------------------------------------------------------------------------- closest points
+
+
+def test_closest_points_match_reference_and_sampling():
+    x, fp, _, _ = _segment_soup(1, n_seg=400)
+    rng = np.random.default_rng(2)
+    i, j = rng.integers(0, 400, 3000), rng.integers(0, 400, 3000)
+    p1, q1, p2, q2 = x[fp[i]], x[fp[i] + 1], x[fp[j]], x[fp[j] + 1]
+    s_ref, t_ref = C.closest_segment_segment_reference(p1, q1, p2, q2)
+    for k in range(len(i)):
+        X = np.stack([p1[k], q1[k], p2[k], q2[k]])
+        s, t = C.closest_segment_segment(X, 0, 1, 2, 3)
+        assert 0.0 <= s <= 1.0 and 0.0 <= t <= 1.0
+        assert abs(s - s_ref[k]) < 1e-12 and abs(t - t_ref[k]) < 1e-12
+        d = np.linalg.norm(p2[k] + t * (q2[k] - p2[k]) - p1[k] - s * (q1[k] - p1[k]))
+        if k < 300:
+            assert d <= _brute_distance(p1[k], q1[k], p2[k], q2[k]) + 1e-12
+
+
+def test_closest_points_special_cases():
+    # parallel with overlap: the middle of the overlap
+    X = _rows([0, 0, 0], [1, 0, 0], [0.5, 1, 0], [2, 1, 0])
+    assert np.allclose(C.closest_segment_segment(X, 0, 1, 2, 3), (0.75, 1 / 6))
+    # parallel without overlap: the nearest ends
+    X = _rows([0, 0, 0], [1, 0, 0], [2, 1, 0], [3, 1, 0])
+    assert np.allclose(C.closest_segment_segment(X, 0, 1, 2, 3), (1.0, 0.0))
+    # both degenerate, one degenerate
+    X = _rows([1, 2, 3], [1, 2, 3], [0, 0, 0], [0, 0, 0])
+    assert C.closest_segment_segment(X, 0, 1, 2, 3) == (0.0, 0.0)
+    X = _rows([0.3, 1, 0], [0.3, 1, 0], [0, 0, 0], [1, 0, 0])
+    assert np.allclose(C.closest_segment_segment(X, 0, 1, 2, 3), (0.0, 0.3))
+    assert np.isclose(C.closest_point_segment(X, 0, 2, 3), 0.3)
+    assert C.closest_point_segment(_rows([5, 0, 0], [0, 0, 0], [1, 0, 0]), 0, 1, 2) == 1.0
+
+
+def test_capsule_contact_normal_when_axes_cross():
+    X = _rows([-1, 0, 0], [1, 0, 0], [0, -1, 0], [0, 1, 0])
+    s, t, nx, ny, nz, phi = C.capsule_contact(X, 0, 1, 0.1, 2, 3, 0.2)
+    assert (s, t, phi) == (0.5, 0.5, pytest.approx(0.3))
+    assert np.allclose(np.abs([nx, ny, nz]), [0, 0, 1])
+    # coincident parallel axes: a normal perpendicular to them
+    X = _rows([0, 0, 0], [1, 0, 0], [0, 0, 0], [1, 0, 0])
+    _, _, nx, ny, nz, phi = C.capsule_contact(X, 0, 1, 0.1, 2, 3, 0.1)
+    assert phi == pytest.approx(0.2) and abs(nx) < 1e-15 and np.isclose(ny * ny + nz * nz, 1.0)
+
+
+# ----------------------------------------------------------------------------- broad phase
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("margin", [0.0, 0.01])
+def test_candidate_pairs_match_reference(seed, margin):
+    x, fp, r, comp = _segment_soup(seed)
+    got = C.candidate_pairs(x, fp, r, comp, margin)
+    ref = C.candidate_pairs_reference(x, fp, r, comp, margin)
+    assert len(ref) > 100
+    assert got.dtype == np.int64 and got.shape[1] == 2
+    assert np.array_equal(got, ref)
+    # brute force on every pair
+    i, j = np.triu_indices(len(fp), 1)
+    keep = comp[i] != comp[j]
+    i, j = i[keep], j[keep]
+    s, t = C.closest_segment_segment_reference(x[fp[i]], x[fp[i] + 1], x[fp[j]], x[fp[j] + 1])
+    d = x[fp[j]] + t[:, None] * (x[fp[j] + 1] - x[fp[j]]) - x[fp[i]] - s[:, None] * (x[fp[i] + 1] - x[fp[i]])
+    lim = r[i] + r[j] + margin
+    hit = np.einsum("ij,ij->i", d, d) < lim * lim
+    assert np.array_equal(got, np.stack([i[hit], j[hit]], axis=1))
+
+
+def test_candidate_pairs_chains_skip_shared_particles():
+    x, fp, r, comp = _chains(3)
+    got = C.candidate_pairs(x, fp, r, comp, 0.005)
+    assert np.array_equal(got, C.candidate_pairs_reference(x, fp, r, comp, 0.005))
+    assert len(got) > 0
+    assert np.all(np.abs(fp[got[:, 0]] - fp[got[:, 1]]) > 1)
+    assert np.all(comp[got[:, 0]] != comp[got[:, 1]])
+    assert np.all(got[:, 0] < got[:, 1])
+    assert np.array_equal(got, got[np.lexsort((got[:, 1], got[:, 0]))])
+
+
+def test_candidate_pairs_crowded():
+    """Long segments in a small box: crowded buckets and rows, most elements with more than KEPT
+    partners (the fill pass searches again)."""
+    rng = np.random.default_rng(7)
+    p = rng.random((1500, 3)) * 0.05
+    x = np.stack([p, p + rng.normal(size=(1500, 3)) * 0.1], axis=1).reshape(-1, 3)
+    fp, r, comp = np.arange(0, 3000, 2), np.full(1500, 0.001), rng.integers(0, 3, 1500)
+    got = C.candidate_pairs(x, fp, r, comp, 0.0)
+    assert np.bincount(got[:, 0], minlength=1500).max() > 4 * C.KEPT
+    assert np.array_equal(got, C.candidate_pairs_reference(x, fp, r, comp, 0.0))
+
+
+def test_candidate_pairs_trivial_inputs():
+    x, fp, r, comp = _segment_soup(0, n_seg=50)
+    assert C.candidate_pairs(x, fp, r, np.zeros(50, dtype=np.int64), 0.1).shape == (0, 2)
+    assert C.candidate_pairs(x, fp[:1], r[:1], comp[:1], 0.1).shape == (0, 2)
+    X = np.zeros((4, 3))
+    assert C.candidate_pairs(X, np.array([0, 2]), np.zeros(2), np.array([0, 1]), 0.0).shape == (0, 2)
+
+
+# ----------------------------------------------------------------------------- capsule contacts
+
+
+def _contact_setup(seed):
+    x, fp, r, comp = _segment_soup(seed, n_seg=500)
+    r = r * 2.0
+    pairs = C.candidate_pairs(x, fp, r, comp, 0.0)
+    w = np.random.default_rng(seed).uniform(0.5, 2.0, len(x))
+    w[::7] = 0.0
+    return x, w, fp, r, pairs
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_project_contacts_matches_reference(seed):
+    x, w, fp, r, pairs = _contact_setup(seed)
+    assert len(pairs) > 200
+    x1, x2 = x.copy(), x.copy()
+    f1, f2 = np.full(len(x), 0.5), np.full(len(x), 0.5)
+    res1 = C.project_contacts(x1, w, fp, r, pairs, 50.0, DT, f1)
+    res2 = C.project_contacts_reference(x2, w, fp, r, pairs, 50.0, DT, f2)
+    assert res1[0] == res2[0] > 0 and res1[1] == pytest.approx(res2[1], abs=1e-15)
+    assert np.allclose(x1, x2, rtol=0, atol=1e-12)
+    assert np.allclose(f1, f2, rtol=1e-12, atol=1e-12)
+    assert not np.array_equal(x1, x)
+    assert np.array_equal(x1[w == 0.0], x[w == 0.0])  # pinned particles never move
+
+
+def test_project_contacts_without_stiffness_or_pairs_does_nothing():
+    x, w, fp, r, pairs = _contact_setup(0)
+    x1, f = x.copy(), np.zeros(len(x))
+    assert C.project_contacts(x1, w, fp, r, pairs, 0.0, DT, f) == (0, 0.0)
+    assert C.project_contacts(x1, w, fp, r, pairs[:0], 10.0, DT, f) == (0, 0.0)
+    assert np.array_equal(x1, x) and not f.any()
+
+
+def test_two_capsules_pushed_apart_along_normal_with_momentum_conserved():
+    # crossing capsules of radius 0.05, axes 0.06 apart along z: phi = 0.04
+    x = _rows([-0.5, 0.1, 0], [0.3, 0.1, 0], [0, -0.2, 0.06], [0, 0.6, 0.06])
+    fp, r = np.array([0, 2]), np.array([0.05, 0.05])
+    w, f = np.ones(4), np.zeros(4)
+    x0 = x.copy()
+    n_active, phi = C.project_contacts(x, w, fp, r, np.array([[0, 1]]), 1e4, DT, f)
+    assert n_active == 1 and phi == pytest.approx(0.04)
+    dx = x - x0
+    assert np.allclose(dx.sum(axis=0), 0.0, atol=1e-15)  # equal masses: momentum conserved
+    assert np.allclose(dx[:, :2], 0.0, atol=1e-15)  # along the normal (0, 0, 1) only
+    assert np.all(dx[:2, 2] < 0) and np.all(dx[2:, 2] > 0)
+    s, t = 0.5 / 0.8, 0.3 / 0.8  # closest points: x = 0 on i, y = 0.1 on j
+    g = np.array([1 - s, s, 1 - t, t])
+    assert np.allclose(dx[:, 2] / dx[3, 2], g * [-1, -1, 1, 1] / t)
+    W = (1 - s) ** 2 + s ** 2 + (1 - t) ** 2 + t ** 2
+    dl = 1e4 * 0.04 ** 2 * DT ** 2 / (1 + W * 1e4 * 0.04 * DT ** 2)
+    assert np.allclose(f, g * dl / DT ** 2, rtol=1e-12)
+    # pinned first capsule: it stays, the other one takes the whole correction
+    x = x0.copy()
+    w = np.array([0.0, 0.0, 1.0, 1.0])
+    C.project_contacts(x, w, fp, r, np.array([[0, 1]]), 1e4, DT, np.zeros(4))
+    assert np.array_equal(x[:2], x0[:2]) and np.all(x[2:, 2] > x0[2:, 2])
+
+
+def test_capsule_resting_on_pinned_capsule_settles_at_eq4_penetration():
+    """A free horizontal capsule (two particles of mass m) crossing a pinned one at its middle:
+    at rest k_col phi^2 = 2 m g (Eq. 4), each particle receives m g."""
+    m, k_col, r = 0.5, 2000.0, 0.1
+    x = _rows([-1, 0, 0], [1, 0, 0], [0, -1, 2 * r], [0, 1, 2 * r])
+    fp, radius = np.array([0, 2]), np.array([r, r])
+    w = np.array([0.0, 0.0, 1 / m, 1 / m])
+    v = np.zeros_like(x)
+    pairs = np.array([[0, 1]])
+    for _ in range(3000):
+        v[2:, 2] -= G * DT
+        x_old = x.copy()
+        x += v * DT
+        f = np.zeros(4)
+        C.project_contacts(x, w, fp, radius, pairs, k_col, DT, f)
+        v = (x - x_old) / DT
+    phi = 2 * r - (x[2, 2] - x[0, 2])
+    assert phi == pytest.approx(np.sqrt(2 * m * G / k_col), rel=0.02)
+    assert f[2:] == pytest.approx([m * G, m * G], rel=0.02)
+    assert np.abs(v).max() < 1e-6
+
+
+# ----------------------------------------------------------------------------- colliders
+
+
+def _colliders():
+    return np.stack([
+        C.collider_row(C.PLANE, 0, 0, 0.1, 0.2, 0.1, 1.0),
+        C.collider_row(C.BOX, 0.2, 0.2, 0.2, 0.5, 0.4, 0.6),
+        C.collider_row(C.SPHERE, 0.7, 0.7, 0.5, 0.15),
+        C.collider_row(C.CYLINDER, 0.3, 0.8, 0.2, 0.6, 0.8, 0.7, 0.1),
+    ])
+
+
+def test_project_colliders_matches_reference():
+    rng = np.random.default_rng(4)
+    x = rng.random((5000, 3))
+    x[:100] = [0.45, 0.8, 0.45]  # on the cylinder axis: radial normal by the fallback
+    x[100:120] = [0.7, 0.7, 0.5]  # at the sphere centre
+    w = rng.uniform(0.5, 2.0, len(x))
+    w[::9] = 0.0
+    prad = rng.uniform(0.0, 0.03, len(x))
+    x1, x2, f1, f2 = x.copy(), x.copy(), np.zeros(len(x)), np.zeros(len(x))
+    res1 = C.project_colliders(x1, w, prad, _colliders(), 30.0, DT, f1)
+    res2 = C.project_colliders_reference(x2, w, prad, _colliders(), 30.0, DT, f2)
+    assert res1[0] == res2[0] > 300 and res1[1] == pytest.approx(res2[1], abs=1e-15)
+    assert np.allclose(x1, x2, rtol=0, atol=1e-12)
+    assert np.allclose(f1, f2, rtol=1e-12, atol=1e-12)
+    assert np.array_equal(x1[w == 0.0], x[w == 0.0])
+    assert C.project_colliders(x1, w, prad, _colliders(), 0.0, DT, f1) == (0, 0.0)
+
+
+@pytest.mark.parametrize(("row", "p", "sd", "n"), [
+    (C.collider_row(C.PLANE, 0, 0, 1, 0, 0, 2), [3, 4, 0.9], -0.1, [0, 0, 1]),
+    (C.collider_row(C.SPHERE, 1, 1, 1, 0.5), [1, 1.4, 1], -0.1, [0, 1, 0]),
+    (C.collider_row(C.SPHERE, 1, 1, 1, 0.5), [1, 1, 1.55], 0.05, [0, 0, 1]),
+    (C.collider_row(C.BOX, 0, 0, 0, 1, 2, 3), [0.5, 1.95, 1], -0.05, [0, 1, 0]),
+    (C.collider_row(C.BOX, 0, 0, 0, 1, 2, 3), [0.04, 1, 1], -0.04, [-1, 0, 0]),
+    (C.collider_row(C.BOX, 0, 0, 0, 1, 2, 3), [1.03, 2.04, 1], 0.05, [0.6, 0.8, 0]),
+    (C.collider_row(C.CYLINDER, 0, 0, 0, 0, 0, 2, 0.5), [0.3, 0.3, 1], np.hypot(0.3, 0.3) - 0.5,
+     [np.sqrt(0.5), np.sqrt(0.5), 0]),
+    (C.collider_row(C.CYLINDER, 0, 0, 0, 0, 0, 2, 0.5), [0.1, 0, 1.97], -0.03, [0, 0, 1]),
+    (C.collider_row(C.CYLINDER, 0, 0, 0, 0, 0, 2, 0.5), [0.1, 0, -0.02], 0.02, [0, 0, -1]),
+    (C.collider_row(C.CYLINDER, 0, 0, 0, 0, 0, 2, 0.5), [0.53, 0, 2.04], 0.05, [0.6, 0, 0.8]),
+])
+def test_collider_pushes_out_along_its_normal(row, p, sd, n):
+    got = C.collider_distance(row[None], 0, *map(float, p))
+    assert got[0] == pytest.approx(sd, abs=1e-12)
+    assert np.allclose(got[1:], n, atol=1e-12)
+    x, f = np.array([p], dtype=np.float64), np.zeros(1)
+    n_active, phi = C.project_colliders(x, np.ones(1), np.array([0.1]), row[None], 1e3, DT, f)
+    assert n_active == 1 and phi == pytest.approx(0.1 - sd)
+    dx = x[0] - p
+    assert np.allclose(dx / np.linalg.norm(dx), n, atol=1e-12) and f[0] > 0.0
+    x = np.array([p], dtype=np.float64)
+    C.project_colliders(x, np.zeros(1), np.array([0.1]), row[None], 1e3, DT, f)
+    assert np.array_equal(x[0], p)
+
+
+def test_collider_table_is_checked():
+    with pytest.raises(ValueError):
+        C.collider_row(C.SPHERE, 0, 0, 0)
+    with pytest.raises(ValueError):
+        C.project_colliders(np.zeros((1, 3)), np.ones(1), np.ones(1), np.zeros((1, 8)), 1.0, DT, np.zeros(1))
+    bad = [_colliders() for _ in range(3)]
+    bad[0][0, 0] = 7  # unknown kind
+    bad[1][0, 4:7] = [0, 0, 2]  # plane normal not unit
+    bad[2][3, 4:7] = bad[2][3, 1:4]  # cylinder of length 0
+    for table in bad:
+        with pytest.raises(ValueError):
+            C.project_colliders(np.zeros((1, 3)), np.ones(1), np.ones(1), table, 1.0, DT, np.zeros(1))
+
+
+def test_particle_resting_on_ground_settles_at_eq4_penetration():
+    """Explicit gravity, XPBD collider projection, velocity from positions: at rest the secant
+    step carries k_col phi^2 = m g, phi = sqrt(m g / k_col)."""
+    m, k_col, r = np.array([1.0, 0.2]), 1000.0, 0.3
+    ground = C.collider_row(C.PLANE, 0, 0, 0, 0, 0, 1)[None]
+    x = np.array([[0, 0, r], [1, 0, r]], dtype=np.float64)
+    v = np.zeros_like(x)
+    for _ in range(3000):
+        v[:, 2] -= G * DT
+        x_old = x.copy()
+        x += v * DT
+        f = np.zeros(2)
+        C.project_colliders(x, 1 / m, np.full(2, r), ground, k_col, DT, f)
+        v = (x - x_old) / DT
+    assert r - x[:, 2] == pytest.approx(np.sqrt(m * G / k_col), rel=0.02)
+    assert f == pytest.approx(m * G, rel=0.02)
+    assert np.abs(v).max() < 1e-6
+
+
+# ----------------------------------------------------------------------------- friction
+
+
+def test_friction_decelerates_by_mu_g_dt():
+    mu, m = 0.7, 2.0
+    v = _rows([1.0, 0, 0], [0, 0.5, 0.5], [1e-3, 0, 0], [3.0, 0, 0])
+    force = np.array([m * G, m * G, m * G, 0.0])
+    v0 = v.copy()
+    C.apply_friction(v, force, np.full(4, m), mu, DT, 1e-9)
+    speed0, speed = np.linalg.norm(v0, axis=1), np.linalg.norm(v, axis=1)
+    assert speed0[:2] - speed[:2] == pytest.approx([mu * G * DT] * 2, rel=1e-12)
+    assert np.allclose(np.cross(v, v0), 0.0)  # no turning
+    assert np.array_equal(v[2], [0.0, 0.0, 0.0])  # min(1, ...): stops, never reverses
+    assert np.array_equal(v[3], v0[3])  # no contact force, no friction
+
+
+def test_friction_matches_reference():
+    rng = np.random.default_rng(5)
+    v = rng.normal(size=(4000, 3)) * rng.uniform(0, 2, (4000, 1))
+    force = np.where(rng.random(4000) < 0.5, 0.0, rng.uniform(0, 50, 4000))
+    mass = rng.uniform(0.01, 1, 4000)
+    v1, v2 = v.copy(), v.copy()
+    C.apply_friction(v1, force, mass, 0.8, DT, 1e-6)
+    C.apply_friction_reference(v2, force, mass, 0.8, DT, 1e-6)
+    assert np.allclose(v1, v2, rtol=1e-12, atol=1e-15)
+    assert not np.array_equal(v1, v)
+
+
+# ----------------------------------------------------------------------------- determinism
+
+
+def test_bit_identical_for_one_and_two_threads():
+    x, w, fp, r, _ = _contact_setup(6)
+    comp = np.random.default_rng(6).integers(0, 6, len(fp)).astype(np.int64)
+    prad = np.full(len(x), 0.02)
+    mass = np.full(len(x), 0.3)
+    runs = []
+    try:
+        for k in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
+            numba.set_num_threads(k)
+            pairs = C.candidate_pairs(x, fp, r, comp, 0.01)
+            xk, f = x.copy(), np.zeros(len(x))
+            C.project_contacts(xk, w, fp, r, pairs, 40.0, DT, f)
+            C.project_colliders(xk, w, prad, _colliders(), 40.0, DT, f)
+            v = (xk - x) / DT
+            C.apply_friction(v, f, mass, 0.7, DT, 1e-6)
+            runs.append((pairs, xk, f, v))
+    finally:
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    for a, b in zip(runs[0], runs[1]):
+        assert np.array_equal(a, b)
