@@ -16,10 +16,10 @@ Each timing is the best of 5 after a warm-up call (the reference: best of 2).
 """
 from __future__ import annotations
 
-import time
 
 import numba
 import numpy as np
+from timing import best
 
 from wooddecay.sim import contact as C
 
@@ -45,18 +45,8 @@ def split_log(seed: int = 0):
     return x, first, np.full(len(first), RADIUS), component
 
 
-def best(fn, repeat=5):
-    fn()
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
-
-
 def report(name, fn, ref):
-    t, t_ref = best(fn), best(ref, repeat=2)
+    t, t_ref = best(fn, repeat=5), best(ref, repeat=2)
     print(f"{name}_seconds {t:.5f} s")
     print(f"{name}_reference_seconds {t_ref:.5f} s")
     print(f"{name}_speedup {t_ref / t:.1f} x")
@@ -73,7 +63,7 @@ def main() -> None:
            lambda: C.candidate_pairs_reference(x, fp, radius, comp, MARGIN))
     for k in range(1, numba.config.NUMBA_NUM_THREADS + 1):
         numba.set_num_threads(k)
-        t = best(lambda: C.candidate_pairs(x, fp, radius, comp, MARGIN))
+        t = best(lambda: C.candidate_pairs(x, fp, radius, comp, MARGIN), repeat=5)
         print(f"candidate_pairs_seconds_threads_{k} {t:.5f} s")
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
 
@@ -86,7 +76,7 @@ def main() -> None:
            lambda: C.project_contacts_reference(x.copy(), w, fp, radius, pairs, K_COL, DT, force))
     for k in range(1, numba.config.NUMBA_NUM_THREADS + 1):
         numba.set_num_threads(k)
-        t = best(lambda: C.project_contacts(x.copy(), w, fp, radius, pairs, K_COL, DT, force))
+        t = best(lambda: C.project_contacts(x.copy(), w, fp, radius, pairs, K_COL, DT, force), repeat=5)
         print(f"project_contacts_seconds_threads_{k} {t:.5f} s")
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     x1, x2 = x.copy(), x.copy()

@@ -9,25 +9,15 @@ Each timing is the best of 3 after a warm-up call.
 from __future__ import annotations
 
 import sys
-import time
 from pathlib import Path
 
 import numba
 import numpy as np
+from timing import best
 
 import wooddecay as wd
 from wooddecay.strands.elements import transport_frames_numba, transport_frames_reference
 from wooddecay.strands.reg import segment_pairs, segment_pairs_reference
-
-
-def best(fn, repeat=3):
-    fn()
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
 
 
 def main() -> None:

@@ -103,7 +103,7 @@ def _flag_edges(edges, strain, limit, element_ok, edge_ok):
 def components(setup, ms) -> np.ndarray:
     """Connected-component label per element (module docstring)."""
     n = setup.n_elements
-    links = setup.chain[ms.element_ok[setup.chain[:, 0]]]
+    links = setup.joints[ms.element_ok[setup.joints[:, 0]]]
     reg = setup.edges[ms.edge_ok[:, 0]]
     e = np.concatenate([links, reg])
     g = sp.coo_matrix((np.ones(len(e), dtype=np.int8), (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()

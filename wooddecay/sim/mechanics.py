@@ -62,7 +62,6 @@ class MechSetup:
     k_pb0: np.ndarray  # (m,) pair bend stiffness at I = 1
     k_pt0: np.ndarray  # (m,) pair twist stiffness at I = 1
     colors: tuple  # (ptr, order) of the REG colouring (rods.color_edges)
-    chain: np.ndarray  # (J, 2) = joints (for components)
     gravity: np.ndarray
     damping: float
     dt: float
@@ -73,7 +72,7 @@ class MechSetup:
     epsilon: float
     loads: tuple  # of (day0, day1, (P, 3) particle forces)
     radius_p: np.ndarray = None  # (P,) particle radius (collider clearance)
-    torque: np.ndarray | None = None  # (n, 3) world torques per element (validation only)
+    torque: np.ndarray = None  # (n, 3) world torques per element (zero; set by validation studies)
 
     @property
     def n_elements(self) -> int:
@@ -207,10 +206,11 @@ def prepare(model, scene) -> MechSetup:
         offset0=model.reg_rest_offset.copy(), edge_length=edge_length,
         k_conn0=Gm * 2.0 * r_s * lm / edge_length,
         k_pb0=Em * np.pi * r_s**4 / 4.0, k_pt0=Gm * np.pi * r_s**4 / 2.0,
-        colors=rods.color_edges(ij, fp, P), chain=joints,
+        colors=rods.color_edges(ij, fp, P),
         gravity=np.asarray(mech.gravity, dtype=np.float64), damping=float(mech.damping),
         dt=float(mech.dt_mech), iterations=int(mech.iterations), colliders=_colliders(scene),
-        radius_p=_particle_radius(fp, r, P), k_col=float(mech.k_col), mu_f=float(mech.mu_f), epsilon=float(mech.epsilon), loads=tuple(loads),
+        radius_p=_particle_radius(fp, r, P), torque=np.zeros((n, 3)), k_col=float(mech.k_col),
+        mu_f=float(mech.mu_f), epsilon=float(mech.epsilon), loads=tuple(loads),
     )
 
 
@@ -315,14 +315,19 @@ def _multipliers(setup: MechSetup) -> dict[str, np.ndarray]:
             "c": np.zeros(m), "p": np.zeros((m, 3))}
 
 
-def _project(setup: MechSetup, ms: MechState, kreg, lam: dict, dt: float) -> None:
+def _joint_stiffness(setup: MechSetup, ms: MechState) -> tuple[np.ndarray, np.ndarray]:
+    """Bend and twist stiffness of the strand joints, zero next to a failed element."""
+    on = ms.element_ok[setup.joints[:, 0]] & ms.element_ok[setup.joints[:, 1]]
+    return np.where(on, setup.joint_kb, 0.0), np.where(on, setup.joint_kt, 0.0)
+
+
+def _project(setup: MechSetup, ms: MechState, kjoint, kreg, lam: dict, dt: float) -> None:
     """One sweep of Stage 1 and Stage 2."""
     fp, x, q = setup.fp, ms.x, ms.q
+    kb, kt = kjoint
     for elems in setup.elems:
         rods.stretch_shear(elems, fp, x, q, ms.w_p, ms.w_q, ms.rest_length, setup.k_stretch, setup.k_shear,
                            ms.element_ok, lam["s"], lam["sh"], dt)
-    on = ms.element_ok[setup.joints[:, 0]] & ms.element_ok[setup.joints[:, 1]]
-    kb, kt = np.where(on, setup.joint_kb, 0.0), np.where(on, setup.joint_kt, 0.0)
     for idx in setup.joint_sets:
         rods.bend_twist(setup.joints, idx, q, ms.w_q, setup.joint_rest, setup.joint_length, kb, kt,
                         lam["j"], dt)
@@ -336,15 +341,14 @@ def _project(setup: MechSetup, ms: MechState, kreg, lam: dict, dt: float) -> Non
 def substep(setup: MechSetup, ms: MechState, dt: float, force: np.ndarray) -> int:
     """One XPBD substep (module docstring); returns the number of new failures."""
     x_old, q_old = np.empty_like(ms.x), np.empty_like(ms.q)
-    torque = setup.torque if setup.torque is not None else np.zeros((setup.n_elements, 3))
-    _predict(ms.x, ms.v, ms.q, ms.omega, ms.w_p, ms.w_q, ms.mass_p, force, setup.gravity, torque,
+    _predict(ms.x, ms.v, ms.q, ms.omega, ms.w_p, ms.w_q, ms.mass_p, force, setup.gravity, setup.torque,
              np.exp(-setup.damping * dt), dt, x_old, q_old)
-    kreg = reg_stiffness(setup, ms)
+    kreg, kjoint = reg_stiffness(setup, ms), _joint_stiffness(setup, ms)
     lam = _multipliers(setup)
     fn = np.zeros(setup.n_particles)
     refresh_pairs(setup, ms)
     for _ in range(setup.iterations):
-        _project(setup, ms, kreg, lam, dt)
+        _project(setup, ms, kjoint, kreg, lam, dt)
         contact.project_colliders(ms.x, ms.w_p, setup.radius_p, setup.colliders, setup.k_col, dt, fn)
         contact.project_contacts(ms.x, ms.w_p, setup.fp, setup.radius, ms.pairs, setup.k_col, dt, fn)
     _velocities(ms.x, ms.v, ms.q, ms.omega, x_old, q_old, ms.w_p, ms.w_q, dt)
