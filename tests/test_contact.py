@@ -375,3 +375,31 @@ def test_bit_identical_for_one_and_two_threads():
         numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     for a, b in zip(runs[0], runs[1]):
         assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_depenetration_cap_matches_reference(seed):
+    x, w, fp, r, pairs = _contact_setup(seed)
+    push = 1e-4
+    x1, x2 = x.copy(), x.copy()
+    f1, f2 = np.zeros(len(x)), np.zeros(len(x))
+    C.project_contacts(x1, w, fp, r, pairs, 1e8, DT, f1, push)
+    C.project_contacts_reference(x2, w, fp, r, pairs, 1e8, DT, f2, push)
+    assert np.allclose(x1, x2, rtol=0, atol=1e-13) and np.allclose(f1, f2, rtol=1e-12)
+    x3 = x.copy()
+    C.project_contacts(x3, w, fp, r, pairs, 1e8, DT, np.zeros(len(x)))
+    assert np.abs(x3 - x).max() > 10 * np.abs(x1 - x).max()  # uncapped, the overlaps push further
+
+
+def test_depenetration_cap_bounds_the_relative_push():
+    # the crossing capsules above (phi = 0.04) under a stiff contact part by exactly max_push
+    x = _rows([-0.5, 0.1, 0], [0.3, 0.1, 0], [0, -0.2, 0.06], [0, 0.6, 0.06])
+    fp, r = np.array([0, 2]), np.array([0.05, 0.05])
+    w, f = np.ones(4), np.zeros(4)
+    s, t = 0.625, 0.375  # closest points of the two axes
+
+    def gap():
+        return (1 - t) * x[2, 2] + t * x[3, 2] - (1 - s) * x[0, 2] - s * x[1, 2]
+    gap0 = gap()
+    C.project_contacts(x, w, fp, r, np.array([[0, 1]]), 1e8, DT, f, 1e-3)
+    assert gap() - gap0 == pytest.approx(1e-3, rel=1e-9)

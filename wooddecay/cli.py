@@ -219,5 +219,29 @@ def chart_barrier(output: str, days: float) -> None:
     click.echo(f"wrote {out}")
 
 
+@chart.command("mechanics")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="PNG to write.")
+@click.option("--quick", is_flag=True, help="Fewer settings (dt in {1e-2, 1e-3, 2e-4} s x 2, 10 iterations).")
+def chart_mechanics(output: str, quick: bool) -> None:
+    """Issue 4 item 7: cantilever error against wall time over dt (substeps per simulated
+    second = 1/dt) and iterations, with PyElastica's point on the same axes."""
+    from .charts.mechanics import (DTS, DTS_QUICK, ITERATIONS, ITERATIONS_QUICK, describe,
+                                   plot_mechanics, run_mechanics)
+
+    out = Path(output)
+    if not out.parent.is_dir():
+        raise InputError(output, "", f"folder {out.parent} does not exist")
+    data = run_mechanics(DTS_QUICK if quick else DTS, ITERATIONS_QUICK if quick else ITERATIONS)
+    with tempfile.TemporaryDirectory(dir=out.parent) as tmp:
+        tmp_png = Path(tmp) / out.name
+        plot_mechanics(data, tmp_png)
+        os.replace(tmp_png, out)
+    for p in data:
+        click.echo(describe(p))
+    if not any(p["solver"] == "pyelastica" for p in data):
+        click.echo("PyElastica not installed (pip install pyelastica): no reference point")
+    click.echo(f"wrote {out}")
+
+
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())

@@ -535,7 +535,7 @@ def _dlambda(phi, W, k_col, dt2):
 
 
 @nb.njit(parallel=True, cache=True)
-def _pair_multipliers(x, w_p, first_particle, radius, pairs, k_col, dt, pc, phi):
+def _pair_multipliers(x, w_p, first_particle, radius, pairs, k_col, dt, max_push, pc, phi):
     """Per pair: penetration phi (Eq. 3) and ``pc`` = (n_ij, dlambda, s, t) (dlambda 0 if inactive)."""
     dt2 = dt * dt
     for q in nb.prange(len(pairs)):
@@ -546,7 +546,8 @@ def _pair_multipliers(x, w_p, first_particle, radius, pairs, k_col, dt, pc, phi)
              + w_p[b + 1] * t * t)
         phi[q] = ph
         pc[q, 0], pc[q, 1], pc[q, 2] = nx, ny, nz
-        pc[q, 3] = _dlambda(ph, W, k_col, dt2) if ph > 0.0 else 0.0
+        dl = _dlambda(ph, W, k_col, dt2) if ph > 0.0 else 0.0
+        pc[q, 3] = min(dl, max_push / W) if W * dl > max_push else dl  # depenetration cap
         pc[q, 4], pc[q, 5] = s, t
 
 
@@ -595,18 +596,22 @@ def _gather(x, w_p, force, indptr, inc, pc, dt):
         force[p] += f
 
 
-def project_contacts(x, w_p, first_particle, radius, pairs, k_col, dt, force) -> tuple[int, float]:
+def project_contacts(x, w_p, first_particle, radius, pairs, k_col, dt, force,
+                     max_push: float = np.inf) -> tuple[int, float]:
     """One Jacobi XPBD projection of the capsule contacts of ``pairs`` (k, 2) (element pairs i, j
     as from :func:`candidate_pairs`; Eqs. 3-4, module docstring).
 
     Moves ``x`` (P, 3) in place (particles with w_p = 0 never move) and adds to ``force`` (P,) the
-    normal force magnitude g_k dlambda / dt^2 each particle receives. Returns (number of pairs with
+    normal force magnitude g_k dlambda / dt^2 each particle receives. ``max_push`` caps a pair's
+    relative correction per projection (a depenetration speed times dt: capsules that overlap when
+    their connection breaks, up to 1.5 r_s at rest spacing, part gently instead of exploding).
+    Returns (number of pairs with
     phi > 0, largest phi), measured on the positions before the projection; k_col <= 0 means no
     contact: nothing changes and (0, 0.0) is returned."""
     if k_col <= 0.0 or len(pairs) == 0:
         return 0, 0.0
     pc, phi = np.empty((len(pairs), 6)), np.empty(len(pairs))
-    _pair_multipliers(x, w_p, first_particle, radius, pairs, float(k_col), float(dt), pc, phi)
+    _pair_multipliers(x, w_p, first_particle, radius, pairs, float(k_col), float(dt), float(max_push), pc, phi)
     active = np.flatnonzero(phi > 0.0)
     indptr, inc = np.zeros(len(x) + 1, dtype=np.int64), np.empty(4 * len(active), dtype=np.int64)
     _incidences(pairs, first_particle, active, indptr, inc)
@@ -614,7 +619,8 @@ def project_contacts(x, w_p, first_particle, radius, pairs, k_col, dt, force) ->
     return len(active), float(phi.max())
 
 
-def project_contacts_reference(x, w_p, first_particle, radius, pairs, k_col, dt, force) -> tuple[int, float]:
+def project_contacts_reference(x, w_p, first_particle, radius, pairs, k_col, dt, force,
+                               max_push: float = np.inf) -> tuple[int, float]:
     """numpy version of :func:`project_contacts`."""
     if k_col <= 0.0 or len(pairs) == 0:
         return 0, 0.0
@@ -628,6 +634,8 @@ def project_contacts_reference(x, w_p, first_particle, radius, pairs, k_col, dt,
     W = w[:, 0] * g[:, 0] * g[:, 0] + w[:, 1] * g[:, 1] * g[:, 1] + w[:, 2] * g[:, 2] * g[:, 2] + w[:, 3] * g[:, 3] * g[:, 3]
     dt2 = dt * dt
     dl = k_col * ph * ph * dt2 / (1.0 + W * k_col * ph * dt2)
+    over = W * dl > max_push
+    dl[over] = max_push / W[over]
     c = np.array([-1.0, -1.0, 1.0, 1.0]) * w * g * dl[:, None]
     acc = np.zeros_like(x)
     fsum = np.zeros(len(x))

@@ -7,6 +7,9 @@ Each macro step: ``N_mech`` mechanics substeps of ``dt_mech`` (lines 4-8,
 decay on a static model). Frames are yielded at ``scene.time.frames`` times evenly spaced over
 [0, scene.time.days] (the first frame is the initial state when frames > 1).
 
+Settling: before the first step the rods settle under gravity (:func:`mechanics.settle`, ``[mechanics] settle``
+seconds); failure strains are measured from the state they settle into.
+
 Checkpoints: with ``checkpoint_dir`` and ``checkpoint_every = K`` the whole state is written
 after every K-th frame (``frame_<k>.npz``, written to a temporary name and renamed).
 :meth:`Simulation.resume` continues from one; the frames that follow are bit-identical to an
@@ -60,7 +63,8 @@ class Simulation:
     """``Simulation(model, scene).run()`` yields :class:`Frame` objects (module docstring).
     ``history`` collects the diagnostics at day 0 and after every macro step."""
 
-    def __init__(self, model, scene, mechanics: bool = True, checkpoint_dir=None, checkpoint_every: int = 0):
+    def __init__(self, model, scene, mechanics: bool = True, checkpoint_dir=None, checkpoint_every: int = 0,
+                 settle: bool = True):
         self.model, self.scene = model, scene
         self.setup = biology.prepare(model, scene)
         self.state: SimState = initial_state(model, scene)
@@ -73,6 +77,8 @@ class Simulation:
             self.coupling = coupling.prepare(model, scene)
             self.state.mech = mech.initial_state(model, self.mech_setup)
             self._couple()
+            if settle:
+                mech.settle(self.mech_setup, self.state.mech, scene.mechanics.settle, scene.mechanics.settle_damping)
         self.history: list[dict] = [self._diagnostics()]
 
     @property
@@ -162,7 +168,7 @@ class Simulation:
             arrays = {k: z[k].copy() for k in z.files if k != "meta"}
         if meta.get("version") != CHECKPOINT_VERSION or meta["scene_hash"] != scene.hash:
             raise ValueError(f"{path}: checkpoint of another scene or version; cannot resume")
-        sim = cls(model, scene, mechanics=meta["mechanics"], **kwargs)
+        sim = cls(model, scene, mechanics=meta["mechanics"], settle=False, **kwargs)
         s = sim.state
         for f in FIELDS:
             setattr(s, f, arrays[f"field_{f}"])

@@ -1,7 +1,8 @@
 """Failure and connectivity (woodstock §5.3; limits L(M) of Eqs. 18-19 from
 :mod:`wooddecay.sim.coupling`).
 
-Strains are measured after every substep:
+Strains are measured after every substep, as the change since the settled reference state
+(:func:`wooddecay.sim.mechanics.settle`; zero when not settled):
 
 * element stretch |p_b - p_a| / l_r - 1 (tension) and shear |gamma - (gamma . d3) d3| with
   gamma = (p_b - p_a) / l_r, against the element's limits. A failed element cuts its strand: its
@@ -110,13 +111,19 @@ def components(setup, ms) -> np.ndarray:
     return connected_components(g, directed=False)[1].astype(np.int64)
 
 
+def strains(setup, ms) -> tuple[np.ndarray, np.ndarray]:
+    """(n, 2) element and (m, 3) pair strains of the current state."""
+    return (element_strains(setup.fp, ms.x, ms.q, ms.rest_length),
+            pair_strains(setup.edges, setup.fp, ms.x, ms.q, ms.rest_offset, setup.edge_length, setup.edge_rest))
+
+
 def update(setup, ms) -> int:
-    """Flag the constraints over their limits; recompute components if anything separated.
+    """Flag the constraints whose strain beyond the settled reference (``ms.strain_ref_*``,
+    :func:`mechanics.settle`) exceeds their limit; recompute components if anything separated.
     Returns the number of new failures (elements plus edges)."""
-    new_e = _flag_elements(element_strains(setup.fp, ms.x, ms.q, ms.rest_length), ms.limit_elem,
-                           ms.element_ok)
-    strain = pair_strains(setup.edges, setup.fp, ms.x, ms.q, ms.rest_offset, setup.edge_length, setup.edge_rest)
-    new_k = _flag_edges(setup.edges, strain, ms.limit_edge, ms.element_ok, ms.edge_ok)
+    elem, pair = strains(setup, ms)
+    new_e = _flag_elements(elem - ms.strain_ref_elem, ms.limit_elem, ms.element_ok)
+    new_k = _flag_edges(setup.edges, pair - ms.strain_ref_edge, ms.limit_edge, ms.element_ok, ms.edge_ok)
     count = int(new_e.sum()) + int(np.count_nonzero(new_k))
     if new_e.any() or (new_k == 2).any():
         ms.component = components(setup, ms)

@@ -19,7 +19,7 @@ strand's E I, G J over dp_0. :func:`substep_reference` is the same substep in pl
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 import numba as nb
 import numpy as np
@@ -68,6 +68,7 @@ class MechSetup:
     iterations: int
     colliders: np.ndarray  # (k, contact.COLLIDER_COLUMNS)
     k_col: float
+    v_depenetration: float
     mu_f: float
     epsilon: float
     loads: tuple  # of (day0, day1, (P, 3) particle forces)
@@ -99,6 +100,8 @@ class MechState:
     element_ok: np.ndarray  # (n,) bool: stretch / shear intact
     edge_ok: np.ndarray  # (m, 3) bool: connection, bend, twist intact
     component: np.ndarray  # (n,) int64 connected-component label
+    strain_ref_elem: np.ndarray  # (n, 2) settled stretch, shear strain (failure measures from it)
+    strain_ref_edge: np.ndarray  # (m, 3) settled bundle, bend, twist strain
     t_seconds: float = 0.0
     failures: int = 0  # failure events so far (elements + edge flags)
     pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))  # contact list
@@ -210,7 +213,7 @@ def prepare(model, scene) -> MechSetup:
         gravity=np.asarray(mech.gravity, dtype=np.float64), damping=float(mech.damping),
         dt=float(mech.dt_mech), iterations=int(mech.iterations), colliders=_colliders(scene),
         radius_p=_particle_radius(fp, r, P), torque=np.zeros((n, 3)), k_col=float(mech.k_col),
-        mu_f=float(mech.mu_f), epsilon=float(mech.epsilon), loads=tuple(loads),
+        v_depenetration=float(mech.v_depenetration), mu_f=float(mech.mu_f), epsilon=float(mech.epsilon), loads=tuple(loads),
     )
 
 
@@ -227,7 +230,8 @@ def initial_state(model, setup: MechSetup) -> MechState:
         rest_length=setup.rest_length0.copy(), rest_offset=setup.offset0.copy(), integrity=np.ones(m),
         limit_elem=np.full((n, 2), np.inf), limit_edge=np.full((m, 3), np.inf),
         element_ok=np.ones(n, dtype=bool), edge_ok=np.ones((m, 3), dtype=bool),
-        component=np.zeros(n, dtype=np.int64),
+        component=np.zeros(n, dtype=np.int64), strain_ref_elem=np.zeros((n, 2)),
+        strain_ref_edge=np.zeros((m, 3)),
     )
     set_masses(setup, ms, np.zeros(n))
     ms.component = failure.components(setup, ms)
@@ -350,7 +354,8 @@ def substep(setup: MechSetup, ms: MechState, dt: float, force: np.ndarray) -> in
     for _ in range(setup.iterations):
         _project(setup, ms, kjoint, kreg, lam, dt)
         contact.project_colliders(ms.x, ms.w_p, setup.radius_p, setup.colliders, setup.k_col, dt, fn)
-        contact.project_contacts(ms.x, ms.w_p, setup.fp, setup.radius, ms.pairs, setup.k_col, dt, fn)
+        contact.project_contacts(ms.x, ms.w_p, setup.fp, setup.radius, ms.pairs, setup.k_col, dt, fn,
+                                 setup.v_depenetration * dt)
     _velocities(ms.x, ms.v, ms.q, ms.omega, x_old, q_old, ms.w_p, ms.w_q, dt)
     contact.apply_friction(ms.v, fn, ms.mass_p, setup.mu_f, dt, setup.epsilon)
     ms.t_seconds += dt
@@ -365,6 +370,24 @@ def refresh_pairs(setup: MechSetup, ms: MechState) -> None:
         return
     ms.pairs = contact.candidate_pairs(ms.x, setup.fp, setup.radius, ms.component, margin)
     ms.pairs_x = ms.x.copy()
+
+
+def settle(setup: MechSetup, ms: MechState, seconds: float, damping: float) -> None:
+    """Let the rods come to rest under gravity with failure off and viscous damping ``damping``
+    for ``seconds``, then take the strains they hold as the reference of
+    :func:`failure.update` and zero the velocities (docs/decisions.md, "Settling"): the wood
+    starts undamaged in equilibrium with its own weight, as a grown tree is, so only strain
+    added later by shrinkage, decay, loads and impacts counts against L(M)."""
+    limits = ms.limit_elem, ms.limit_edge
+    ms.limit_elem, ms.limit_edge = np.full_like(limits[0], np.inf), np.full_like(limits[1], np.inf)
+    damped = replace(setup, damping=float(damping))
+    force = np.zeros((setup.n_particles, 3))
+    for _ in range(int(round(seconds / setup.dt))):
+        substep(damped, ms, setup.dt, force)
+    ms.limit_elem, ms.limit_edge = limits
+    ms.strain_ref_elem, ms.strain_ref_edge = failure.strains(setup, ms)
+    ms.v[:] = 0.0
+    ms.omega[:] = 0.0
 
 
 def macro_step(setup: MechSetup, ms: MechState, t_days: float, n_sub: int) -> int:
