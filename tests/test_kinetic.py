@@ -1,0 +1,540 @@
+"""Kinetic Delaunay triangulation and kinetic alpha shape of branch cross-sections (woodstock §8.1; SPEC §5).
+
+The reference is scipy.spatial.Delaunay (qhull) of the interpolated alive sites at random d_t
+between sections, sampled away from event times (where the triangulation is ambiguous).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial import ConvexHull, Delaunay
+
+from wooddecay.meshlets import alpha as A
+from wooddecay.meshlets import kinetic as K
+
+
+# --------------------------------------------------------------------------------------------
+# helpers
+# --------------------------------------------------------------------------------------------
+
+def tri_set(tris):
+    return {tuple(sorted(t)) for t in np.asarray(tris).tolist()}
+
+
+def scipy_tris(X, mask):
+    ids = np.nonzero(mask)[0]
+    if len(ids) < 3:
+        return set()
+    return {tuple(sorted(ids[s].tolist())) for s in Delaunay(X[ids]).simplices}
+
+
+def sample_times(res, rng, k, margin=1e-6):
+    """k random d_t strictly inside pieces, at least margin * span away from every event."""
+    d = res.d
+    span = d[-1] - d[0]
+    out = []
+    for _ in range(50 * k):
+        t = rng.uniform(d[0], d[-1])
+        if np.min(np.abs(res.d_events - t)) > margin * span:
+            out.append(t)
+        if len(out) == k:
+            break
+    return out
+
+
+def assert_matches_scipy(res, rng, k=6, ambiguous=False):
+    """triangles_at(t) == scipy's Delaunay at k sample times; returns the number of exact matches.
+
+    ambiguous: near-degenerate input (sites on a circle, a grid), where the perturbation of the
+    predicates (eta = 1e-8 of the extent) can decide a co-circular quad differently from qhull in
+    a window of ~eta / (rate of change) around an event; a mismatch then must still be a valid
+    Delaunay triangulation of the same sites up to that tolerance (tiles the hull, every interior
+    edge locally Delaunay within 1e-6 relative).
+    """
+    exact = 0
+    for t in sample_times(res, rng, k):
+        X = res.positions_at(t)
+        ours = res.triangles_at(t)
+        ref = scipy_tris(X, res.alive_at(t))
+        if tri_set(ours) == ref:
+            exact += 1
+            continue
+        assert ambiguous, (t, len(tri_set(ours) ^ ref))
+        ids = np.nonzero(res.alive_at(t))[0]
+        assert np.all(orient_all(X, ours) > 0)
+        assert 0.5 * orient_all(X, ours).sum() == pytest.approx(ConvexHull(X[ids]).volume, rel=1e-9)
+        assert_locally_delaunay(X, ours, tol=1e-6)
+    return exact
+
+
+def orient_all(X, T):
+    a, b, c = X[T[:, 0]], X[T[:, 1]], X[T[:, 2]]
+    return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+
+
+def assert_locally_delaunay(X, T, tol=1e-10):
+    """Every interior edge: the opposite site is not inside the circumcircle (relative tol)."""
+    apex = {}
+    for a, b, c in T.tolist():
+        apex[(a, b)], apex[(b, c)], apex[(c, a)] = c, a, b
+    for (u, v), r in apex.items():
+        z = apex.get((v, u))
+        if z is not None:
+            x = X[[u, v, r, z]]
+            scale = np.max(np.abs(x - x[3])) ** 4
+            assert lifted_det(x) <= tol * scale, (u, v, r, z)
+
+
+def random_branch(rng, n, S, kind="walk", step=0.15):
+    d = np.cumsum(rng.uniform(0.5, 2.0, S))
+    if kind == "jump":            # fresh positions on every section: many events per piece
+        P = rng.uniform(-1, 1, (S, n, 2))
+    else:                         # random walk
+        P = rng.uniform(-1, 1, (n, 2))[None] + np.cumsum(rng.normal(0, step, (S, n, 2)), axis=0)
+    return d, P
+
+
+def runs(rng, S, n):
+    alive = np.zeros((S, n), bool)
+    for i in range(n):
+        if rng.random() < 0.5:
+            alive[:, i] = True
+        else:
+            a = int(rng.integers(0, S))
+            b = int(rng.integers(a, S))
+            alive[a:b + 1, i] = True
+    return alive
+
+
+# --------------------------------------------------------------------------------------------
+# polynomials
+# --------------------------------------------------------------------------------------------
+
+def lifted_det(x):
+    """incircle(p, q, r; z) of rows p, q, r, z, directly."""
+    a, b, c = x[0] - x[3], x[1] - x[3], x[2] - x[3]
+    M = np.array([[u[0], u[1], u @ u] for u in (a, b, c)])
+    return np.linalg.det(M)
+
+
+def test_incircle_polynomial_is_exact():
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        x0, v = rng.normal(size=(4, 2)), rng.normal(size=(4, 2))
+        c = K.incircle_coefficients(x0, v)
+        for s in np.linspace(-1, 2, 7):
+            ref = lifted_det(x0 + s * v)
+            assert np.polyval(c[::-1], s) == pytest.approx(ref, rel=1e-9, abs=1e-12)
+    # sign convention: the circumcentre of a ccw triangle is inside
+    tri = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.5, 0.5]])
+    assert K.incircle_coefficients(tri, np.zeros((4, 2)))[0] > 0
+
+
+def test_root_finding_sign_changes_only():
+    # (t - 0.3)^2 (t - 0.7) - 1e-9 comes within 1e-9 of zero near 0.3 without crossing (an exact
+    # touch is below float resolution; the certificates keep a tau-margin for that): only 0.7 is
+    c = np.polynomial.polynomial.polyfromroots([0.3, 0.3, 0.7])
+    c[0] -= 1e-9
+    assert K.first_positive_time(c) == pytest.approx(0.7, abs=1e-8)
+    assert np.allclose(K.sign_change_roots(c), [0.7], atol=1e-8)
+    # quartic with four simple roots and a tiny leading coefficient
+    c = np.polynomial.polynomial.polyfromroots([0.1, 0.2, 0.5, 0.9]) * 1e-8
+    assert np.allclose(K.sign_change_roots(c), [0.1, 0.2, 0.5, 0.9], atol=1e-13)
+    assert K.first_positive_time(-np.polynomial.polynomial.polyfromroots([0.1, 0.2, 0.5, 0.9])) == pytest.approx(0.1)
+    assert K.first_positive_time([-1.0, 0.0, 0.0]) == np.inf
+    assert K.first_positive_time([1.0], 0.25) == 0.25
+
+
+# --------------------------------------------------------------------------------------------
+# kinetic Delaunay vs scipy
+# --------------------------------------------------------------------------------------------
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(5, 60), S=st.integers(3, 10),
+       kind=st.sampled_from(["walk", "jump"]))
+def test_random_trajectories_match_scipy(seed, n, S, kind):
+    rng = np.random.default_rng(seed)
+    d, P = random_branch(rng, n, S, kind)
+    res = K.sweep(d, P)
+    assert np.all(np.diff(res.d_events) >= 0)
+    assert assert_matches_scipy(res, rng) > 0
+
+
+def test_section_snapshots_match_scipy():
+    rng = np.random.default_rng(3)
+    d, P = random_branch(rng, 40, 6, "jump")
+    alive = runs(rng, 6, 40)
+    res = K.sweep(d, P, alive)
+    for k, dk in enumerate(d):
+        assert tri_set(res.triangles_at(dk)) == scipy_tris(P[k], alive[k])
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(5, 60), S=st.integers(3, 10))
+def test_sites_begin_and_end_mid_branch(seed, n, S):
+    rng = np.random.default_rng(seed)
+    d, P = random_branch(rng, n, S, "walk")
+    alive = runs(rng, S, n)
+    P = np.where(alive[..., None], P, np.nan)          # dead entries may be anything
+    res = K.sweep(d, P, alive)
+    births = int(np.sum(alive[1:] & ~alive[:-1]))
+    deaths = int(np.sum(alive[:-1] & ~alive[1:]))
+    assert res.counts["inserts"] == births
+    assert res.counts["deletes"] == deaths
+    assert_matches_scipy(res, rng)
+
+
+def test_fewer_than_three_sites_and_back():
+    rng = np.random.default_rng(5)
+    S, n = 6, 7
+    d = np.arange(S, dtype=float)
+    P = rng.uniform(-1, 1, (S, n, 2))
+    alive = np.zeros((S, n), bool)
+    alive[:, :2] = True          # two sites all along
+    alive[0:2, 2:5] = True       # three more that end at section 1 (two left on piece 1)
+    alive[3:, 5:] = True         # two that begin at section 3
+    res = K.sweep(d, P, alive)
+    assert len(res.triangles_at(2.5)) == 0
+    assert tri_set(res.triangles_at(3.5)) == scipy_tris(res.positions_at(3.5), res.alive_at(3.5))
+    assert len(res.triangles_at(3.5)) in (2, 3)
+    assert_matches_scipy(res, rng, k=10)
+
+
+def test_three_sites_turn_over():
+    d = np.array([0.0, 1.0])
+    P = np.array([[[0.0, 0.0], [1.0, 0.0], [0.5, 1.0]],
+                  [[0.0, 0.0], [1.0, 0.0], [0.6, -1.0]]])     # apex crosses the base at d = 0.5
+    res = K.sweep(d, P)
+    assert res.counts["hull"] == 1
+    assert res.d_events[res.kinds == K.HULL][0] == pytest.approx(0.5, abs=1e-6)   # eta-perturbed
+    for t in (0.25, 0.75):
+        T = res.triangles_at(t)
+        assert len(T) == 1 and orient_all(res.positions_at(t), T)[0] > 0
+
+
+# --------------------------------------------------------------------------------------------
+# near-degenerate input: co-circular, collinear, coincident
+# --------------------------------------------------------------------------------------------
+
+def circle_branch(rng, n, S):
+    ang = np.sort(rng.uniform(0, 2 * np.pi, n))
+    base = np.stack([np.cos(ang), np.sin(ang)], 1)
+    P = np.repeat(base[None], S, 0)
+    P[1:] += rng.normal(0, 1e-3, (S - 1, n, 2))         # exactly co-circular on section 0
+    return np.arange(S, dtype=float), P
+
+
+def grid_branch(rng, m, S):
+    g = np.stack(np.meshgrid(np.arange(m), np.arange(m)), -1).reshape(-1, 2).astype(float)
+    P = np.repeat(g[None], S, 0)
+    P[1:] += rng.normal(0, 1e-3, (S - 1, len(g), 2))    # every square co-circular on section 0
+    return np.arange(S, dtype=float), P
+
+
+def coincident_branch(rng, n, S):
+    P = rng.uniform(-1, 1, (S, n, 2))
+    k = n // 3
+    P[0, :k] = P[0, k:2 * k]                           # pairs start at one point
+    P[0, -1] = P[0, 0]                                 # and one triple
+    return np.arange(S, dtype=float), P
+
+
+def collinear_branch(rng, n, S):
+    P = rng.uniform(-1, 1, (S, n, 2))
+    P[0, :, 1] = 0.3                                   # all on one line at section 0
+    return np.arange(S, dtype=float), P
+
+
+@pytest.mark.parametrize("make", [circle_branch, grid_branch, coincident_branch, collinear_branch])
+def test_near_degenerate_inputs(make):
+    rng = np.random.default_rng(11)
+    for _ in range(6):
+        n = int(rng.integers(3, 8)) if make is grid_branch else int(rng.integers(5, 60))
+        d, P = make(rng, n, int(rng.integers(3, 10)))
+        res = K.sweep(d, P)
+        assert assert_matches_scipy(res, rng, ambiguous=make in (circle_branch, grid_branch)) > 0
+        print(make.__name__, P.shape[1], "sites", res.counts)
+
+
+def test_coincident_trajectories_do_not_crash():
+    """Two strands through the same points on every section: scipy drops one of the twins; the
+    kinetic structure keeps both (1e-9 h apart by the index perturbation) and is the Delaunay
+    triangulation of the positions its predicates see."""
+    rng = np.random.default_rng(2)
+    S, n = 5, 30
+    d = np.arange(S, dtype=float)
+    P = rng.uniform(-1, 1, (S, n, 2))
+    P[:, 1] = P[:, 0]
+    P[:, 7] = P[:, 3]
+    res = K.sweep(d, P)
+    for t in sample_times(res, rng, 6):
+        T = res.triangles_at(t)
+        assert set(np.unique(T)) == set(range(n))
+        Y = res.predicate_positions_at(t)
+        assert np.all(orient_all(Y, T) > 0)
+        assert tri_set(T) == scipy_tris(Y, res.alive_at(t))
+
+
+def crossing_branch(rng, n, k):
+    """k strands pass through one point at the middle of piece 0 (straight paths)."""
+    P = rng.uniform(-1, 1, (3, n, 2))
+    c = rng.uniform(-0.5, 0.5, 2)
+    for i in range(k):
+        w = rng.normal(size=2)
+        P[0, i], P[1, i] = c - 0.5 * w, c + 0.5 * w
+    return np.array([0.0, 1.0, 2.0]), P
+
+
+@pytest.mark.parametrize("k", [2, 3, 5])
+def test_strands_meeting_mid_piece(k):
+    """Strands through one point mid-piece: the piece is cut at the close pass (virtual section),
+    so the cluster is resolved there; no repair is needed and scipy agrees away from the meeting."""
+    for seed in range(8):
+        rng = np.random.default_rng(seed)
+        d, P = crossing_branch(rng, 30, k)
+        res = K.sweep(d, P)
+        assert res.counts["repairs"] == 0
+        for t in sample_times(res, rng, 8):
+            if abs(t - 0.5) > 1e-6:
+                assert tri_set(res.triangles_at(t)) == scipy_tris(res.positions_at(t), res.alive_at(t))
+
+
+def test_repair_is_the_last_resort(monkeypatch):
+    """Without virtual sections a mid-piece cluster of strands can fold the triangulation; the
+    sweep then rebuilds from scratch (a ``repair`` event) instead of failing, and is right after."""
+    monkeypatch.setattr(K, "KAPPA", 0.0)
+    repaired = 0
+    for seed in range(12):
+        rng = np.random.default_rng(seed)
+        d, P = crossing_branch(rng, 30, 6)
+        res = K.sweep(d, P)
+        repaired += res.counts["repairs"]
+        for e in np.nonzero(res.kinds == K.REPAIR)[0]:
+            t = res.d_events[e]
+            T = res.triangulation(e)
+            assert np.all(orient_all(res.predicate_positions_at(t), T) > 0)
+        assert tri_set(res.triangles_at(1.5)) == scipy_tris(res.positions_at(1.5), res.alive_at(1.5))
+    assert repaired > 0
+
+
+def test_rigid_rotation_of_a_grid_stays_delaunay():
+    """A rotating grid (linear between rotated sections: a similarity) is co-circular for every d_t,
+    so scipy's choice is arbitrary there; the triangulation stays a valid, locally Delaunay one of
+    the sites the predicates see and tiles the convex hull."""
+    g = np.stack(np.meshgrid(np.arange(5), np.arange(5)), -1).reshape(-1, 2).astype(float) - 2
+    S = 6
+    ang = np.linspace(0, 0.5, S)
+    P = np.stack([g @ np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]]) for a in ang])
+    res = K.sweep(np.arange(S, dtype=float), P)
+    rng = np.random.default_rng(0)
+    for t in sample_times(res, rng, 5):
+        T = res.triangles_at(t)
+        Y = res.predicate_positions_at(t)
+        assert np.all(orient_all(Y, T) > 0)
+        assert_locally_delaunay(Y, T)
+        X = res.positions_at(t)
+        area = 0.5 * orient_all(X, T).sum()
+        assert area == pytest.approx(ConvexHull(X).volume, rel=1e-9)     # tiles the hull
+
+
+# --------------------------------------------------------------------------------------------
+# bookkeeping
+# --------------------------------------------------------------------------------------------
+
+def test_event_counts_and_replay(capsys):
+    rng = np.random.default_rng(7)
+    d, P = random_branch(rng, 200, 10, "walk")
+    res = K.sweep(d, P)
+    with capsys.disabled():
+        print(f"\nkinetic 200 sites x 10 sections: {res.n_events} events {res.counts}")
+    assert res.counts["flips"] > 0 and res.counts["hull"] > 0
+    assert res.counts["sections"] == 10
+    assert np.sum(res.kinds == K.SECTION) == 10
+    assert len(res.d_events) == 10 + sum(res.counts[k] for k in ("flips", "hull", "inserts", "deletes"))
+    picks = set(rng.integers(0, res.n_events, 15).tolist())
+    for e, de, T in res.iter_triangulations():
+        if e in picks:
+            assert np.array_equal(T, res.triangulation(e))
+    # each flip replaces two triangles by two
+    e = int(np.nonzero(res.kinds == K.FLIP)[0][0])
+    rem, add = res.changes(e)
+    assert rem.shape == (2, 3) and add.shape == (2, 3)
+
+
+def test_deterministic():
+    rng = np.random.default_rng(9)
+    d, P = coincident_branch(rng, 40, 6)
+    a, b = K.sweep(d, P), K.sweep(d, P)
+    assert np.array_equal(a.d_events, b.d_events) and np.array_equal(a.kinds, b.kinds)
+    for t in sample_times(a, rng, 5):
+        assert np.array_equal(a.triangles_at(t), b.triangles_at(t))
+
+
+def test_guard_and_validation():
+    rng = np.random.default_rng(1)
+    d, P = random_branch(rng, 30, 3, "jump")
+    with pytest.raises(RuntimeError, match="events in piece"):
+        K.sweep(d, P, max_events=3)
+    with pytest.raises(ValueError, match="strictly increasing"):
+        K.sweep(d[::-1], P)
+    alive = np.ones((3, 30), bool)
+    alive[1, 0] = False
+    with pytest.raises(ValueError, match="contiguous"):
+        K.sweep(d, P, alive)
+    res = K.sweep(d, P)
+    with pytest.raises(ValueError):
+        res.triangles_at(d[0] - 1.0)
+    P[0, 1] = P[0, 0]
+    with pytest.raises(ValueError, match="coincident"):
+        K.sweep(d, P, eta=0.0)
+
+
+# --------------------------------------------------------------------------------------------
+# alpha shape
+# --------------------------------------------------------------------------------------------
+
+def test_alpha_inf_is_convex_hull():
+    rng = np.random.default_rng(4)
+    d, P = random_branch(rng, 40, 4, "walk")
+    res = K.sweep(d, P)
+    for t in sample_times(res, rng, 4):
+        shape = A.alpha_shape(res, np.inf, t)
+        assert len(shape.outer) == 1 and not shape.holes
+        X = res.positions_at(t)
+        ids = np.nonzero(res.alive_at(t))[0]
+        hull = ids[ConvexHull(X[ids]).vertices]               # ccw in 2D
+        i = int(np.argmin(hull))
+        assert np.array_equal(shape.outer[0], np.roll(hull, -i))
+
+
+def test_alpha_complex_matches_brute_force():
+    rng = np.random.default_rng(6)
+    d, P = random_branch(rng, 60, 5, "walk")
+    res = K.sweep(d, P)
+    for alpha in (0.15, 0.3, 0.6):
+        for t in sample_times(res, rng, 3):
+            X = res.positions_at(t)
+            ids = np.nonzero(res.alive_at(t))[0]
+            dt = Delaunay(X[ids])
+            T = ids[dt.simplices]
+            ref = {tuple(sorted(x)) for x, r2 in zip(T.tolist(), A.circumradius2(X, T)) if r2 <= alpha**2}
+            shape = A.alpha_shape(res, alpha, t)
+            assert tri_set(shape.triangles) == ref
+            # boundary: closed loops whose directed edges each bound exactly one kept triangle
+            kept = {(a, b) for a, b, c in shape.triangles.tolist()} | \
+                   {(b, c) for a, b, c in shape.triangles.tolist()} | \
+                   {(c, a) for a, b, c in shape.triangles.tolist()}
+            n_edges = 0
+            for lp in shape.outer + shape.holes:
+                for u, v in zip(lp, np.roll(lp, -1)):
+                    assert (u, v) in kept and (v, u) not in kept
+                    n_edges += 1
+            assert n_edges == sum((v, u) not in kept for u, v in kept)
+            for lp in shape.outer:
+                assert A.signed_area(X[lp]) > 0
+            for lp in shape.holes:
+                assert A.signed_area(X[lp]) < 0
+
+
+def test_alpha_contour_with_hole_and_pinch():
+    # an annulus of sites: a moderate alpha removes the big central triangles -> one hole
+    ang = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    ring = np.concatenate([np.stack([np.cos(ang), np.sin(ang)], 1),
+                           1.25 * np.stack([np.cos(ang + 0.13), np.sin(ang + 0.13)], 1)])
+    T = Delaunay(ring).simplices
+    T = np.where((orient_all(ring, T) > 0)[:, None], T, T[:, [0, 2, 1]])
+    kept = A.alpha_complex(T, ring, 0.5)
+    outer, holes = A.contours(kept, ring)
+    assert len(outer) == 1 and len(holes) == 1
+    assert len(holes[0]) == 24 and len(outer[0]) == 24
+    # two triangles touching at one site: two loops through that site
+    pts = np.array([[0, 0], [1, 0], [0, 1], [-1, 0], [0, -1]], float)
+    loops = A.boundary_loops(np.array([[0, 1, 2], [0, 3, 4]]))
+    assert len(loops) == 2 and all(len(lp) == 3 for lp in loops)
+    assert all(A.signed_area(pts[lp]) > 0 for lp in loops)
+
+
+def seg_dist(q, P):
+    """Distance from points q (k, 2) to the closed polygon P (m, 2) (its edges)."""
+    a, b = P, np.roll(P, -1, 0)
+    ab = b - a
+    t = np.clip(((q[:, None] - a[None]) * ab[None]).sum(-1) / (ab * ab).sum(-1)[None], 0, 1)
+    foot = a[None] + t[..., None] * ab[None]
+    return np.linalg.norm(q[:, None] - foot, axis=-1).min(1)
+
+
+@pytest.mark.parametrize("join", ["round", "miter"])
+def test_offset_contour_distance(join):
+    rng = np.random.default_rng(8)
+    # a convex contour and a non-convex star (r_s below the local feature size)
+    X = rng.normal(size=(40, 2))
+    hull = X[ConvexHull(X).vertices]
+    k = np.arange(10)
+    rad = np.where(k % 2 == 0, 2.0, 1.0)
+    star = np.stack([rad * np.cos(k * np.pi / 5), rad * np.sin(k * np.pi / 5)], 1)
+    r = 0.1
+    for poly in (hull, star):
+        Q, owner = A.offset_contour(poly, r, join=join, max_angle=np.pi / 16)
+        assert A.signed_area(Q) > A.signed_area(poly) > 0
+        assert np.all(np.diff(owner) >= 0) and owner[-1] == len(poly) - 1
+        dv = seg_dist(Q, poly)
+        if join == "round":
+            assert np.allclose(dv, r, rtol=1e-9)               # every offset vertex at r_s
+        else:
+            assert np.all(dv >= r * (1 - 1e-9))
+        # sample points along the offset edges
+        s = rng.uniform(0, 1, (len(Q), 5))
+        samples = (Q[:, None] + s[..., None] * (np.roll(Q, -1, 0) - Q)[:, None]).reshape(-1, 2)
+        ds = seg_dist(samples, poly)
+        lo = r * np.cos(np.pi / 32) * (1 - 1e-9) if join == "round" else r * (1 - 1e-9)
+        assert np.all(ds >= lo)
+        if join == "round":
+            assert np.all(ds <= r * (1 + 1e-9))
+    # Steiner: a convex polygon grown by r has area A + perimeter r + pi r^2 (chords: slightly less)
+    Q, _ = A.offset_contour(hull, r, max_angle=np.pi / 64)
+    per = np.linalg.norm(np.roll(hull, -1, 0) - hull, axis=1).sum()
+    steiner = A.signed_area(hull) + per * r + np.pi * r * r
+    assert A.signed_area(Q) == pytest.approx(steiner, rel=1e-4)
+    assert A.signed_area(Q) <= steiner
+
+
+def test_alpha_events_are_circumradius_crossings():
+    rng = np.random.default_rng(12)
+    d, P = random_branch(rng, 50, 5, "walk")
+    res = K.sweep(d, P)
+    alpha = 0.3
+    ev = A.alpha_events(res, alpha)
+    assert len(ev.d) > 0 and np.all(np.diff(ev.d) >= 0)
+    assert len(A.alpha_events(res, np.inf).d) == 0
+    for de, tri, kind in zip(ev.d, ev.triangles, ev.kind):
+        R = np.sqrt(A.circumradius2(res.positions_at(de), tri[None]))[0]
+        assert R == pytest.approx(alpha, rel=1e-6)
+        eps = 1e-7 * (d[-1] - d[0])
+        if d[0] < de - eps and de + eps < d[-1]:
+            before = np.sqrt(A.circumradius2(res.positions_at(de - eps), tri[None]))[0]
+            after = np.sqrt(A.circumradius2(res.positions_at(de + eps), tri[None]))[0]
+            assert (after < before) == (kind == 1)
+    # between consecutive boundaries the alpha complex does not change
+    bounds = A.section_boundaries(res, alpha)
+    gaps = np.nonzero(np.diff(bounds) > 1e-3)[0]
+    for i in rng.choice(gaps, 10, replace=False):
+        lo, hi = bounds[i], bounds[i + 1]
+        t1, t2 = lo + 0.1 * (hi - lo), lo + 0.9 * (hi - lo)
+        s1 = tri_set(A.alpha_shape(res, alpha, t1).triangles)
+        s2 = tri_set(A.alpha_shape(res, alpha, t2).triangles)
+        assert s1 == s2
+
+
+@pytest.mark.slow
+def test_large_branch_matches_scipy():
+    rng = np.random.default_rng(13)
+    n, S = 3000, 25
+    d, P = random_branch(rng, n, S, "walk", step=0.03)    # about one site spacing per section
+    alive = runs(rng, S, n)
+    res = K.sweep(d, P, alive)
+    print(f"\nkinetic {n} sites x {S} sections: {res.n_events} events {res.counts}")
+    assert assert_matches_scipy(res, rng, k=40) >= 39
+    ev = A.alpha_events(res, 0.05)
+    assert len(ev.d) > 0
