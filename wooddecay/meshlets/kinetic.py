@@ -190,6 +190,20 @@ def _sign_change_roots(c, deg, lo, hi, out):
 
 
 @nb.njit(cache=True)
+def _bisect(c, deg, neg, pos):
+    """Bisect between ``neg`` (c <= 0) and ``pos`` (c > 0), in either order, to adjacent floats;
+    returns the end where c > 0."""
+    while True:
+        mid = 0.5 * (neg + pos)
+        if mid == neg or mid == pos:
+            return pos
+        if _horner(c, deg, mid) > 0.0:
+            pos = mid
+        else:
+            neg = mid
+
+
+@nb.njit(cache=True)
 def _first_positive(c, deg, t0, t1):
     """Smallest t in [t0, t1] with c(t) > 0 (to the last bit; c(t) > 0 holds there), inf if none."""
     if _horner(c, deg, t0) > 0.0:
@@ -205,15 +219,7 @@ def _first_positive(c, deg, t0, t1):
     for j in range(m + 1):
         b = crit[j] if j < m else t1
         if _horner(c, deg, b) > 0.0:      # c(a) <= 0 < c(b) and c monotone on [a, b]
-            while True:
-                mid = 0.5 * (a + b)
-                if mid <= a or mid >= b:
-                    break
-                if _horner(c, deg, mid) > 0.0:
-                    b = mid
-                else:
-                    a = mid
-            return b
+            return _bisect(c, deg, a, b)
         a = b
     return np.inf
 
@@ -234,15 +240,7 @@ def _last_positive(c, deg, lo, hi):
     for j in range(m, -1, -1):
         a = crit[j - 1] if j > 0 else lo
         if _horner(c, deg, a) > 0.0:      # c(a) > 0 >= c(b) and c monotone on [a, b]
-            while True:
-                mid = 0.5 * (a + b)
-                if mid <= a or mid >= b:
-                    break
-                if _horner(c, deg, mid) > 0.0:
-                    a = mid
-                else:
-                    b = mid
-            return a
+            return _bisect(c, deg, b, a)
         b = a
     return -np.inf
 
