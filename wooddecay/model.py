@@ -77,6 +77,14 @@ class WoodModel:
     transport_indptr: np.ndarray
     transport_indices: np.ndarray
     transport_edge_of: np.ndarray
+    # strand control points in their node's cross-section frame (what the meshlets sweep, SPEC §5):
+    # strand k owns rows cp_offsets[k]:cp_offsets[k + 1]; cp_uv is the actual position (an end
+    # part-way along an edge interpolated), cp_s its distance to the root
+    cp_offsets: np.ndarray
+    cp_node: np.ndarray
+    cp_uv: np.ndarray
+    cp_s: np.ndarray
+    particle_s: np.ndarray  # (n_p,) distance to the root of each particle (linear in arc between cps)
     # bookkeeping
     n_branches: int
     build_seconds: dict = field(default_factory=dict)
@@ -130,6 +138,19 @@ def _lerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
     return (1.0 - t) * a + t * b
 
 
+def _particle_s(strands, samp, cp_s: np.ndarray) -> np.ndarray:
+    """Distance to the root of every particle: linear in the spline parameter between the strand's
+    control points (as the elements' ``s``), exact at its two ends (one iteration per strand)."""
+    out = np.empty(len(samp.u))
+    for k in range(strands.count):
+        o0, o1 = strands.offsets[k], strands.offsets[k + 1]
+        P = strands.xyz[o0:o1]
+        u_cp = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
+        p0, p1 = samp.particle_offsets[k], samp.particle_offsets[k + 1]
+        out[p0:p1] = np.interp(samp.u[p0:p1], u_cp, cp_s[o0:o1])
+    return out
+
+
 def build_model(scene) -> WoodModel:
     """Build the wood model of a validated :class:`wooddecay.scene.Scene`."""
     sec: dict[str, float] = {}
@@ -163,6 +184,10 @@ def build_model(scene) -> WoodModel:
             fv = f.reshape(f.shape + (1,) * (v.ndim - 1))
             v[part] = (1.0 - fv) * v[part - 1] + fv * v[part]
         cp, t = samp.cp, samp.t
+        cp_prev = np.where(part > 0, strands.node[np.maximum(part - 1, 0)], 0)
+        cp_s = topo.s[strands.node].astype(float)
+        cp_s[part] = (1.0 - f) * topo.s[cp_prev] + f * topo.s[strands.node[part]]
+        particle_s = _particle_s(strands, samp, cp_s)
         uv = _lerp(cp_uv[cp], cp_uv[cp + 1], t)
         bd = _lerp(cp_bd[cp], cp_bd[cp + 1], t)
         q = _lerp(cp_q[cp], cp_q[cp + 1], t)
@@ -214,6 +239,7 @@ def build_model(scene) -> WoodModel:
         transport_edges=t_edges,
         transport_kind=t_kind, transport_indptr=t_indptr, transport_indices=t_indices,
         transport_edge_of=t_edge_of,
+        cp_offsets=strands.offsets, cp_node=strands.node, cp_uv=cp_uv, cp_s=cp_s, particle_s=particle_s,
         n_branches=topo.n_branches, build_seconds=sec,
     )
     for v in vars(model).values():  # the model is static: solvers change a SimState, never it

@@ -36,6 +36,7 @@ class Sampling:
     first_particle: np.ndarray  # (n_e,) element e joins particles first_particle[e] and +1
     cp: np.ndarray  # (n_e,) control point (row of StrandSet) at the start of the element's edge
     t: np.ndarray  # (n_e,) fraction along that edge (control point cp -> cp + 1)
+    u: np.ndarray  # (n_p,) spline parameter of each particle (chord length along the control points)
 
 
 def arc_positions(length: float, rod_length: float, phase: float) -> np.ndarray:
@@ -51,7 +52,7 @@ def arc_positions(length: float, rod_length: float, phase: float) -> np.ndarray:
 def sample_strands(strands: StrandSet, rod_length: float, rng: np.random.Generator) -> Sampling:
     """Sample every strand's B-spline into rod particles (one Python iteration per strand)."""
     phases = rng.uniform(0.0, 1.0, strands.count)
-    parts, p_counts, cps, ts = [], [], [], []
+    parts, p_counts, cps, ts, us = [], [], [], [], []
     for k in range(strands.count):
         o0, o1 = strands.offsets[k], strands.offsets[k + 1]
         P = strands.xyz[o0:o1]
@@ -62,6 +63,7 @@ def sample_strands(strands: StrandSet, rod_length: float, rng: np.random.Generat
         arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(spline(uu), axis=0), axis=1))])
         u_p = np.interp(arc_positions(arc[-1], rod_length, phases[k]), arc, uu)
         parts.append(spline(u_p))
+        us.append(u_p)
         p_counts.append(len(u_p))
         u_mid = 0.5 * (u_p[1:] + u_p[:-1])
         seg = np.clip(np.searchsorted(u_cp, u_mid, side="right") - 1, 0, len(P) - 2)
@@ -81,6 +83,7 @@ def sample_strands(strands: StrandSet, rod_length: float, rng: np.random.Generat
         first_particle=particle_offsets[strand] + local,
         cp=np.concatenate(cps).astype(np.int64),
         t=np.concatenate(ts),
+        u=np.concatenate(us),
     )
 
 

@@ -1,0 +1,648 @@
+"""Per-element meshlets: each strand site's Voronoi cell swept along d_t over its rod element.
+
+Woodstock §8.1 and Fig. 10; SPEC §5. Per branch, the strand sites P_i(d_t) (control points of the
+strands in their nodes' cross-section frames, linear in d_t between sections) are carried along the
+branch by the kinetic Delaunay triangulation of :mod:`wooddecay.meshlets.kinetic`. The meshlet of the
+rod element of strand i over [a, b] is the sweep of site i's Voronoi cell over [a, b]:
+
+* Voronoi vertices are the circumcentres c(t, d) of the Delaunay triangles t. A triangle's vertex is
+  sampled at its birth and death events, at the branch's node sections (where the motion bends)
+  and at every element boundary of its three sites, so consecutive samples are joined by straight
+  segments ("trajectories").
+* The side surface between sites p and q is a *strip*: the ladder between the trajectories of the
+  triangles left and right of the Delaunay edge pq, cut by rungs at the element boundaries of p and
+  q and triangulated by a zipper (merge by d_t) between consecutive rungs. Both meshlets take the
+  same triangles with opposite orientation, so neighbours share their side faces exactly and the
+  meshlets partition the wood. Every strip beside a triangle includes all its samples: no
+  T-junctions, each meshlet is a closed 2-manifold.
+* Events. At a flip the four circumcentres coincide (the dual Voronoi edge has length zero): they
+  share one vertex, and the surfaces stay continuous. Where a strand begins or ends at a section
+  (insert / delete; also a ``repair`` rebuild) the cells of its neighbours jump: each neighbour j
+  whose cycle of triangles changes gets a horizontal face at d_t made of the removed run of its
+  Voronoi vertices (before the event) and the added run (after it), and the strips beside the
+  changed triangles carry the horizontal junction from the old to the new vertex. The strand's own
+  element gets its cap.
+* Bounding the wood. Instead of clipping the Voronoi cells with the offset alpha-shape contour, the
+  sites within GHOST_DEPTH r_s of a node's profile are mirrored across it (ghost sites, linear in
+  d_t like the real ones, alive with their strand). A real site's cell then ends at the bisector
+  with its mirror, which is the tangent of the profile at the closest boundary point: the cells are
+  bounded, the bark surface follows the input profile (concave ones too), and all changes along
+  d_t stay continuous (a clipped alpha contour jumps at every alpha event). Faces between a real
+  and a ghost site are bark. ``docs/decisions.md`` (Meshlets) records this choice.
+* Caps close each element at its two ends: the cell polygon at d_t = a (facing -d) and at b (+d).
+
+Forks: a strand is meshed in each branch it crosses over the part of its path in that branch;
+an element that straddles a fork belongs to the branch of its midpoint (``model.branch``) and is
+clipped at the fork section; the next element of the strand covers the rest. Junction gaps and
+overlaps are reported by :func:`wooddecay.meshlets.checks.junction_report`.
+
+Output: :class:`Meshlets`, disjoint closed shells (each meshlet owns copies of its vertices), faces
+tagged bark / side (with the neighbouring element) / cap, rest wood-local coordinates and ring age
+per vertex, and the rest skinning data used by :mod:`wooddecay.meshlets.skin`.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..strands.topology import build_topology
+from .kinetic import FLIP, SECTION, _perturbation, sweep
+
+#: face kinds (DESIGN "USD stage": uniform int faceKind)
+BARK, SIDE, CAP = 0, 1, 2
+#: sites closer than this many r_s to a node's profile get a mirrored ghost site
+GHOST_DEPTH = 4.0
+
+
+@dataclass(frozen=True, eq=False)
+class Meshlets:
+    """All meshlets of a model as disjoint closed shells (structure of arrays).
+
+    Meshlet e (one per rod element) owns vertices ``vertex_offsets[e]:vertex_offsets[e + 1]`` and
+    faces ``face_offsets[e]:face_offsets[e + 1]`` (triangles, counter-clockwise seen from outside).
+    ``face_neighbour`` is the element on the other side of a side or cap face (-1 for bark and for
+    the caps at strand ends). ``skin_*`` (CSR over vertices): the elements that share the vertex in
+    the rest partition, their weights and the vertex in each element's rest frame.
+    """
+
+    points: np.ndarray  # (V, 3) rest positions
+    faces: np.ndarray  # (F, 3) vertex indices
+    face_element: np.ndarray  # (F,)
+    face_kind: np.ndarray  # (F,) BARK / SIDE / CAP
+    face_neighbour: np.ndarray  # (F,)
+    vertex_element: np.ndarray  # (V,) owner
+    vertex_offsets: np.ndarray  # (n + 1,)
+    face_offsets: np.ndarray  # (n + 1,)
+    wood: np.ndarray  # (V, 3) rest wood-local coordinates (r, phi, s)
+    ring: np.ndarray  # (V,) ring age (years)
+    skin_indptr: np.ndarray  # (V + 1,)
+    skin_element: np.ndarray  # (K,)
+    skin_weight: np.ndarray  # (K,) normalised per vertex
+    skin_local: np.ndarray  # (K, 3) rest position in the element's rest frame (d1, d2, d3)
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def count(self) -> int:
+        return len(self.vertex_offsets) - 1
+
+    @property
+    def n_faces(self) -> int:
+        return len(self.faces)
+
+
+# --------------------------------------------------------------------------------------------
+# Branch set-up: sections, sites and ghosts
+# --------------------------------------------------------------------------------------------
+
+@dataclass
+class _Branch:
+    chain: np.ndarray  # skeleton nodes along the branch (start node first)
+    s_chain: np.ndarray  # their distance to the root
+    d: np.ndarray  # kinetic sections
+    P: np.ndarray  # (S, n, 2) sites (real first, then ghosts)
+    alive: np.ndarray  # (S, n)
+    strand: np.ndarray  # (n_real,) strand of each real site
+    ghost_of: np.ndarray  # (n_ghost,) real site mirrored by each ghost
+    bounds: list  # per real site: element boundaries strictly inside its run
+    elem0: np.ndarray  # per real site: its first element in this branch
+    n_elem: np.ndarray  # per real site: its number of elements in this branch
+
+    @property
+    def n_real(self) -> int:
+        return len(self.strand)
+
+
+#: a corner: the second mirror edge turns by more than this from the nearest one
+CORNER = np.deg2rad(30.0)
+
+
+def _feet(poly: np.ndarray, pts: np.ndarray):
+    """Feet of the two mirrors of each point: on its nearest profile edge, and on the nearest edge
+    turned by more than CORNER from that one (inf distance where there is none). Returns
+    (n, 2, 2) feet and (n, 2) distances."""
+    a = np.asarray(poly, float)
+    e = np.roll(a, -1, axis=0) - a
+    ln2 = (e * e).sum(1)
+    t = np.clip(((pts[:, None] - a[None]) * e[None]).sum(-1) / ln2[None], 0.0, 1.0)
+    foot = a[None] + t[..., None] * e[None]
+    dist = np.linalg.norm(pts[:, None] - foot, axis=-1)
+    n = len(pts)
+    e0 = np.argmin(dist, axis=1)
+    u = e / np.sqrt(ln2)[:, None]
+    turned = (u[e0] @ u.T) < np.cos(CORNER)
+    d1 = np.where(turned, dist, np.inf)
+    e1 = np.argmin(d1, axis=1)
+    rows = np.arange(n)
+    feet = np.stack([foot[rows, e0], foot[rows, e1]], axis=1)
+    return feet, np.stack([dist[rows, e0], d1[rows, e1]], axis=1)
+
+
+def _branch_chain(topo, skel, b: int) -> np.ndarray:
+    nodes = np.flatnonzero(topo.branch == b)
+    nodes = nodes[np.argsort(topo.s[nodes], kind="stable")]
+    first = nodes[0]
+    if skel.parent[first] >= 0:
+        nodes = np.concatenate([[skel.parent[first]], nodes])
+    return nodes
+
+
+def _setup_branch(model, skel, topo, b: int, r_s: float) -> _Branch | None:
+    chain = _branch_chain(topo, skel, b)
+    s_chain = topo.s[chain].astype(float)
+    cpo, node = model.cp_offsets, model.cp_node
+    seg_branch = np.full(len(node), -1)
+    seg_branch[:-1] = topo.branch[node[1:]]
+    seg_branch[cpo[1:] - 1] = -1  # the last control point of a strand starts no segment
+    segs = np.flatnonzero(seg_branch == b)
+    if len(segs) == 0:
+        return None
+    cp_strand = np.repeat(np.arange(len(cpo) - 1), np.diff(cpo))
+    strands, first_seg = np.unique(cp_strand[segs], return_index=True)
+    last_seg = np.append(first_seg[1:], len(segs)) - 1
+    c0, c1 = segs[first_seg], segs[last_seg] + 1
+    # keep the strands that own at least one element in this branch
+    e_br = model.branch
+    rows, e0s, ns = [], [], []
+    for k, st in enumerate(strands):
+        e = np.arange(model.element_offsets[st], model.element_offsets[st + 1])
+        mine = e[e_br[e] == b]
+        if len(mine):
+            rows.append(k)
+            e0s.append(mine[0])
+            ns.append(len(mine))
+    rows = np.array(rows, dtype=np.int64)
+    strands, c0, c1 = strands[rows], c0[rows], c1[rows]
+    s0, s1 = model.cp_s[c0], model.cp_s[c1]
+    d = np.unique(np.concatenate([s_chain[(s_chain >= s0.min()) & (s_chain <= s1.max())], s0, s1]))
+    n = len(strands)
+    P = np.zeros((len(d), n, 2))
+    alive = (d[:, None] >= s0[None]) & (d[:, None] <= s1[None])
+    for i in range(n):
+        cs, uv = model.cp_s[c0[i]:c1[i] + 1], model.cp_uv[c0[i]:c1[i] + 1]
+        dd = d[alive[:, i]]
+        P[alive[:, i], i, 0] = np.interp(dd, cs, uv[:, 0])
+        P[alive[:, i], i, 1] = np.interp(dd, cs, uv[:, 1])
+    # ghosts: mirrors across each node profile of the sites near it (ranks: the nearest edge and
+    # the nearest edge turned by more than CORNER from it, for corners); the offset ghost - site is
+    # linear between node sections and constant beyond them
+    is_node = np.isin(d, s_chain)
+    node_at = {float(s): int(c) for s, c in zip(s_chain, chain)}
+    depth = np.full((n, 2), -np.inf)
+    offset = np.full((len(d), n, 2, 2), np.nan)
+    for k in np.flatnonzero(is_node):
+        poly = skel.profiles[node_at[float(d[k])]].polygon
+        idx = np.flatnonzero(alive[k])
+        foot, dist = _feet(poly, P[k, idx])
+        depth[idx] = np.maximum(depth[idx], dist)
+        offset[k, idx] = 2.0 * (foot - P[k, idx][:, None])
+    ghosts = [(i, r) for r in range(2) for i in np.flatnonzero(depth[:, r] < GHOST_DEPTH * r_s)]
+    G = np.zeros((len(d), len(ghosts), 2))
+    for j, (i, r) in enumerate(ghosts):
+        rows_i = np.flatnonzero(alive[:, i])
+        known = rows_i[is_node[rows_i]]
+        if len(known) == 0:  # a run between two nodes: mirror across the nearer node's profile
+            k = int(np.argmin(np.abs(s_chain - d[rows_i].mean())))
+            foot, _ = _feet(skel.profiles[chain[k]].polygon, P[rows_i, i])
+            G[rows_i, j] = 2.0 * foot[:, r] - P[rows_i, i]
+            continue
+        for c in range(2):
+            G[rows_i, j, c] = P[rows_i, i, c] + np.interp(d[rows_i], d[known], offset[known, i, r, c])
+    ghost_of = np.array([i for i, _ in ghosts], dtype=np.int64)
+    P = np.concatenate([P, G], axis=1)
+    alive = np.concatenate([alive, alive[:, ghost_of]], axis=1)
+    bounds = []
+    for i in range(n):
+        e = np.arange(e0s[i], e0s[i] + ns[i])
+        inner = model.particle_s[model.first_particle[e[:-1]] + 1]
+        bounds.append(inner[(inner > s0[i]) & (inner < s1[i])])
+    return _Branch(chain=chain, s_chain=s_chain, d=d, P=P, alive=alive, strand=strands,
+                   ghost_of=ghost_of, bounds=bounds, elem0=np.array(e0s), n_elem=np.array(ns))
+
+
+# --------------------------------------------------------------------------------------------
+# The sweep of one branch
+# --------------------------------------------------------------------------------------------
+
+def _edges(t):
+    """Edges of a counter-clockwise triangle as canonical (low, high) pairs with the slot the
+    triangle fills: 0 left of low -> high, 1 right."""
+    a, b, c = t
+    for u, v in ((a, b), (b, c), (c, a)):
+        yield ((u, v), 0) if u < v else ((v, u), 1)
+
+
+class OpenFanError(RuntimeError):
+    """A real site on the hull of its branch's sites: its Voronoi cell is unbounded."""
+
+
+def _cycle(star, j):
+    """The triangles around site j in counter-clockwise order (a closed fan)."""
+    nxt = {}
+    for t in star:
+        k = t.index(j)
+        nxt[t[(k + 1) % 3]] = t
+    start = min(star)
+    out, t = [start], start
+    while True:
+        t = nxt.get(t[(t.index(j) + 2) % 3])
+        if t is None or len(out) > len(star):
+            raise OpenFanError(f"site {j} lies on the hull of its branch's sites (unbounded cell)")
+        if t == start:
+            return out
+        out.append(t)
+
+
+class _Strip:
+    """The side surface of one Delaunay edge: vertex ids left and right of the canonical edge
+    and rungs (index left, index right, d) at the element boundaries of its two sites."""
+
+    __slots__ = ("side", "rungs")
+
+    def __init__(self):
+        self.side = ([], [])
+        self.rungs = []
+
+    def push(self, slot, v):
+        s = self.side[slot]
+        if not s or s[-1] != v:
+            s.append(v)
+
+    def rung(self, d):
+        if not self.rungs or self.rungs[-1][2] != d:
+            self.rungs.append((len(self.side[0]) - 1, len(self.side[1]) - 1, d))
+
+
+class _BranchSweep:
+    """Walks the kinetic events of one branch and emits faces over global vertex ids.
+
+    Faces are rows (v0, v1, v2, site, element side, d, kind, other site, other side): the
+    element of a site at d is resolved later by :meth:`element` (side -1: the element ending at d,
+    +1: the one starting at d, 0: the one containing d).
+    """
+
+    def __init__(self, br: _Branch):
+        self.br, self.nr = br, br.n_real
+        self.vkey = {}  # (triangle, d) -> vertex id
+        self.vtri, self.vd = [], []
+        self.star = {}  # site -> set of live triangles with at least one real site
+        self.strips = {}
+        self.done = []
+        self.faces = []
+        self.unmatched = 0  # neighbour cells that changed beyond a single run at an event
+
+    # ---- vertices and faces ----------------------------------------------------------------
+    def V(self, t, d):
+        v = self.vkey.get((t, d))
+        if v is None:
+            v = self.vkey[(t, d)] = len(self.vd)
+            self.vtri.append(t)
+            self.vd.append(d)
+        return v
+
+    def polygon(self, ids, site, side, d, kind, other, other_side):
+        """Fan of a convex polygon of vertex ids (repeated ids dropped)."""
+        ids = [v for k, v in enumerate(ids) if v != ids[k - 1]] if len(ids) > 1 else ids
+        for k in range(1, len(ids) - 1):
+            self.faces.append((ids[0], ids[k], ids[k + 1], site, side, d, kind, other, other_side))
+
+    def cell(self, j, d):
+        return [self.V(t, d) for t in _cycle(self.star[j], j)]
+
+    # ---- triangulation updates ----------------------------------------------------------
+    def apply(self, removed, added, d, kind):
+        nr = self.nr
+        removed = [t for t in removed if t[0] < nr]  # canonical triangles start at their minimum
+        added = [t for t in added if t[0] < nr]
+        if not removed and not added:
+            return
+        if kind == FLIP and removed:
+            v = self.V(removed[0], d)
+            for t in removed[1:] + added:
+                self.vkey[(t, d)] = v
+        touched = {s for t in removed + added for s in t}
+        before = {}
+        if kind != FLIP:
+            before = {j: _cycle(self.star[j], j) for j in touched if j < nr and self.star.get(j)}
+        had = {j for j in touched if self.star.get(j)}
+        ended = {j for j in had if all(t in removed for t in self.star[j])}
+        for j in sorted(j for j in ended if j < nr):
+            self.polygon([self.V(t, d) for t in before[j]], j, -1, d, CAP, -1, 0)
+        for t in removed:
+            v = self.V(t, d)
+            for e, slot in _edges(t):
+                st = self.strips.get(e)
+                if st is not None:
+                    st.push(slot, v)
+            for s in t:
+                self.star[s].discard(t)
+        for t in added:
+            v = self.V(t, d)
+            for e, slot in _edges(t):
+                if e[0] >= nr:
+                    continue
+                st = self.strips.get(e)
+                if st is None:
+                    st = self.strips[e] = _Strip()
+                st.push(slot, v)
+            for s in t:
+                self.star.setdefault(s, set()).add(t)
+        for t in removed:
+            for e, _ in _edges(t):
+                if e in self.strips and not any(e[1] in x for x in self.star.get(e[0], ())):
+                    st = self.strips.pop(e)
+                    st.rung(d)
+                    self.done.append((e, st))
+        for t in added:
+            for e, _ in _edges(t):
+                st = self.strips.get(e)
+                if st is not None and not st.rungs:
+                    st.rung(d)
+        started = sorted(j for j in touched if j not in had and j < nr)
+        for j in started:
+            ids = self.cell(j, d)
+            self.polygon(ids[::-1], j, +1, d, CAP, -1, 0)
+        if before:
+            k = (sorted(ended) or sorted(j for j in touched if j not in had) or [-1])[0]
+            self.event_faces(before, d, k, -1 if k in ended else +1)
+
+    def event_faces(self, before, d, k, k_side):
+        """Horizontal faces of the neighbours whose cells jump at a strand's start or end."""
+        kind = BARK if k >= self.nr else SIDE
+        other = k if 0 <= k < self.nr else -1
+        for j, B in before.items():
+            if not self.star.get(j):
+                continue
+            A = _cycle(self.star[j], j)
+            common = set(B) & set(A)
+            if len(common) == len(B) == len(A):
+                continue
+            if not common:
+                self.unmatched += 1
+                self.polygon([self.V(t, d) for t in B], j, 0, d, kind, other, k_side)
+                self.polygon([self.V(t, d) for t in A[::-1]], j, 0, d, kind, other, k_side)
+                continue
+            pos_a = {t: i for i, t in enumerate(A)}
+            nb, na = len(B), len(A)
+            for i in range(nb):
+                if B[i] in common or B[i - 1] not in common:
+                    continue
+                run, m = [], i
+                while B[m % nb] not in common:
+                    run.append(B[m % nb])
+                    m += 1
+                a, arun = pos_a[B[i - 1]] + 1, []
+                while A[a % na] != B[m % nb]:
+                    arun.append(A[a % na])
+                    a += 1
+                ids = [self.V(t, d) for t in run] + [self.V(t, d) for t in arun[::-1]]
+                self.polygon(ids, j, 0, d, kind, other, k_side)
+
+    # ---- samples between events -----------------------------------------------------------
+    def _sides(self, e):
+        p, q = e
+        for t in self.star.get(p, ()):
+            if q in t:
+                i = t.index(p)
+                yield (0 if t[(i + 1) % 3] == q else 1), t
+
+    def sample_all(self, d):
+        """Samples of every live triangle at a node section (the motion bends there)."""
+        for e, st in self.strips.items():
+            for slot, t in self._sides(e):
+                st.push(slot, self.V(t, d))
+
+    def boundary(self, j, d):
+        """Element boundary of real site j at d: samples, rungs on j's strips, two caps."""
+        for t in self.star[j]:
+            v = self.V(t, d)
+            for e, slot in _edges(t):
+                st = self.strips.get(e)
+                if st is not None:
+                    st.push(slot, v)
+        for t in self.star[j]:
+            for e, _ in _edges(t):
+                if j in e:
+                    self.strips[e].rung(d)
+        ids = self.cell(j, d)
+        self.polygon(ids, j, -1, d, CAP, j, +1)
+        self.polygon(ids[::-1], j, +1, d, CAP, j, -1)
+
+    def close(self, d):
+        """The branch's last section: top caps and the last rung of every strip."""
+        for j in range(self.nr):
+            if self.star.get(j):
+                self.polygon(self.cell(j, d), j, -1, d, CAP, -1, 0)
+        for e in list(self.strips):
+            st = self.strips.pop(e)
+            for slot, t in self._sides(e):
+                st.push(slot, self.V(t, d))
+            st.rung(d)
+            self.done.append((e, st))
+
+    def emit_strips(self):
+        """Zipper each strip between consecutive rungs (merge of the two sides by d)."""
+        vd, nr = self.vd, self.nr
+        for (p, q), st in self.done:
+            L, R = st.side
+            for (l0, r0, d0), (l1, r1, d1) in zip(st.rungs[:-1], st.rungs[1:]):
+                if d1 <= d0:
+                    continue
+                dm = 0.5 * (d0 + d1)
+                i, k = l0, r0
+                while i < l1 or k < r1:
+                    if k >= r1 or (i < l1 and vd[L[i + 1]] <= vd[R[k + 1]]):
+                        tri = (R[k], L[i], L[i + 1])
+                        i += 1
+                    else:
+                        tri = (R[k], L[i], R[k + 1])
+                        k += 1
+                    if tri[0] == tri[1] or tri[1] == tri[2] or tri[0] == tri[2]:
+                        continue
+                    if q < nr:
+                        self.faces.append((tri[0], tri[1], tri[2], p, 0, dm, SIDE, q, 0))
+                        self.faces.append((tri[0], tri[2], tri[1], q, 0, dm, SIDE, p, 0))
+                    else:
+                        self.faces.append((tri[0], tri[1], tri[2], p, 0, dm, BARK, -1, 0))
+
+    def element(self, site, side, d):
+        """Element of real ``site`` at d (see the class docstring); arrays in, array out."""
+        br = self.br
+        out = np.empty(len(site), dtype=np.int64)
+        order = np.argsort(site, kind="stable")
+        cuts = np.searchsorted(site[order], np.arange(self.nr + 1))
+        for j in range(self.nr):
+            rows = order[cuts[j]:cuts[j + 1]]
+            if len(rows) == 0:
+                continue
+            b = br.bounds[j]
+            lo = np.searchsorted(b, d[rows], side="left")
+            hi = np.searchsorted(b, d[rows], side="right")
+            out[rows] = br.elem0[j] + np.where(side[rows] < 0, lo, hi)
+        return out
+
+
+def sweep_branch(br: _Branch):
+    """Run the kinetic sweep of one branch and collect its faces (see the module docstring)."""
+    kin = sweep(br.d, br.P, br.alive)
+    bs = _BranchSweep(br)
+    nr = br.n_real
+    bd = np.concatenate(br.bounds) if nr else np.zeros(0)
+    bsite = np.repeat(np.arange(nr), [len(b) for b in br.bounds])
+    order = np.argsort(bd, kind="stable")
+    bd, bsite = bd[order].tolist(), bsite[order].tolist()
+    node_d = set(br.s_chain.tolist())
+    ib = 0
+    for _, de, kind, rem, add in kin.iter_events():
+        while ib < len(bd) and bd[ib] < de:
+            bs.boundary(bsite[ib], bd[ib])
+            ib += 1
+        if rem is None:  # a section or repair snapshot: the change against the current state
+            cur = {t for s in bs.star.values() for t in s}
+            new = {t for t in add if t[0] < nr}
+            rem, add = sorted(cur - new), sorted(new - cur)
+        bs.apply(rem, add, de, kind)
+        if kind == SECTION and de in node_d:
+            bs.sample_all(de)
+    while ib < len(bd):
+        bs.boundary(bsite[ib], bd[ib])
+        ib += 1
+    bs.close(float(br.d[-1]))
+    bs.emit_strips()
+    return kin, bs
+
+
+# --------------------------------------------------------------------------------------------
+# Geometry: Voronoi vertices in 3D, per-meshlet shells, skinning data
+# --------------------------------------------------------------------------------------------
+
+def _circumcentres(X):
+    """Circumcentres of triangles X (m, 3, 2)."""
+    A = X[:, 0]
+    a, b = X[:, 1] - A, X[:, 2] - A
+    D = 2.0 * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+    aa, bb = (a * a).sum(1), (b * b).sum(1)
+    return A + np.stack([b[:, 1] * aa - a[:, 1] * bb, a[:, 0] * bb - b[:, 0] * aa], axis=1) / D[:, None]
+
+
+def _vertex_uv(kin, T, d):
+    """Voronoi vertex (circumcentre of the sites T at d) in the branch frame, computed from the
+    sites as the predicates see them (perturbed, so coincident strands stay resolved)."""
+    S = len(kin.d)
+    k = np.clip(np.searchsorted(kin.d, d, side="right") - 1, 0, max(S - 2, 0))
+    if S > 1:
+        s = ((d - kin.d[k]) / (kin.d[k + 1] - kin.d[k]))[:, None, None]
+        X = (1.0 - s) * kin.P[k[:, None], T] + s * kin.P[np.minimum(k + 1, S - 1)[:, None], T]
+    else:
+        X = kin.P[0][T]
+    Xn = (X - kin.centre) / kin.scale + kin.eta * _perturbation(kin.n_sites)[T]
+    return kin.centre + kin.scale * _circumcentres(Xn)
+
+
+def _embed(skel, topo, chain, s_chain, d, uv):
+    """3D points at distance d along the branch with cross-section coordinates uv: origin and
+    (U, V) interpolated linearly between the chain's nodes (re-orthonormalised)."""
+    j = np.clip(np.searchsorted(s_chain, d, side="right") - 1, 0, len(chain) - 2)
+    t = np.clip((d - s_chain[j]) / (s_chain[j + 1] - s_chain[j]), 0.0, 1.0)[:, None]
+    na, nb = chain[j], chain[j + 1]
+    origin = (1.0 - t) * skel.positions[na] + t * skel.positions[nb]
+    U = (1.0 - t) * topo.frames[na, 0] + t * topo.frames[nb, 0]
+    V = (1.0 - t) * topo.frames[na, 1] + t * topo.frames[nb, 1]
+    U /= np.linalg.norm(U, axis=1, keepdims=True)
+    V -= (V * U).sum(1, keepdims=True) * U
+    V /= np.linalg.norm(V, axis=1, keepdims=True)
+    return origin + uv[:, :1] * U + uv[:, 1:] * V
+
+
+def _rotation(q):
+    """Rotation matrices (columns d1, d2, d3) of unit quaternions (w, x, y, z)."""
+    w, x, y, z = q.T
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+    ], axis=1)
+
+
+def _branch_arrays(model, skel, topo, br, kin, bs):
+    """Vertices (3D, uv, d), face rows and each vertex's candidate skinning elements."""
+    T = np.array(bs.vtri, dtype=np.int64).reshape(-1, 3)
+    d = np.array(bs.vd, dtype=float)
+    uv = _vertex_uv(kin, T, d)
+    xyz = _embed(skel, topo, br.chain, br.s_chain, d, uv)
+    F = np.array(bs.faces, dtype=float).reshape(-1, 9)
+    tri = F[:, :3].astype(np.int64)
+    site, side, fd = F[:, 3].astype(np.int64), F[:, 4].astype(np.int64), F[:, 5]
+    elem = bs.element(site, side, fd)
+    other, oside = F[:, 7].astype(np.int64), F[:, 8].astype(np.int64)
+    nbr = np.full(len(F), -1, dtype=np.int64)
+    has = other >= 0
+    nbr[has] = bs.element(other[has], oside[has], fd[has])
+    # skinning candidates: the elements of the vertex's real sites on both sides of d
+    vs = np.repeat(np.arange(len(d)), 6)
+    ss = np.repeat(T, 2, axis=1).ravel()
+    sides = np.tile([-1, 1], 3 * len(d))
+    real = ss < br.n_real
+    cand_v, cand_e = vs[real], bs.element(ss[real], sides[real], d[vs[real]])
+    return xyz, uv, d, tri, elem, F[:, 6].astype(np.int8), nbr, cand_v, cand_e
+
+
+def build_meshlets(model, scene) -> Meshlets:
+    """Rest meshlets of every rod element of ``model`` (see the module docstring)."""
+    t0 = time.perf_counter()
+    skel = scene.skeleton
+    topo = build_topology(skel)
+    r_s = scene.strands.r_s
+    parts, counts = [], {"flips": 0, "hull": 0, "inserts": 0, "deletes": 0, "repairs": 0,
+                         "sections": 0, "unmatched": 0, "branches": 0}
+    off = 0
+    for b in range(topo.n_branches):
+        br = _setup_branch(model, skel, topo, b, r_s)
+        if br is None:
+            continue
+        kin, bs = sweep_branch(br)
+        for k, v in kin.counts.items():
+            counts[k] += v
+        counts["unmatched"] += bs.unmatched
+        counts["branches"] += 1
+        xyz, uv, d, tri, elem, kind, nbr, cv, ce = _branch_arrays(model, skel, topo, br, kin, bs)
+        parts.append((xyz, uv, d, tri + off, elem, kind, nbr, cv + off, ce))
+        off += len(d)
+    cat = [np.concatenate([p[i] for p in parts]) for i in range(9)]
+    gxyz, guv, gd, tri, elem, kind, nbr, cv, ce = cat
+    n = model.n_elements
+    # faces sorted by element; each meshlet gets its own copy of every vertex it uses
+    order = np.argsort(elem, kind="stable")
+    tri, elem, kind, nbr = tri[order], elem[order], kind[order], nbr[order]
+    key = elem[:, None] * off + tri
+    ukey, inv = np.unique(key.ravel(), return_inverse=True)
+    faces = inv.reshape(-1, 3)
+    v_elem, v_gid = ukey // off, ukey % off
+    points = gxyz[v_gid]
+    # skinning: candidates per global vertex (unique), then per copy
+    ck = np.unique(cv * n + ce)
+    cv, ce = ck // n, ck % n
+    g_ptr = np.searchsorted(cv, np.arange(off + 1))
+    cnt = g_ptr[v_gid + 1] - g_ptr[v_gid]
+    skin_indptr = np.concatenate([[0], np.cumsum(cnt)])
+    rows = np.repeat(g_ptr[v_gid], cnt) + (np.arange(skin_indptr[-1]) - np.repeat(skin_indptr[:-1], cnt))
+    skin_element = ce[rows]
+    vrow = np.repeat(np.arange(len(points)), cnt)
+    rel = points[vrow] - model.centers[skin_element]
+    w = 1.0 / ((rel * rel).sum(1) + r_s * r_s)
+    wsum = np.bincount(vrow, weights=w, minlength=len(points))
+    skin_weight = w / wsum[vrow]
+    R0 = _rotation(model.rest_quat)
+    skin_local = np.einsum("kji,kj->ki", R0[skin_element], rel)
+    ring = np.bincount(vrow, weights=skin_weight * model.ring_age[skin_element], minlength=len(points))
+    uvv = guv[v_gid]
+    wood = np.stack([np.hypot(uvv[:, 0], uvv[:, 1]), np.arctan2(uvv[:, 1], uvv[:, 0]), gd[v_gid]], axis=1)
+    counts["seconds"] = time.perf_counter() - t0
+    return Meshlets(
+        points=points, faces=faces.astype(np.int64), face_element=elem, face_kind=kind,
+        face_neighbour=nbr, vertex_element=v_elem, vertex_offsets=np.searchsorted(v_elem, np.arange(n + 1)),
+        face_offsets=np.searchsorted(elem, np.arange(n + 1)), wood=wood, ring=ring,
+        skin_indptr=skin_indptr, skin_element=skin_element, skin_weight=skin_weight,
+        skin_local=skin_local, stats=counts,
+    )
