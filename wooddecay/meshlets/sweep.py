@@ -46,14 +46,18 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 
 from ..strands.topology import build_topology
-from .kinetic import FLIP, SECTION, _perturbation, sweep
+from .alpha import offset_contour
+from .kinetic import FLIP, REPAIR, SECTION, _perturbation, sweep
 
 #: face kinds (DESIGN "USD stage": uniform int faceKind)
 BARK, SIDE, CAP = 0, 1, 2
 #: sites closer than this many r_s to a node's profile get a mirrored ghost site
 GHOST_DEPTH = 4.0
+#: far sites around every branch (see _setup_branch)
+FAR_RING = 8
 
 
 @dataclass(frozen=True, eq=False)
@@ -139,6 +143,19 @@ def _feet(poly: np.ndarray, pts: np.ndarray):
     return feet, np.stack([dist[rows, e0], d1[rows, e1]], axis=1)
 
 
+def _section_profile(skel, chain, node: int, pts: np.ndarray, r_s: float) -> np.ndarray:
+    """The contour the ghosts mirror across at a node section: the node's profile, except where a
+    side branch starts (its strands fill only part of the fork's profile): there the convex hull
+    of the branch's sites (the alpha shape with alpha = inf) offset outwards by r_s."""
+    if node != chain[0] or skel.parent[node] < 0 or node != skel.parent[chain[1]] or len(pts) < 3:
+        return skel.profiles[node].polygon
+    try:
+        hull = ConvexHull(pts)
+    except QhullError:
+        return skel.profiles[node].polygon
+    return offset_contour(pts[hull.vertices], r_s, "round")[0]
+
+
 def _branch_chain(topo, skel, b: int) -> np.ndarray:
     nodes = np.flatnonzero(topo.branch == b)
     nodes = nodes[np.argsort(topo.s[nodes], kind="stable")]
@@ -192,8 +209,8 @@ def _setup_branch(model, skel, topo, b: int, r_s: float) -> _Branch | None:
     depth = np.full((n, 2), -np.inf)
     offset = np.full((len(d), n, 2, 2), np.nan)
     for k in np.flatnonzero(is_node):
-        poly = skel.profiles[node_at[float(d[k])]].polygon
         idx = np.flatnonzero(alive[k])
+        poly = _section_profile(skel, chain, node_at[float(d[k])], P[k, idx], r_s)
         foot, dist = _feet(poly, P[k, idx])
         depth[idx] = np.maximum(depth[idx], dist)
         offset[k, idx] = 2.0 * (foot - P[k, idx][:, None])
@@ -210,8 +227,13 @@ def _setup_branch(model, skel, topo, b: int, r_s: float) -> _Branch | None:
         for c in range(2):
             G[rows_i, j, c] = P[rows_i, i, c] + np.interp(d[rows_i], d[known], offset[known, i, r, c])
     ghost_of = np.array([i for i, _ in ghosts], dtype=np.int64)
-    P = np.concatenate([P, G], axis=1)
-    alive = np.concatenate([alive, alive[:, ghost_of]], axis=1)
+    # a far ring keeps every real cell bounded even where no mirror reaches (a safety net)
+    pts = P[alive]
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    ang = 2.0 * np.pi * np.arange(FAR_RING) / FAR_RING
+    ring = 0.5 * (lo + hi) + 4.0 * (float(np.max(hi - lo)) + r_s) * np.stack([np.cos(ang), np.sin(ang)], 1)
+    P = np.concatenate([P, G, np.broadcast_to(ring, (len(d), FAR_RING, 2))], axis=1)
+    alive = np.concatenate([alive, alive[:, ghost_of], np.ones((len(d), FAR_RING), dtype=bool)], axis=1)
     bounds = []
     for i in range(n):
         e = np.arange(e0s[i], e0s[i] + ns[i])
@@ -287,6 +309,7 @@ class _BranchSweep:
         self.vkey = {}  # (triangle, d) -> vertex id
         self.vtri, self.vd = [], []
         self.star = {}  # site -> set of live triangles with at least one real site
+        self.tris = set()  # all of them
         self.strips = {}
         self.done = []
         self.faces = []
@@ -312,31 +335,45 @@ class _BranchSweep:
 
     # ---- triangulation updates ----------------------------------------------------------
     def apply(self, removed, added, d, kind):
+        """Replace the ``removed`` triangles by the ``added`` ones at d: junctions on the strips
+        beside them, strips that end or begin, caps of strands that end or begin, and the
+        horizontal faces of the neighbours whose cells jump (any change but a single flip)."""
         nr = self.nr
         removed = [t for t in removed if t[0] < nr]  # canonical triangles start at their minimum
         added = [t for t in added if t[0] < nr]
         if not removed and not added:
             return
-        if kind == FLIP and removed:
+        flip = kind == FLIP
+        if flip:
             v = self.V(removed[0], d)
             for t in removed[1:] + added:
                 self.vkey[(t, d)] = v
         touched = {s for t in removed + added for s in t}
-        before = {}
-        if kind != FLIP:
-            before = {j: _cycle(self.star[j], j) for j in touched if j < nr and self.star.get(j)}
         had = {j for j in touched if self.star.get(j)}
-        ended = {j for j in had if all(t in removed for t in self.star[j])}
+        rem_set = set(removed)
+        stays = {s for t in added for s in t}
+        ended = {j for j in had if j not in stays and self.star[j] <= rem_set}
+        before = {} if flip else {j: _cycle(self.star[j], j) for j in had if j < nr}
         for j in sorted(j for j in ended if j < nr):
             self.polygon([self.V(t, d) for t in before[j]], j, -1, d, CAP, -1, 0)
+        hit = {}
         for t in removed:
             v = self.V(t, d)
             for e, slot in _edges(t):
                 st = self.strips.get(e)
                 if st is not None:
                     st.push(slot, v)
+                    hit[e] = hit.get(e, 0) | (1 << slot)
             for s in t:
                 self.star[s].discard(t)
+        self.tris.difference_update(removed)
+        # a strip that loses the triangles on both sides ends here (it may begin again with the
+        # new ones): its old and new Voronoi edges are then separate edges of the event faces
+        for e, sides in hit.items():
+            if sides == 3:
+                st = self.strips.pop(e)
+                st.rung(d)
+                self.done.append((e, st))
         for t in added:
             v = self.V(t, d)
             for e, slot in _edges(t):
@@ -348,6 +385,7 @@ class _BranchSweep:
                 st.push(slot, v)
             for s in t:
                 self.star.setdefault(s, set()).add(t)
+        self.tris.update(added)
         for t in removed:
             for e, _ in _edges(t):
                 if e in self.strips and not any(e[1] in x for x in self.star.get(e[0], ())):
@@ -359,18 +397,16 @@ class _BranchSweep:
                 st = self.strips.get(e)
                 if st is not None and not st.rungs:
                     st.rung(d)
-        started = sorted(j for j in touched if j not in had and j < nr)
-        for j in started:
-            ids = self.cell(j, d)
-            self.polygon(ids[::-1], j, +1, d, CAP, -1, 0)
+        started = {j for j in touched if j not in had}
+        for j in sorted(j for j in started if j < nr):
+            self.polygon(self.cell(j, d)[::-1], j, +1, d, CAP, -1, 0)
         if before:
-            k = (sorted(ended) or sorted(j for j in touched if j not in had) or [-1])[0]
-            self.event_faces(before, d, k, -1 if k in ended else +1)
+            self.event_faces(before, d, ended, started)
 
-    def event_faces(self, before, d, k, k_side):
-        """Horizontal faces of the neighbours whose cells jump at a strand's start or end."""
-        kind = BARK if k >= self.nr else SIDE
-        other = k if 0 <= k < self.nr else -1
+    def event_faces(self, before, d, ended, started):
+        """Horizontal faces of the neighbours whose cells jump where strands begin or end: per
+        changed run of j's Voronoi vertices, the removed run (before) and the added run (after,
+        reversed) bound the region j gains or loses at d."""
         for j, B in before.items():
             if not self.star.get(j):
                 continue
@@ -380,8 +416,9 @@ class _BranchSweep:
                 continue
             if not common:
                 self.unmatched += 1
-                self.polygon([self.V(t, d) for t in B], j, 0, d, kind, other, k_side)
-                self.polygon([self.V(t, d) for t in A[::-1]], j, 0, d, kind, other, k_side)
+                kind, other, side = self._other(j, B + A, ended, started)
+                self.polygon([self.V(t, d) for t in B], j, 0, d, kind, other, side)
+                self.polygon([self.V(t, d) for t in A[::-1]], j, 0, d, kind, other, side)
                 continue
             pos_a = {t: i for i, t in enumerate(A)}
             nb, na = len(B), len(A)
@@ -396,8 +433,21 @@ class _BranchSweep:
                 while A[a % na] != B[m % nb]:
                     arun.append(A[a % na])
                     a += 1
+                kind, other, side = self._other(j, run + arun, ended, started)
                 ids = [self.V(t, d) for t in run] + [self.V(t, d) for t in arun[::-1]]
-                self.polygon(ids, j, 0, d, kind, other, k_side)
+                self.polygon(ids, j, 0, d, kind, other, side)
+
+    def _other(self, j, tris, ended, started):
+        """Kind, site and side of what lies across j's horizontal face: the strand that ended
+        or began there (a ghost: bark)."""
+        cand = sorted({s for t in tris for s in t if s != j and (s in ended or s in started)})
+        if not cand:
+            return SIDE, -1, 0
+        real = [s for s in cand if s < self.nr]
+        if not real:
+            return BARK, -1, 0
+        k = real[0]
+        return SIDE, k, (-1 if k in ended else +1)
 
     # ---- samples between events -----------------------------------------------------------
     def _sides(self, e):
@@ -494,17 +544,36 @@ def sweep_branch(br: _Branch):
     bd, bsite = bd[order].tolist(), bsite[order].tolist()
     node_d = set(br.s_chain.tolist())
     ib = 0
-    for _, de, kind, rem, add in kin.iter_events():
+    events = list(kin.iter_events())
+    e = 0
+    while e < len(events):
+        de = events[e][1]
+        g = e
+        while g < len(events) and events[g][1] == de:
+            g += 1
         while ib < len(bd) and bd[ib] < de:
             bs.boundary(bsite[ib], bd[ib])
             ib += 1
-        if rem is None:  # a section or repair snapshot: the change against the current state
-            cur = {t for s in bs.star.values() for t in s}
-            new = {t for t in add if t[0] < nr}
-            rem, add = sorted(cur - new), sorted(new - cur)
+        group = events[e:g]
+        if len(group) == 1 and group[0][3] is not None:
+            _, _, kind, rem, add = group[0]
+        else:  # several events at one d (or a snapshot): their net change
+            kind = REPAIR
+            cur0 = set(bs.tris)
+            cur = set(cur0)
+            for _, _, _, r, a in group:
+                if r is None:
+                    cur = {t for t in a if t[0] < nr}
+                else:
+                    cur.difference_update(r)
+                    cur.update(t for t in a if t[0] < nr)
+            rem, add = sorted(cur0 - cur), sorted(cur - cur0)
+            if len(group) == 1 and group[0][2] == FLIP:
+                kind = FLIP
         bs.apply(rem, add, de, kind)
-        if kind == SECTION and de in node_d:
+        if de in node_d and any(ev[2] == SECTION for ev in group):
             bs.sample_all(de)
+        e = g
     while ib < len(bd):
         bs.boundary(bsite[ib], bd[ib])
         ib += 1
