@@ -5,11 +5,14 @@ Python API (DESIGN "Python API")::
     import wooddecay as wd
     scene = wd.load_scene("samples/log.toml", overrides={"time.days": 30})
     model = wd.build_model(scene)
+    mesh = wd.build_meshlets(model, scene)
 """
 from .errors import InputError
+from .meshlets.sweep import Meshlets, build_meshlets
 from .model import WoodModel, build_model
 from .scene import Scene, load_scene, parse_scene
 from .sim.driver import Simulation
 
-__all__ = ["InputError", "Scene", "WoodModel", "build_model", "load_scene", "parse_scene", "Simulation"]
+__all__ = ["InputError", "Meshlets", "Scene", "WoodModel", "build_meshlets", "build_model", "load_scene",
+           "parse_scene", "Simulation"]
 __version__ = "0.1.0"

@@ -117,15 +117,29 @@ def _usd_path(ctx: click.Context, param: click.Parameter, value: str | None) -> 
     return check_usd_path(value)
 
 
+def _meshlets_usd_path(ctx: click.Context, param: click.Parameter, value: str | None) -> Path | None:
+    """Check ``--meshlets-usd`` (suffix, existing folder) before the model is built."""
+    if value is None:
+        return None
+    from .export.stage import check_usd_path
+
+    return check_usd_path(value, "meshlets")
+
+
 @main.command()
 @click.argument("scene_path", metavar="SCENE", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @click.option("--strands-usd", type=click.Path(dir_okay=False), callback=_usd_path,
               help="Write the strands as USD BasisCurves (.usda, .usdc or .usd, in an existing folder).")
+@click.option("--meshlets", "with_meshlets", is_flag=True,
+              help="Build the rest meshlets and report their count, closedness and volume error.")
+@click.option("--meshlets-usd", type=click.Path(dir_okay=False), callback=_meshlets_usd_path,
+              help="Write the rest meshlets coloured by element as USD (implies --meshlets).")
 @click.option("--set", "set_items", multiple=True, metavar="KEY=VALUE", help="Override a scene key (repeatable).")
-def inspect(scene_path: str, as_json: bool, strands_usd: Path | None, set_items: tuple[str, ...]) -> None:
+def inspect(scene_path: str, as_json: bool, strands_usd: Path | None, with_meshlets: bool,
+            meshlets_usd: Path | None, set_items: tuple[str, ...]) -> None:
     """Build the wood model of SCENE and report its size, tissues, build time and the biology's
-    explicit-step stability bound."""
+    explicit-step stability bound (and its meshlets with --meshlets)."""
     from .model import build_model
     from .sim.biology import prepare
 
@@ -141,12 +155,46 @@ def inspect(scene_path: str, as_json: bool, strands_usd: Path | None, set_items:
         t0 = time.perf_counter()
         write_strands_usd(strands_usd, model, scene)
         rep["strands_usd"] = {"path": str(strands_usd), "seconds": round(time.perf_counter() - t0, 4)}
+    if with_meshlets or meshlets_usd:
+        rep["meshlets"] = _meshlets_report(model, scene, meshlets_usd)
     if as_json:
         click.echo(json.dumps(rep, indent=2))
     else:
         _print_report(rep)
         if strands_usd:
             click.echo(f"strands USD      {strands_usd}")
+        if "meshlets" in rep:
+            r = rep["meshlets"]
+            click.echo(f"meshlets         {r['count']} in {r['seconds']:.2f} s, closed fraction {r['closed_fraction']:.6f}, "
+                       f"volume error {r['volume_error']:.2e}, {r['faces']} faces"
+                       + (f" -> {meshlets_usd}" if meshlets_usd else ""))
+
+
+def _meshlets_report(model, scene, usd_path: Path | None) -> dict:
+    """``meshlets`` fields of the inspect report: count, closed fraction, volume error against
+    the volume inside the bark surface, seconds (and the debug USD)."""
+    from .meshlets import checks
+    from .meshlets.sweep import build_meshlets
+
+    mesh = build_meshlets(model, scene)
+    closed = checks.closed_oriented(mesh)
+    vol = checks.volumes(mesh)
+    rep = {
+        "count": mesh.count,
+        "faces": mesh.n_faces,
+        "vertices": int(len(mesh.points)),
+        "closed_fraction": float(closed.mean()) if mesh.count else 1.0,
+        "positive_volume_fraction": float((vol > 0).mean()) if mesh.count else 1.0,
+        "volume_error": float(vol.sum() / checks.bark_volume(scene) - 1.0),
+        "seconds": round(mesh.stats["seconds"], 4),
+        "events": {k: v for k, v in mesh.stats.items() if k != "seconds"},
+    }
+    if usd_path:
+        from .export.meshlets_usd import write_meshlets_usd
+
+        write_meshlets_usd(usd_path, mesh, scene)
+        rep["usd"] = str(usd_path)
+    return rep
 
 
 def template_text(template: str, name: str) -> str:

@@ -15,12 +15,11 @@ path or a failed write raises :class:`~wooddecay.errors.InputError`.
 """
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from . import stage as stage_mod
 
 #: display colour per tissue index (bark, sapwood, heartwood, pith), linear-ish RGB in [0, 1]
 TISSUE_COLORS = np.array([
@@ -29,9 +28,6 @@ TISSUE_COLORS = np.array([
     [0.55, 0.25, 0.15],   # heartwood: reddish brown
     [0.45, 0.05, 0.05],   # pith: dark red
 ], dtype=np.float32)
-
-_SUFFIXES = (".usda", ".usdc", ".usd")
-
 
 def vertex_element(model) -> np.ndarray:
     """Index of the element whose values each particle takes (length ``n_particles``).
@@ -49,27 +45,9 @@ def vertex_element(model) -> np.ndarray:
     return e_off[strand_of] + local
 
 
-def _prim_name(name: str) -> str:
-    from pxr import Tf
-
-    ident = Tf.MakeValidIdentifier(str(name) or "scene")
-    return ident or "scene"
-
-
 def check_usd_path(path) -> Path:
-    """Return ``path`` as a Path after checking it can name a strands USD file.
-
-    Raises
-    ------
-    InputError
-        When the suffix is not .usda, .usdc or .usd, or the folder does not exist.
-    """
-    path = Path(path)
-    if path.suffix.lower() not in _SUFFIXES:
-        raise InputError(str(path), "", f"a strands USD file must end in {', '.join(_SUFFIXES)}")
-    if not path.parent.is_dir():
-        raise InputError(str(path), "", f"folder {path.parent} does not exist")
-    return path
+    """``path`` as a Path after checking it can name a strands USD file (suffix, folder)."""
+    return stage_mod.check_usd_path(path, "strands")
 
 
 def write_strands_usd(path, model, scene) -> Path:
@@ -80,7 +58,7 @@ def write_strands_usd(path, model, scene) -> Path:
     InputError
         For a bad path (:func:`check_usd_path`) or when the file cannot be written.
     """
-    from pxr import Gf, Sdf, Tf, Usd, UsdGeom, Vt
+    from pxr import Gf, Sdf, UsdGeom, Vt
 
     path = check_usd_path(path)
 
@@ -96,13 +74,8 @@ def write_strands_usd(path, model, scene) -> Path:
     widths = (2.0 * np.asarray(model.radius)[src]).astype(np.float32)
     colors = TISSUE_COLORS[np.clip(tissue, 0, len(TISSUE_COLORS) - 1)]
 
-    stage = Usd.Stage.CreateInMemory()
-    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
-    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
-    world = UsdGeom.Xform.Define(stage, "/World")
-    stage.SetDefaultPrim(world.GetPrim())
-    UsdGeom.Xform.Define(stage, f"/World/{_prim_name(scene.name)}")
-    curves = UsdGeom.BasisCurves.Define(stage, f"/World/{_prim_name(scene.name)}/Strands")
+    stage, root = stage_mod.new_stage(scene)
+    curves = UsdGeom.BasisCurves.Define(stage, f"{root}/Strands")
     curves.CreateTypeAttr(UsdGeom.Tokens.linear)
     curves.CreateWrapAttr(UsdGeom.Tokens.nonperiodic)
     curves.CreateCurveVertexCountsAttr(Vt.IntArray.FromNumpy(counts))
@@ -122,14 +95,4 @@ def write_strands_usd(path, model, scene) -> Path:
     color = curves.CreateDisplayColorPrimvar(UsdGeom.Tokens.vertex)
     color.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(colors)))
 
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
-    try:
-        if not stage.GetRootLayer().Export(str(tmp)):
-            raise OSError(f"USD could not write {tmp}")
-        os.replace(tmp, path)
-    except (OSError, Tf.ErrorException) as err:
-        raise InputError(str(path), "", f"cannot write the strands USD file: {err}") from None
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    return path
+    return stage_mod.export_atomic(stage, path, "strands")

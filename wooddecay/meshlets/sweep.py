@@ -49,6 +49,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from ..strands.topology import build_topology
+from ..sim.quaternion import conj_np, rotate_np
 from .alpha import offset_contour
 from .kinetic import FLIP, REPAIR, SECTION, _perturbation, sweep
 
@@ -77,6 +78,7 @@ class Meshlets:
     face_kind: np.ndarray  # (F,) BARK / SIDE / CAP
     face_neighbour: np.ndarray  # (F,)
     vertex_element: np.ndarray  # (V,) owner
+    vertex_shared: np.ndarray  # (V,) the rest-partition vertex this copy is (shared by neighbours)
     vertex_offsets: np.ndarray  # (n + 1,)
     face_offsets: np.ndarray  # (n + 1,)
     wood: np.ndarray  # (V, 3) rest wood-local coordinates (r, phi, s)
@@ -624,16 +626,6 @@ def _embed(skel, topo, chain, s_chain, d, uv):
     return origin + uv[:, :1] * U + uv[:, 1:] * V
 
 
-def _rotation(q):
-    """Rotation matrices (columns d1, d2, d3) of unit quaternions (w, x, y, z)."""
-    w, x, y, z = q.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], axis=1)
-
-
 def _branch_arrays(model, skel, topo, br, kin, bs):
     """Vertices (3D, uv, d), face rows and each vertex's candidate skinning elements."""
     T = np.array(bs.vtri, dtype=np.int64).reshape(-1, 3)
@@ -702,15 +694,14 @@ def build_meshlets(model, scene) -> Meshlets:
     w = 1.0 / ((rel * rel).sum(1) + r_s * r_s)
     wsum = np.bincount(vrow, weights=w, minlength=len(points))
     skin_weight = w / wsum[vrow]
-    R0 = _rotation(model.rest_quat)
-    skin_local = np.einsum("kji,kj->ki", R0[skin_element], rel)
+    skin_local = rotate_np(conj_np(model.rest_quat[skin_element]), rel)
     ring = np.bincount(vrow, weights=skin_weight * model.ring_age[skin_element], minlength=len(points))
     uvv = guv[v_gid]
     wood = np.stack([np.hypot(uvv[:, 0], uvv[:, 1]), np.arctan2(uvv[:, 1], uvv[:, 0]), gd[v_gid]], axis=1)
     counts["seconds"] = time.perf_counter() - t0
     return Meshlets(
         points=points, faces=faces.astype(np.int64), face_element=elem, face_kind=kind,
-        face_neighbour=nbr, vertex_element=v_elem, vertex_offsets=np.searchsorted(v_elem, np.arange(n + 1)),
+        face_neighbour=nbr, vertex_element=v_elem, vertex_shared=v_gid, vertex_offsets=np.searchsorted(v_elem, np.arange(n + 1)),
         face_offsets=np.searchsorted(elem, np.arange(n + 1)), wood=wood, ring=ring,
         skin_indptr=skin_indptr, skin_element=skin_element, skin_weight=skin_weight,
         skin_local=skin_local, stats=counts,

@@ -534,9 +534,42 @@ def _dlambda(phi, W, k_col, dt2):
     return k_col * phi * phi * dt2 / (1.0 + W * k_col * phi * dt2)
 
 
+@nb.njit(cache=True, inline="always")
+def _allowed(ph, ph_prev, max_push):
+    """Largest correction of a penetration ph that had been ph_prev at the start of the substep:
+    all the penetration made in this substep, and at most max_push of the one it started with."""
+    return max(ph - max(ph_prev - max_push, 0.0), 0.0)
+
+
+@nb.njit(cache=True, inline="always")
+def _friction_step(dx, dy, dz, nx, ny, nz, normal, mu, floor):
+    """Eq. 7 on a displacement: the tangential part d_t of (dx, dy, dz) (normal n) times
+    min(1, mu normal / max(|d_t|, floor)), the part friction takes back."""
+    dn = dx * nx + dy * ny + dz * nz
+    tx, ty, tz = dx - dn * nx, dy - dn * ny, dz - dn * nz
+    mag = np.sqrt(tx * tx + ty * ty + tz * tz)
+    if mag <= 0.0:
+        return 0.0, 0.0, 0.0
+    c = min(1.0, mu * normal / max(mag, floor))
+    return c * tx, c * ty, c * tz
+
+
+@nb.njit(cache=True, inline="always")
+def _moved(x, x_prev, a, b, s, t, k):
+    """Coordinate k of the displacement since x_prev of the point at t on segment b, b + 1
+    relative to the point at s on segment a, a + 1."""
+    return ((1.0 - t) * (x[b, k] - x_prev[b, k]) + t * (x[b + 1, k] - x_prev[b + 1, k])
+            - (1.0 - s) * (x[a, k] - x_prev[a, k]) - s * (x[a + 1, k] - x_prev[a + 1, k]))
+
+
 @nb.njit(parallel=True, cache=True)
-def _pair_multipliers(x, w_p, first_particle, radius, pairs, k_col, dt, max_push, pc, phi):
-    """Per pair: penetration phi (Eq. 3) and ``pc`` = (n_ij, dlambda, s, t) (dlambda 0 if inactive)."""
+def _pair_multipliers(x, x_prev, w_p, first_particle, radius, pairs, k_col, dt, max_push, mu, eps, pc, phi):
+    """Per pair: penetration phi (Eq. 3) and ``pc`` = (e, dlambda, s, t), e the correction per
+    unit w_k g_k of j's particles (i's: -e): dlambda n_ij less the friction step (dlambda 0, e 0
+    if inactive). The relative correction W dlambda is capped at max_push, or with the
+    start-of-substep positions ``x_prev`` (P, 3) (not (0, 3)) at :func:`_allowed`; friction
+    (mu > 0, needs x_prev) takes back min(1, mu W dlambda / max(|d_t|, eps dt)) of the relative
+    tangential displacement d_t of the contact points in this substep."""
     dt2 = dt * dt
     for q in nb.prange(len(pairs)):
         i, j = pairs[q, 0], pairs[q, 1]
@@ -545,10 +578,19 @@ def _pair_multipliers(x, w_p, first_particle, radius, pairs, k_col, dt, max_push
         W = (w_p[a] * (1.0 - s) * (1.0 - s) + w_p[a + 1] * s * s + w_p[b] * (1.0 - t) * (1.0 - t)
              + w_p[b + 1] * t * t)
         phi[q] = ph
-        pc[q, 0], pc[q, 1], pc[q, 2] = nx, ny, nz
         dl = _dlambda(ph, W, k_col, dt2) if ph > 0.0 else 0.0
-        pc[q, 3] = min(dl, max_push / W) if W * dl > max_push else dl  # depenetration cap
-        pc[q, 4], pc[q, 5] = s, t
+        cap = max_push
+        if len(x_prev) > 0 and ph > 0.0:
+            cap = _allowed(ph, capsule_contact(x_prev, a, a + 1, radius[i], b, b + 1, radius[j])[5], max_push)
+        if W * dl > cap:  # depenetration cap
+            dl = cap / W
+        ex, ey, ez = dl * nx, dl * ny, dl * nz
+        if mu > 0.0 and dl > 0.0 and len(x_prev) > 0:
+            fx, fy, fz = _friction_step(_moved(x, x_prev, a, b, s, t, 0), _moved(x, x_prev, a, b, s, t, 1),
+                                        _moved(x, x_prev, a, b, s, t, 2), nx, ny, nz, W * dl, mu, eps * dt)
+            ex, ey, ez = ex - fx / W, ey - fy / W, ez - fz / W
+        pc[q, 0], pc[q, 1], pc[q, 2] = ex, ey, ez
+        pc[q, 3], pc[q, 4], pc[q, 5] = dl, s, t
 
 
 @nb.njit(cache=True)
@@ -573,7 +615,8 @@ def _incidences(pairs, first_particle, active, indptr, inc):
 @nb.njit(parallel=True, cache=True)
 def _gather(x, w_p, force, indptr, inc, pc, dt):
     """Per particle, over its incidences (pair q, slot k) in CSR order: x += mean of the
-    corrections -+ w g_k dlambda n_ij (- on i's particles, slots 0-1), force += sum of g_k dlambda / dt^2."""
+    corrections -+ w g_k e_q (- on i's particles, slots 0-1; e_q = pc[q, :3]), force += sum of
+    g_k dlambda_q / dt^2 (dlambda_q = pc[q, 3])."""
     dt2 = dt * dt
     for p in nb.prange(len(x)):
         lo, hi = indptr[p], indptr[p + 1]
@@ -584,7 +627,7 @@ def _gather(x, w_p, force, indptr, inc, pc, dt):
             q, k = inc[e] // 4, inc[e] % 4
             u = pc[q, 4] if k < 2 else pc[q, 5]
             g = u if k % 2 else 1.0 - u
-            c = (-1.0 if k < 2 else 1.0) * w_p[p] * g * pc[q, 3]
+            c = (-1.0 if k < 2 else 1.0) * w_p[p] * g
             ax += c * pc[q, 0]
             ay += c * pc[q, 1]
             az += c * pc[q, 2]
@@ -596,22 +639,35 @@ def _gather(x, w_p, force, indptr, inc, pc, dt):
         force[p] += f
 
 
+def _rows(x_prev) -> np.ndarray:
+    return np.zeros((0, 3)) if x_prev is None else x_prev
+
+
 def project_contacts(x, w_p, first_particle, radius, pairs, k_col, dt, force,
-                     max_push: float = np.inf) -> tuple[int, float]:
+                     max_push: float = np.inf, x_prev=None, touched=None, mu: float = 0.0,
+                     eps: float = 0.0) -> tuple[int, float]:
     """One Jacobi XPBD projection of the capsule contacts of ``pairs`` (k, 2) (element pairs i, j
     as from :func:`candidate_pairs`; Eqs. 3-4, module docstring).
 
     Moves ``x`` (P, 3) in place (particles with w_p = 0 never move) and adds to ``force`` (P,) the
     normal force magnitude g_k dlambda / dt^2 each particle receives. ``max_push`` caps a pair's
     relative correction per projection (a depenetration speed times dt: capsules that overlap when
-    their connection breaks, up to 1.5 r_s at rest spacing, part gently instead of exploding).
-    Returns (number of pairs with
-    phi > 0, largest phi), measured on the positions before the projection; k_col <= 0 means no
-    contact: nothing changes and (0, 0.0) is returned."""
+    their connection breaks, up to 1.5 r_s at rest spacing, part gently instead of exploding). With
+    the positions ``x_prev`` (P, 3) at the start of the substep it bounds only the overlap the
+    pair already had there, phi_prev: the correction may remove all the penetration made in this
+    substep and max_push of phi_prev, so an approaching or loaded pair is still held at once; and
+    with ``mu`` > 0 friction (Eq. 7 on positions, module docstring) takes back part of the
+    relative tangential displacement of the contact points since ``x_prev``. ``touched`` (k,)
+    bool, if given, is or-ed with the pairs that had phi > 0 (for :func:`contact_velocities`).
+    Returns (number of pairs with phi > 0, largest phi), measured on the positions before the
+    projection; k_col <= 0 means no contact: nothing changes and (0, 0.0) is returned."""
     if k_col <= 0.0 or len(pairs) == 0:
         return 0, 0.0
     pc, phi = np.empty((len(pairs), 6)), np.empty(len(pairs))
-    _pair_multipliers(x, w_p, first_particle, radius, pairs, float(k_col), float(dt), float(max_push), pc, phi)
+    _pair_multipliers(x, _rows(x_prev), w_p, first_particle, radius, pairs, float(k_col), float(dt),
+                      float(max_push), float(mu), float(eps), pc, phi)
+    if touched is not None:
+        touched |= phi > 0.0
     active = np.flatnonzero(phi > 0.0)
     indptr, inc = np.zeros(len(x) + 1, dtype=np.int64), np.empty(4 * len(active), dtype=np.int64)
     _incidences(pairs, first_particle, active, indptr, inc)
@@ -619,33 +675,121 @@ def project_contacts(x, w_p, first_particle, radius, pairs, k_col, dt, force,
     return len(active), float(phi.max())
 
 
-def project_contacts_reference(x, w_p, first_particle, radius, pairs, k_col, dt, force,
-                               max_push: float = np.inf) -> tuple[int, float]:
-    """numpy version of :func:`project_contacts`."""
-    if k_col <= 0.0 or len(pairs) == 0:
-        return 0, 0.0
+def _pair_geometry_reference(x, w_p, first_particle, radius, pairs):
+    """Per pair: particles (k, 4), weights g (k, 4), inverse masses (k, 4), W, n, phi."""
     a, b = first_particle[pairs[:, 0]], first_particle[pairs[:, 1]]
     s, t, n, phi = capsule_contact_reference(x[a], x[a + 1], radius[pairs[:, 0]], x[b], x[b + 1], radius[pairs[:, 1]])
-    act = phi > 0.0
-    a, b, s, t, n, ph = a[act], b[act], s[act], t[act], n[act], phi[act]
     parts = np.stack([a, a + 1, b, b + 1], axis=1)
     g = np.stack([1.0 - s, s, 1.0 - t, t], axis=1)
     w = w_p[parts]
-    W = w[:, 0] * g[:, 0] * g[:, 0] + w[:, 1] * g[:, 1] * g[:, 1] + w[:, 2] * g[:, 2] * g[:, 2] + w[:, 3] * g[:, 3] * g[:, 3]
+    return parts, g, w, np.sum(w * g * g, axis=1), n, phi
+
+
+def _friction_reference(d, n, normal, mu, floor):
+    """Vectorised :func:`_friction_step` (rows)."""
+    tang = d - _dot(d, n)[:, None] * n
+    mag = np.sqrt(_dot(tang, tang))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c = np.where(mag > 0.0, np.minimum(1.0, mu * normal / np.maximum(mag, floor)), 0.0)
+    return c[:, None] * tang
+
+
+def _jacobi_reference(y, parts, g, w, e, dl=None, force=None, dt=1.0):
+    """Add to the rows of ``y`` the mean over each particle's pairs of -+ w g e (module
+    docstring); ``force`` += sum of g dl / dt^2."""
+    c = np.array([-1.0, -1.0, 1.0, 1.0]) * w * g
+    acc = np.zeros_like(y)
+    np.add.at(acc, parts.ravel(), (c[:, :, None] * e[:, None, :]).reshape(-1, 3))
+    cnt = np.bincount(parts.ravel(), minlength=len(y))
+    hit = cnt > 0
+    y[hit] += acc[hit] / cnt[hit, None]
+    if force is not None:
+        fsum = np.zeros(len(y))
+        np.add.at(fsum, parts.ravel(), (g * dl[:, None] / (dt * dt)).ravel())
+        force[hit] += fsum[hit]
+
+
+def _points_reference(y, parts, g):
+    """Contact points' relative (j minus i) value of the rows of ``y``."""
+    return np.einsum("kj,kjc->kc", g * [-1.0, -1.0, 1.0, 1.0], y[parts])
+
+
+def project_contacts_reference(x, w_p, first_particle, radius, pairs, k_col, dt, force,
+                               max_push: float = np.inf, x_prev=None, touched=None, mu: float = 0.0,
+                               eps: float = 0.0) -> tuple[int, float]:
+    """numpy version of :func:`project_contacts`."""
+    if k_col <= 0.0 or len(pairs) == 0:
+        return 0, 0.0
+    parts, g, w, W, n, phi = _pair_geometry_reference(x, w_p, first_particle, radius, pairs)
+    if touched is not None:
+        touched |= phi > 0.0
+    act = phi > 0.0
+    parts, g, w, W, n, ph = parts[act], g[act], w[act], W[act], n[act], phi[act]
     dt2 = dt * dt
     dl = k_col * ph * ph * dt2 / (1.0 + W * k_col * ph * dt2)
-    over = W * dl > max_push
-    dl[over] = max_push / W[over]
-    c = np.array([-1.0, -1.0, 1.0, 1.0]) * w * g * dl[:, None]
-    acc = np.zeros_like(x)
-    fsum = np.zeros(len(x))
-    np.add.at(acc, parts.ravel(), (c[:, :, None] * n[:, None, :]).reshape(-1, 3))
-    np.add.at(fsum, parts.ravel(), (g * dl[:, None] / dt2).ravel())
-    cnt = np.bincount(parts.ravel(), minlength=len(x))
-    hit = cnt > 0
-    x[hit] += acc[hit] / cnt[hit, None]
-    force[hit] += fsum[hit]
+    cap = np.full(len(dl), float(max_push))
+    if x_prev is not None:
+        prev = _pair_geometry_reference(x_prev, w_p, first_particle, radius, pairs)[5][act]
+        cap = np.maximum(ph - np.maximum(prev - max_push, 0.0), 0.0)
+    over = W * dl > cap
+    dl[over] = cap[over] / W[over]
+    e = dl[:, None] * n
+    if mu > 0.0 and x_prev is not None:
+        fr = _friction_reference(_points_reference(x - x_prev, parts, g), n, W * dl, mu, eps * dt)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            e = e - np.where((dl > 0.0)[:, None], fr / W[:, None], 0.0)
+    _jacobi_reference(x, parts, g, w, e, dl, force, dt)
     return int(act.sum()), float(phi.max())
+
+
+@nb.njit(parallel=True, cache=True)
+def _pair_separation(x, v, w_p, first_particle, radius, pairs, touched, pc, sep):
+    """Per touched pair, at the positions ``x``: ``pc`` = (n_ij, -v_n / W, s, t) and sep = True
+    where the pair separates at v_n = n_ij . (v_j(t) - v_i(s)) > 0."""
+    for q in nb.prange(len(pairs)):
+        sep[q] = False
+        if not touched[q]:
+            continue
+        i, j = pairs[q, 0], pairs[q, 1]
+        a, b = first_particle[i], first_particle[j]
+        s, t, nx, ny, nz, _ = capsule_contact(x, a, a + 1, radius[i], b, b + 1, radius[j])
+        W = (w_p[a] * (1.0 - s) * (1.0 - s) + w_p[a + 1] * s * s + w_p[b] * (1.0 - t) * (1.0 - t)
+             + w_p[b + 1] * t * t)
+        vn = 0.0
+        for k, c in ((0, nx), (1, ny), (2, nz)):
+            vn += c * ((1.0 - t) * v[b, k] + t * v[b + 1, k] - (1.0 - s) * v[a, k] - s * v[a + 1, k])
+        if vn > 0.0 and W > 0.0:
+            sep[q] = True
+            pc[q, 0], pc[q, 1], pc[q, 2] = -vn / W * nx, -vn / W * ny, -vn / W * nz
+            pc[q, 3], pc[q, 4], pc[q, 5] = 0.0, s, t
+
+
+def contact_velocities(v, x, w_p, first_particle, radius, pairs, touched) -> int:
+    """Inelastic capsule contacts (restitution 0, module docstring "Depenetration"): for every
+    pair with ``touched`` (k,) set (phi > 0 in a projection of this substep), the separating
+    relative normal velocity v_n = n_ij . (v_j(t) - v_i(s)) > 0 at the end positions ``x`` is
+    removed by the velocity step -+ w_k g_k (v_n / W) n_ij, Jacobi-averaged per particle like the
+    position step. Changes ``v`` (P, 3) in place; returns the number of pairs changed."""
+    if len(pairs) == 0 or not touched.any():
+        return 0
+    pc, sep = np.empty((len(pairs), 6)), np.empty(len(pairs), dtype=np.bool_)
+    _pair_separation(x, v, w_p, first_particle, radius, pairs, touched, pc, sep)
+    active = np.flatnonzero(sep)
+    indptr, inc = np.zeros(len(x) + 1, dtype=np.int64), np.empty(4 * len(active), dtype=np.int64)
+    _incidences(pairs, first_particle, active, indptr, inc)
+    _gather(v, w_p, np.zeros(len(x)), indptr, inc, pc, 1.0)
+    return len(active)
+
+
+def contact_velocities_reference(v, x, w_p, first_particle, radius, pairs, touched) -> int:
+    """numpy version of :func:`contact_velocities`."""
+    if len(pairs) == 0 or not touched.any():
+        return 0
+    parts, g, w, W, n, _ = _pair_geometry_reference(x, w_p, first_particle, radius, pairs)
+    vn = _dot(_points_reference(v, parts, g), n)
+    sep = touched & (vn > 0.0) & (W > 0.0)
+    _jacobi_reference(v, parts[sep], g[sep], w[sep], (-vn[sep] / W[sep])[:, None] * n[sep])
+    return int(sep.sum())
 
 
 # ----------------------------------------------------------------------------- colliders
@@ -706,8 +850,12 @@ def collider_distance(colliders, c, px, py, pz):
 
 
 @nb.njit(parallel=True, cache=True)
-def _colliders_kernel(x, w_p, particle_radius, colliders, k_col, dt, force, n_active, pen):
-    """Per particle, collider after collider: the XPBD step of phi = particle_radius - sd."""
+def _colliders_kernel(x, x_prev, w_p, particle_radius, colliders, k_col, dt, max_push, mu, eps, force, n_active,
+                      pen, touched):
+    """Per particle, collider after collider: the XPBD step of phi = particle_radius - sd, its
+    correction capped at max_push, or at :func:`_allowed` with the start-of-substep positions
+    ``x_prev`` ((0, 3): none), then friction (mu > 0, needs x_prev) on the tangential
+    displacement since x_prev; ``touched`` (P, k) (or (0, k)) set where phi > 0."""
     dt2 = dt * dt
     for p in nb.prange(len(x)):
         na = 0
@@ -719,13 +867,46 @@ def _colliders_kernel(x, w_p, particle_radius, colliders, k_col, dt, force, n_ac
                 continue
             na += 1
             mp = max(mp, ph)
+            if len(touched) > 0:
+                touched[p, c] = True
             dl = _dlambda(ph, w_p[p], k_col, dt2)
+            cap = max_push
+            if len(x_prev) > 0:
+                sd0 = collider_distance(colliders, c, x_prev[p, 0], x_prev[p, 1], x_prev[p, 2])[0]
+                cap = _allowed(ph, particle_radius[p] - sd0, max_push)
+            if w_p[p] * dl > cap:
+                dl = cap / w_p[p]
             x[p, 0] += w_p[p] * dl * nx
             x[p, 1] += w_p[p] * dl * ny
             x[p, 2] += w_p[p] * dl * nz
             force[p] += dl / dt2
+            if mu > 0.0 and dl > 0.0 and len(x_prev) > 0:
+                fx, fy, fz = _friction_step(x[p, 0] - x_prev[p, 0], x[p, 1] - x_prev[p, 1], x[p, 2] - x_prev[p, 2],
+                                            nx, ny, nz, w_p[p] * dl, mu, eps * dt)
+                x[p, 0] -= fx
+                x[p, 1] -= fy
+                x[p, 2] -= fz
         n_active[p] = na
         pen[p] = mp
+
+
+@nb.njit(parallel=True, cache=True)
+def _collider_separation(x, v, w_p, colliders, touched, changed):
+    """Per particle and touched collider: remove the outward normal velocity at the end position."""
+    for p in nb.prange(len(x)):
+        changed[p] = False
+        if w_p[p] == 0.0:
+            continue
+        for c in range(len(colliders)):
+            if not touched[p, c]:
+                continue
+            _, nx, ny, nz = collider_distance(colliders, c, x[p, 0], x[p, 1], x[p, 2])
+            vn = v[p, 0] * nx + v[p, 1] * ny + v[p, 2] * nz
+            if vn > 0.0:
+                v[p, 0] -= vn * nx
+                v[p, 1] -= vn * ny
+                v[p, 2] -= vn * nz
+                changed[p] = True
 
 
 def _check_colliders(colliders):
@@ -742,18 +923,52 @@ def _check_colliders(colliders):
         raise ValueError("cylinder end points must differ")
 
 
-def project_colliders(x, w_p, particle_radius, colliders, k_col, dt, force) -> tuple[int, float]:
+def project_colliders(x, w_p, particle_radius, colliders, k_col, dt, force, max_push: float = np.inf,
+                      x_prev=None, touched=None, mu: float = 0.0, eps: float = 0.0) -> tuple[int, float]:
     """Keep each particle outside every collider at clearance ``particle_radius`` (P,): per
     particle, one collider after the other, phi = particle_radius - sd and the secant-compliance
     XPBD step along the collider normal with W = w_p (module docstring). Moves ``x`` in place,
-    adds the normal force dlambda / dt^2 to ``force``. Returns (number of particle-collider
-    contacts with phi > 0, largest phi); k_col <= 0 or no colliders: nothing, (0, 0.0)."""
+    adds the normal force dlambda / dt^2 to ``force``. ``max_push`` caps each correction; with the
+    start-of-substep positions ``x_prev`` (P, 3) it caps only the removal of the penetration the
+    particle had there (as in :func:`project_contacts`), and ``mu`` > 0 adds friction, Eq. 7 on
+    the tangential displacement d_t since ``x_prev``: d_t shrinks by min(1, mu w dlambda /
+    max(|d_t|, eps dt)) (module docstring); ``touched`` (P, k) bool, if given, is set where phi > 0 (for
+    :func:`collider_velocities`). Returns (number of particle-collider contacts with phi > 0,
+    largest phi); k_col <= 0 or no colliders: nothing, (0, 0.0)."""
     if k_col <= 0.0 or len(colliders) == 0 or len(x) == 0:
         return 0, 0.0
     _check_colliders(colliders)
     n_active, pen = np.empty(len(x), dtype=np.int64), np.empty(len(x))
-    _colliders_kernel(x, w_p, particle_radius, colliders, float(k_col), float(dt), force, n_active, pen)
+    hit = np.zeros((0, len(colliders)), dtype=np.bool_) if touched is None else touched
+    _colliders_kernel(x, _rows(x_prev), w_p, particle_radius, colliders, float(k_col), float(dt), float(max_push),
+                      float(mu), float(eps), force, n_active, pen, hit)
     return int(n_active.sum()), float(pen.max())
+
+
+def collider_velocities(v, x, w_p, colliders, touched) -> int:
+    """Inelastic collider contacts (restitution 0): every free particle removes the outward
+    normal velocity max(v . n, 0) n of each collider it ``touched`` (P, k) in this substep, the
+    normal taken at its end position ``x``, collider after collider. Changes ``v`` in place;
+    returns the number of particles changed."""
+    if len(colliders) == 0 or len(x) == 0 or not touched.any():
+        return 0
+    changed = np.empty(len(x), dtype=np.bool_)
+    _collider_separation(x, v, w_p, colliders, touched, changed)
+    return int(changed.sum())
+
+
+def collider_velocities_reference(v, x, w_p, colliders, touched) -> int:
+    """numpy version of :func:`collider_velocities`."""
+    if len(colliders) == 0 or len(x) == 0 or not touched.any():
+        return 0
+    changed = np.zeros(len(x), dtype=bool)
+    for c, row in enumerate(colliders):
+        _, n = collider_distance_reference(row, x)
+        vn = _dot(v, n)
+        sel = touched[:, c] & (w_p > 0.0) & (vn > 0.0)
+        v[sel] -= vn[sel, None] * n[sel]
+        changed |= sel
+    return int(changed.sum())
 
 
 def collider_distance_reference(row, p):
@@ -799,25 +1014,37 @@ def collider_distance_reference(row, p):
     return sd, n
 
 
-def project_colliders_reference(x, w_p, particle_radius, colliders, k_col, dt, force) -> tuple[int, float]:
+def project_colliders_reference(x, w_p, particle_radius, colliders, k_col, dt, force, max_push: float = np.inf,
+                                x_prev=None, touched=None, mu: float = 0.0, eps: float = 0.0) -> tuple[int, float]:
     """numpy version of :func:`project_colliders`."""
     if k_col <= 0.0 or len(colliders) == 0 or len(x) == 0:
         return 0, 0.0
     _check_colliders(colliders)
     dt2 = dt * dt
     n_active, pen = 0, 0.0
-    for row in colliders:
+    for c, row in enumerate(colliders):
         sd, n = collider_distance_reference(row, x)
         ph = particle_radius - sd
         act = ph > 0.0
         if not act.any():
             continue
+        if touched is not None:
+            touched[act, c] = True
         n_active += int(act.sum())
         pen = max(pen, float(ph[act].max()))
-        w, ph = w_p[act], ph[act]
+        w, ph, n = w_p[act], ph[act], n[act]
         dl = k_col * ph * ph * dt2 / (1.0 + w * k_col * ph * dt2)
-        x[act] += (w * dl)[:, None] * n[act]
+        cap = np.full(len(dl), float(max_push))
+        if x_prev is not None:
+            prev = particle_radius[act] - collider_distance_reference(row, x_prev[act])[0]
+            cap = np.maximum(ph - np.maximum(prev - max_push, 0.0), 0.0)
+        over = w * dl > cap
+        dl[over] = cap[over] / w[over]
+        x[act] += (w * dl)[:, None] * n
         force[act] += dl / dt2
+        if mu > 0.0 and x_prev is not None:
+            fr = _friction_reference(x[act] - x_prev[act], n, w * dl, mu, eps * dt)
+            x[act] -= np.where((dl > 0.0)[:, None], fr, 0.0)
     return n_active, pen
 
 

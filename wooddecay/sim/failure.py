@@ -117,13 +117,48 @@ def strains(setup, ms) -> tuple[np.ndarray, np.ndarray]:
             pair_strains(setup.edges, setup.fp, ms.x, ms.q, ms.rest_offset, setup.edge_length, setup.edge_rest))
 
 
+CLEAR_EDGES = True
+LOCAL_MAX = False
+GLOBAL_MAX = False
+
+
+@nb.njit(cache=True)
+def _local_max(edges, ratio, n):
+    """keep only edges whose ratio is the max over edges sharing an element"""
+    best = np.zeros(n)
+    for k in range(len(edges)):
+        r = ratio[k]
+        for c in range(2):
+            e = edges[k, c]
+            if r > best[e]:
+                best[e] = r
+    keep = np.zeros(len(edges), dtype=np.bool_)
+    for k in range(len(edges)):
+        keep[k] = ratio[k] > 1.0 and ratio[k] >= best[edges[k, 0]] and ratio[k] >= best[edges[k, 1]]
+    return keep
+
+
 def update(setup, ms) -> int:
     """Flag the constraints whose strain beyond the settled reference (``ms.strain_ref_*``,
     :func:`mechanics.settle`) exceeds their limit; recompute components if anything separated.
     Returns the number of new failures (elements plus edges)."""
     elem, pair = strains(setup, ms)
     new_e = _flag_elements(elem - ms.strain_ref_elem, ms.limit_elem, ms.element_ok)
-    new_k = _flag_edges(setup.edges, pair - ms.strain_ref_edge, ms.limit_edge, ms.element_ok, ms.edge_ok)
+    st = pair - ms.strain_ref_edge
+    lim = ms.limit_edge
+    if LOCAL_MAX:
+        ratio = np.where(ms.edge_ok[:, 0], st[:, 0] / lim[:, 0], 0.0)
+        keep = _local_max(setup.edges, ratio, setup.n_elements)
+        if GLOBAL_MAX:
+            keep = np.zeros_like(keep)
+            if ratio.max() > 1.0:
+                keep[np.argmax(ratio)] = True
+        lim = lim.copy()
+        lim[~keep, 0] = np.inf
+    if CLEAR_EDGES:
+        new_k = _flag_edges(setup.edges, st, lim, ms.element_ok, ms.edge_ok)
+    else:
+        new_k = _flag_edges(setup.edges, st, lim, np.ones_like(ms.element_ok), ms.edge_ok)
     count = int(new_e.sum()) + int(np.count_nonzero(new_k))
     if new_e.any() or (new_k == 2).any():
         ms.component = components(setup, ms)

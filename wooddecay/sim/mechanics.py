@@ -31,6 +31,10 @@ from .quaternion import conj_np, mul, mul_np, rotate
 #: contact candidate pairs are searched with this margin (in r_s) and rebuilt once a particle
 #: has moved half of it (a Verlet list)
 CONTACT_MARGIN = 2.0
+import os
+_DBG_CAPC = os.environ.get('DBG_CAPC', '1') == '1'
+_DBG_VFR = os.environ.get('DBG_VFR', '0') == '1'
+_DBG_VEL = os.environ.get('DBG_VEL', '1') == '1'
 
 
 @dataclass(frozen=True, eq=False)
@@ -351,13 +355,23 @@ def substep(setup: MechSetup, ms: MechState, dt: float, force: np.ndarray) -> in
     lam = _multipliers(setup)
     fn = np.zeros(setup.n_particles)
     refresh_pairs(setup, ms)
+    # contact (docs/decisions.md "Contact"): depenetration capped at v_depenetration beyond the
+    # approach of this substep (ms.v holds the predicted velocities), restitution 0 afterwards
+    push = setup.v_depenetration * dt
+    hit_c = np.zeros((setup.n_particles, len(setup.colliders)), dtype=bool)
+    hit_p = np.zeros(len(ms.pairs), dtype=bool)
     for _ in range(setup.iterations):
         _project(setup, ms, kjoint, kreg, lam, dt)
-        contact.project_colliders(ms.x, ms.w_p, setup.radius_p, setup.colliders, setup.k_col, dt, fn)
-        contact.project_contacts(ms.x, ms.w_p, setup.fp, setup.radius, ms.pairs, setup.k_col, dt, fn,
-                                 setup.v_depenetration * dt)
+        contact.project_colliders(ms.x, ms.w_p, setup.radius_p, setup.colliders, setup.k_col, dt, fn, push if _DBG_CAPC else np.inf, x_old,
+                                  hit_c, setup.mu_f, setup.epsilon)
+        contact.project_contacts(ms.x, ms.w_p, setup.fp, setup.radius, ms.pairs, setup.k_col, dt, fn, push, x_old,
+                                 hit_p, setup.mu_f, setup.epsilon)
     _velocities(ms.x, ms.v, ms.q, ms.omega, x_old, q_old, ms.w_p, ms.w_q, dt)
-    contact.apply_friction(ms.v, fn, ms.mass_p, setup.mu_f, dt, setup.epsilon)
+    if _DBG_VEL:
+        contact.collider_velocities(ms.v, ms.x, ms.w_p, setup.colliders, hit_c)
+        contact.contact_velocities(ms.v, ms.x, ms.w_p, setup.fp, setup.radius, ms.pairs, hit_p)
+    if _DBG_VFR:
+        contact.apply_friction(ms.v, fn, ms.mass_p, setup.mu_f, dt, setup.epsilon)
     ms.t_seconds += dt
     return failure.update(setup, ms)
 

@@ -1,0 +1,124 @@
+"""Per-frame meshlet vertices by blend skinning over the elements that share them (SPEC §5).
+
+Woodstock §8.3: the meshlets follow the simulated rods. A meshlet vertex x_0 is shared in the rest
+partition by the elements whose cells meet there (:class:`~wooddecay.meshlets.sweep.Meshlets`,
+``skin_*``: candidates c with weights w_c and rest local coordinates l_c = R_c0^T (x_0 - c_c0)).
+At a frame, the copy owned by element o moves to
+
+    x = sum_c w_c (c_c + R_c S_c l_c) / sum_c w_c,
+
+over the candidates still connected to o: o itself, its neighbours along the strand, the elements
+joined to o by an intact REG connection (``edge_ok[:, 0]``), and, where no REG edge joins the two,
+those in o's connected component. c_c is the element's current midpoint, R_c its rotation (the
+quaternion q), S_c = diag(1, 1, l_c / l_c0) stretches along the element with its segment (drying
+shrinkage, Eq. 17). Connected meshlets keep sharing their vertices (no gap); across a broken
+connection each side follows only its own elements, so the crack opens cleanly. Fields (H_c, H_l,
+M, ...) per element are interpolated with the same weights: smooth inside a piece, discontinuous
+across a crack.
+
+:func:`skin` is the numba kernel (parallel over vertices, each writes its own rows: race-free and
+deterministic); :func:`skin_reference` is the plain-numpy twin used by the tests.
+"""
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from ..sim.quaternion import rotate, rotate_np
+
+#: link kinds of a (vertex, candidate) pair, besides a REG edge index >= 0
+ALWAYS, BY_COMPONENT = -1, -2
+
+
+def links(model, mesh) -> np.ndarray:
+    """Per skinning pair (``mesh.skin_element``): ALWAYS for the owner and its strand neighbours,
+    the REG edge joining owner and candidate, or BY_COMPONENT where none does."""
+    rows = np.repeat(np.arange(len(mesh.points)), np.diff(mesh.skin_indptr))
+    o = mesh.vertex_element[rows]
+    c = mesh.skin_element
+    n = model.n_elements
+    same = (o == c) | ((model.strand[o] == model.strand[c]) & (np.abs(o - c) == 1))
+    e = model.reg_edges
+    keys = np.minimum(e[:, 0], e[:, 1]) * n + np.maximum(e[:, 0], e[:, 1])
+    order = np.argsort(keys)
+    q = np.minimum(o, c) * n + np.maximum(o, c)
+    pos = np.clip(np.searchsorted(keys[order], q), 0, len(keys) - 1)
+    found = keys[order][pos] == q
+    out = np.where(found, order[pos], BY_COMPONENT)
+    return np.where(same, ALWAYS, out).astype(np.int64)
+
+
+def _accept(link, o, c, component, edge_ok):
+    return (link == ALWAYS) | ((link >= 0) & edge_ok[np.maximum(link, 0), 0]) | (
+        (link == BY_COMPONENT) & (component[c] == component[o]))
+
+
+def skin_reference(model, mesh, link, x, q, component, edge_ok, fields):
+    """Plain-numpy twin of :func:`skin` (same maths, vectorised over skinning pairs)."""
+    V = len(mesh.points)
+    cnt = np.diff(mesh.skin_indptr)
+    rows = np.repeat(np.arange(V), cnt)
+    o, c = mesh.vertex_element[rows], mesh.skin_element
+    ok = _accept(link, o, c, component, edge_ok)
+    fp = model.first_particle[c]
+    a, b = x[fp], x[fp + 1]
+    stretch = np.linalg.norm(b - a, axis=1) / model.rest_length[c]
+    local = mesh.skin_local * np.stack([np.ones_like(stretch), np.ones_like(stretch), stretch], 1)
+    p = 0.5 * (a + b) + rotate_np(q[c], local)
+    w = np.where(ok, mesh.skin_weight, 0.0)
+    wsum = np.bincount(rows, weights=w, minlength=V)
+    pts = np.stack([np.bincount(rows, weights=w * p[:, k], minlength=V) for k in range(3)], 1)
+    f = np.stack([np.bincount(rows, weights=w * fields[c, k], minlength=V)
+                  for k in range(fields.shape[1])], 1)
+    return pts / wsum[:, None], f / wsum[:, None]
+
+
+@nb.njit(parallel=True, cache=True)
+def _skin_kernel(indptr, owner, cand, weight, local, link, first_particle, rest_length, x, q,
+                 component, edge_ok, fields, out_p, out_f):
+    for v in nb.prange(len(owner)):
+        o = owner[v]
+        px = py = pz = 0.0
+        wsum = 0.0
+        nf = fields.shape[1]
+        acc = np.zeros(nf)
+        for k in range(indptr[v], indptr[v + 1]):
+            c = cand[k]
+            lk = link[k]
+            if lk == ALWAYS:
+                ok = True
+            elif lk >= 0:
+                ok = edge_ok[lk, 0]
+            else:
+                ok = component[c] == component[o]
+            if not ok:
+                continue
+            w = weight[k]
+            f = first_particle[c]
+            ax, ay, az = x[f, 0], x[f, 1], x[f, 2]
+            bx, by, bz = x[f + 1, 0], x[f + 1, 1], x[f + 1, 2]
+            s = np.sqrt((bx - ax) ** 2 + (by - ay) ** 2 + (bz - az) ** 2) / rest_length[c]
+            rx, ry, rz = rotate(q[c, 0], q[c, 1], q[c, 2], q[c, 3], local[k, 0], local[k, 1], local[k, 2] * s)
+            px += w * (0.5 * (ax + bx) + rx)
+            py += w * (0.5 * (ay + by) + ry)
+            pz += w * (0.5 * (az + bz) + rz)
+            for j in range(nf):
+                acc[j] += w * fields[c, j]
+            wsum += w
+        out_p[v, 0] = px / wsum
+        out_p[v, 1] = py / wsum
+        out_p[v, 2] = pz / wsum
+        for j in range(nf):
+            out_f[v, j] = acc[j] / wsum
+
+
+def skin(model, mesh, link, x, q, component, edge_ok, fields):
+    """Skinned vertex positions (V, 3) and fields (V, k) of per-element ``fields`` (n, k) for the
+    rod state (particles ``x``, quaternions ``q``, ``component``, ``edge_ok``)."""
+    fields = np.ascontiguousarray(fields, dtype=np.float64).reshape(model.n_elements, -1)
+    out_p = np.empty((len(mesh.points), 3))
+    out_f = np.empty((len(mesh.points), fields.shape[1]))
+    _skin_kernel(mesh.skin_indptr, mesh.vertex_element, mesh.skin_element, mesh.skin_weight,
+                 mesh.skin_local, link, model.first_particle, model.rest_length, x, q, component,
+                 edge_ok, fields, out_p, out_f)
+    return out_p, out_f
