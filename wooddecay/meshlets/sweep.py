@@ -309,7 +309,7 @@ class _BranchSweep:
     def __init__(self, br: _Branch):
         self.br, self.nr = br, br.n_real
         self.vkey = {}  # (triangle, d) -> vertex id
-        self.vtri, self.vd = [], []
+        self.vtri, self.vd, self.vfourth = [], [], []  # sites, d and (at a flip) the fourth site
         self.star = {}  # site -> set of live triangles with at least one real site
         self.tris = set()  # all of them
         self.strips = {}
@@ -324,6 +324,7 @@ class _BranchSweep:
             v = self.vkey[(t, d)] = len(self.vd)
             self.vtri.append(t)
             self.vd.append(d)
+            self.vfourth.append(-1)
         return v
 
     def polygon(self, ids, site, side, d, kind, other, other_side):
@@ -346,10 +347,11 @@ class _BranchSweep:
         if not removed and not added:
             return
         flip = kind == FLIP
-        if flip:
+        if flip:  # the four circumcentres coincide: one vertex, skinned by all four sites
             v = self.V(removed[0], d)
             for t in removed[1:] + added:
                 self.vkey[(t, d)] = v
+            self.vfourth[v] = next(iter({s for t in removed + added for s in t} - set(removed[0])), -1)
         touched = {s for t in removed + added for s in t}
         had = {j for j in touched if self.star.get(j)}
         rem_set = set(removed)
@@ -641,10 +643,11 @@ def _branch_arrays(model, skel, topo, br, kin, bs):
     has = other >= 0
     nbr[has] = bs.element(other[has], oside[has], fd[has])
     # skinning candidates: the elements of the vertex's real sites on both sides of d
-    vs = np.repeat(np.arange(len(d)), 6)
-    ss = np.repeat(T, 2, axis=1).ravel()
-    sides = np.tile([-1, 1], 3 * len(d))
-    real = ss < br.n_real
+    T4 = np.concatenate([T, np.array(bs.vfourth, dtype=np.int64)[:, None]], axis=1)
+    vs = np.repeat(np.arange(len(d)), 8)
+    ss = np.repeat(T4, 2, axis=1).ravel()
+    sides = np.tile([-1, 1], 4 * len(d))
+    real = (ss >= 0) & (ss < br.n_real)
     cand_v, cand_e = vs[real], bs.element(ss[real], sides[real], d[vs[real]])
     return xyz, uv, d, tri, elem, F[:, 6].astype(np.int8), nbr, cand_v, cand_e
 

@@ -1,0 +1,219 @@
+"""Meshlets (SPEC §5, issue "Meshlets"): closed and oriented shells, a partition of the wood,
+bark on the profile, tags, skinning."""
+from __future__ import annotations
+
+import json
+from functools import cache
+
+import manifold3d
+import numpy as np
+import pytest
+import trimesh
+from click.testing import CliRunner
+
+from wooddecay.cli import main
+from wooddecay.meshlets import checks, skin
+from wooddecay.meshlets.sweep import BARK, CAP, SIDE, build_meshlets
+from wooddecay.sim.quaternion import mul_np
+from wooddecay.strands.profiles import signed_distance
+
+from .conftest import SAMPLES, sample
+
+
+@cache
+def meshed(name):
+    scene, model = sample(name)
+    return scene, model, build_meshlets(model, scene)
+
+
+def shell(mesh, e, points=None):
+    """Vertices and faces of meshlet e alone."""
+    P = mesh.points if points is None else points
+    v0, v1 = mesh.vertex_offsets[e], mesh.vertex_offsets[e + 1]
+    f = mesh.faces[mesh.face_offsets[e]:mesh.face_offsets[e + 1]] - v0
+    return P[v0:v1], f
+
+
+@pytest.mark.parametrize("name", ["tiny", "board", "log"])
+def test_every_meshlet_is_closed_oriented_with_positive_volume(name):
+    _, model, mesh = meshed(name)
+    assert mesh.count == model.n_elements
+    closed = checks.closed_oriented(mesh)
+    vol = checks.volumes(mesh)
+    print(f"{name}: {mesh.count} meshlets, {mesh.n_faces} faces, closed {closed.mean():.6f}, "
+          f"min volume {vol.min():.3e}, events {mesh.stats}")
+    assert closed.all()
+    assert (vol > 0).all()
+
+
+@pytest.mark.parametrize("name", ["board", "log"])
+def test_trimesh_and_manifold3d_accept_sampled_meshlets(name):
+    _, _, mesh = meshed(name)
+    rng = np.random.default_rng(0)
+    for e in rng.choice(mesh.count, 60, replace=False):
+        v, f = shell(mesh, e)
+        tm = trimesh.Trimesh(v, f, process=False)
+        assert tm.is_watertight and tm.is_winding_consistent and tm.volume > 0
+        man = manifold3d.Manifold(manifold3d.Mesh(v.astype(np.float32), f.astype(np.uint32)))
+        assert man.status() == manifold3d.Error.NoError
+        assert man.volume() > 0
+
+
+@pytest.mark.parametrize("name", ["board", "log"])
+def test_meshlets_partition_the_wood(name):
+    scene, _, mesh = meshed(name)
+    vol = checks.volumes(mesh)
+    ref = checks.bark_volume(scene)
+    err = vol.sum() / ref - 1.0
+    print(f"{name}: sum of meshlet volumes {vol.sum():.6f} m^3, inside the bark {ref:.6f} m^3, error {err:.2e}")
+    assert abs(err) < 5e-3
+    # overlaps of neighbouring meshlets (manifold3d booleans on a sample of side faces)
+    side = np.flatnonzero((mesh.face_kind == SIDE) & (mesh.face_neighbour >= 0))
+    rng = np.random.default_rng(1)
+    worst = 0.0
+    for f in rng.choice(side, 40, replace=False):
+        a, b = mesh.face_element[f], mesh.face_neighbour[f]
+        ma, mb = (manifold3d.Manifold(manifold3d.Mesh(*(x.astype(t) for x, t in
+                  zip(shell(mesh, e), (np.float32, np.uint32))))) for e in (a, b))
+        worst = max(worst, (ma ^ mb).volume() / min(ma.volume(), mb.volume()))
+    print(f"{name}: largest overlap of 40 neighbouring pairs {worst:.2e} of the smaller volume")
+    assert worst < 5e-3
+
+
+@pytest.mark.parametrize("name", ["board", "log"])
+def test_bark_stays_within_r_s_of_the_profile(name):
+    scene, model, mesh = meshed(name)
+    skel = scene.skeleton
+    bark = np.unique(mesh.faces[mesh.face_kind == BARK])
+    r, phi, s = mesh.wood[bark].T
+    uv = np.stack([r * np.cos(phi), r * np.sin(phi)], axis=1)
+    t = np.clip((s - skel.positions[0, 0]) / (skel.positions[-1, 0] - skel.positions[0, 0]), 0, 1)
+    # node profiles along x (board and log are straight along x): distance to the profile at
+    # the two bracketing nodes, interpolated in d
+    xs = skel.positions[:, 0]
+    k = np.clip(np.searchsorted(xs, s, side="right") - 1, 0, len(xs) - 2)
+    sd = np.empty(len(s))
+    for j in range(len(xs) - 1):
+        rows = k == j
+        tt = (s[rows] - xs[j]) / (xs[j + 1] - xs[j])
+        sd[rows] = ((1 - tt) * signed_distance(skel.profiles[j].polygon, uv[rows])
+                    + tt * signed_distance(skel.profiles[j + 1].polygon, uv[rows]))
+    print(f"{name}: {len(bark)} bark vertices, distance to the profile max {np.abs(sd).max():.2e} m, "
+          f"r_s {scene.strands.r_s} m, t in [{t.min():.2f}, {t.max():.2f}]")
+    assert np.abs(sd).max() < scene.strands.r_s
+
+
+def test_side_faces_are_shared_with_their_tagged_neighbour():
+    _, model, mesh = meshed("log")
+    g = mesh.vertex_shared[mesh.faces]
+    key = {}
+    for f in np.flatnonzero(mesh.face_kind == SIDE):
+        a, b, c = g[f]
+        key[(mesh.face_element[f], a, b, c)] = f
+    rng = np.random.default_rng(2)
+    # strip faces (not horizontal: horizontal side faces are where a neighbour strand ends, facing
+    # its end cap)
+    d = mesh.wood[mesh.faces, 2]
+    side = np.flatnonzero((mesh.face_kind == SIDE) & (mesh.face_neighbour >= 0) & (np.ptp(d, axis=1) > 0))
+    for f in rng.choice(side, 500, replace=False):
+        a, b, c = g[f]
+        n = mesh.face_neighbour[f]
+        twins = [(n, a, c, b), (n, c, b, a), (n, b, a, c)]
+        assert any(t in key for t in twins), f"side face {f} has no reversed twin in element {n}"
+    caps = mesh.face_kind == CAP
+    inner = caps & (mesh.face_neighbour >= 0)
+    assert (model.strand[mesh.face_neighbour[inner]] == model.strand[mesh.face_element[inner]]).all()
+    assert (np.abs(mesh.face_neighbour[inner] - mesh.face_element[inner]) == 1).all()
+
+
+def _rest_state(model):
+    return (model.particles.copy(), model.rest_quat.copy(), np.zeros(model.n_elements, dtype=np.int64),
+            np.ones((model.n_edges, 3), dtype=bool))
+
+
+def _bend(model, x, q, radius):
+    """Bend the straight log (axis x) about the y axis into an arc of the given radius."""
+    def arc(p):
+        th = p[:, 0] / radius
+        rr = radius - (p[:, 2] - 0.06)
+        return np.stack([rr * np.sin(th), p[:, 1], radius - rr * np.cos(th) + 0.06], axis=1)
+    xb = arc(x)
+    th = model.centers[:, 0] / radius
+    rot = np.stack([np.cos(th / 2), np.zeros_like(th), np.sin(th / 2), np.zeros_like(th)], axis=1)
+    return xb, mul_np(rot, q)
+
+
+def test_skinning_kernel_equals_reference_and_rest():
+    _, model, mesh = meshed("tiny")
+    link = skin.links(model, mesh)
+    x, q, comp, ok = _rest_state(model)
+    F = np.stack([model.ring_age, model.W], axis=1)
+    P, Fv = skin.skin(model, mesh, link, x, q, comp, ok, F)
+    assert np.abs(P - mesh.points).max() < 1e-12
+    xb, qb = _bend(model, x, q, 0.5)
+    rng = np.random.default_rng(3)
+    ok[rng.random(model.n_edges) < 0.3, 0] = False
+    comp = rng.integers(0, 3, model.n_elements)
+    P, Fv = skin.skin(model, mesh, link, xb, qb, comp, ok, F)
+    P2, F2 = skin.skin_reference(model, mesh, link, xb, qb, comp, ok, F)
+    assert np.abs(P - P2).max() < 1e-12 and np.abs(Fv - F2).max() < 1e-12
+
+
+def test_bent_intact_log_has_no_gap_and_a_broken_strand_separates_cleanly():
+    scene, model, mesh = meshed("tiny")
+    r_s = scene.strands.r_s
+    link = skin.links(model, mesh)
+    x, q, comp, ok = _rest_state(model)
+    xb, qb = _bend(model, x, q, 0.4)
+    P, _ = skin.skin(model, mesh, link, xb, qb, comp, ok, model.W[:, None])
+    order = np.argsort(mesh.vertex_shared, kind="stable")
+    gid = mesh.vertex_shared[order]
+    start = np.flatnonzero(np.r_[True, gid[1:] != gid[:-1]])
+    spread = np.maximum.reduceat(P[order], start) - np.minimum.reduceat(P[order], start)
+    gap = np.linalg.norm(spread, axis=1).max()
+    moved = np.linalg.norm(P - mesh.points, axis=1).max()
+    print(f"bent tiny log: vertices moved up to {moved:.3f} m, largest mismatch of shared copies {gap:.2e} m")
+    assert moved > 0.01 and gap < 0.01 * r_s
+    # break every connection of one strand and lift it: its meshlets move with it, the others stay
+    k = model.strand[np.argmax(model.wood_coords[:, 0] < 2 * r_s)]
+    mine = model.strand == k
+    broken = mine[model.reg_edges[:, 0]] | mine[model.reg_edges[:, 1]]
+    ok[broken, 0] = False
+    comp = np.where(mine, 1, 0)
+    delta = np.array([0.0, 0.0, 0.05])
+    x2 = x.copy()
+    x2[np.repeat(np.arange(model.n_strands), np.diff(model.particle_offsets)) == k] += delta
+    P, _ = skin.skin(model, mesh, link, x2, q, comp, ok, model.W[:, None])
+    own = mine[mesh.vertex_element]
+    d = P - mesh.points
+    assert np.abs(d[own] - delta).max() < 1e-12
+    assert np.abs(d[~own]).max() < 1e-12
+    assert own.sum() > 0 and np.isin(mesh.vertex_shared[own], mesh.vertex_shared[~own]).any()
+
+
+def test_inspect_meshlets_json_and_usd(tmp_path):
+    out = tmp_path / "m.usda"
+    res = CliRunner().invoke(main, ["inspect", str(SAMPLES / "tiny.toml"), "--json", "--meshlets-usd", str(out)])
+    assert res.exit_code == 0, res.output
+    rep = json.loads(res.output)["meshlets"]
+    assert rep["count"] == sample("tiny")[1].n_elements
+    assert rep["closed_fraction"] == 1.0 and abs(rep["volume_error"]) < 0.01 and rep["seconds"] > 0
+    from pxr import Usd, UsdGeom
+
+    stage = Usd.Stage.Open(str(out))
+    m = UsdGeom.Mesh(stage.GetPrimAtPath("/World/tiny/Meshlets"))
+    assert len(m.GetFaceVertexCountsAttr().Get()) == rep["faces"]
+    assert UsdGeom.PrimvarsAPI(m).GetPrimvar("element").GetInterpolation() == "uniform"
+    bad = CliRunner().invoke(main, ["inspect", str(SAMPLES / "tiny.toml"), "--meshlets-usd", str(tmp_path / "x.obj")])
+    assert bad.exit_code == 2 and "must end in" in bad.output and not (tmp_path / "x.obj").exists()
+
+
+@pytest.mark.slow
+def test_tree_meshlets():
+    scene, model, mesh = meshed("tree")
+    closed = checks.closed_oriented(mesh)
+    vol = checks.volumes(mesh)
+    print(f"tree: {mesh.count} meshlets in {mesh.stats['seconds']:.1f} s, closed {closed.mean():.6f}, "
+          f"positive {np.mean(vol > 0):.6f}, events {mesh.stats}")
+    assert mesh.count == model.n_elements
+    assert closed.all() and (vol > 0).all()
