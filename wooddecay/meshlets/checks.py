@@ -6,13 +6,17 @@
   x0 . (x1 x x2) / 6 (relative to the meshlet's first vertex, for precision).
 * :func:`bark_volume`: the volume inside the bark surface: the skeleton's profiles lofted along
   each edge (polar radius about the centroid interpolated linearly in the polar angle, the
-  star-shaped map the strands follow), integrated along the edge; for the partition check.
+  star-shaped map the strands follow), integrated along the edge; for the partition check. A side
+  branch's first edge is lofted from its own profile (the fork's belongs to the parent branch);
+  where branches meet the lofts still overlap, so on a tree this is a reference, not an exact
+  volume (woodstock §8.1 leaves junction gaps and overlaps; they are reported).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..strands.profiles import polygon_centroid, ray_extent
+from ..strands.topology import build_topology
 
 
 def closed_oriented(mesh) -> np.ndarray:
@@ -50,13 +54,16 @@ def volumes(mesh, points=None) -> np.ndarray:
 def bark_volume(scene, samples_per_edge: int = 64, angles: int = 720) -> float:
     """Volume inside the bark surface of the scene's skeleton (see the module docstring)."""
     skel = scene.skeleton
+    topo = build_topology(skel)
     phi = np.linspace(-np.pi, np.pi, angles, endpoint=False)
     total = 0.0
     for i in range(len(skel.ids)):
         p = skel.parent[i]
         if p < 0:
             continue
-        Ra = ray_extent(skel.profiles[p].polygon, polygon_centroid(skel.profiles[p].polygon), phi)
+        # a side branch starts at the fork with its own profile (the parent's belongs to the trunk)
+        a = p if topo.branch[p] == topo.branch[i] else i
+        Ra = ray_extent(skel.profiles[a].polygon, polygon_centroid(skel.profiles[a].polygon), phi)
         Rb = ray_extent(skel.profiles[i].polygon, polygon_centroid(skel.profiles[i].polygon), phi)
         t = (np.arange(samples_per_edge) + 0.5) / samples_per_edge
         R = (1.0 - t)[:, None] * Ra[None] + t[:, None] * Rb[None]

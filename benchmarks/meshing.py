@@ -1,0 +1,50 @@
+"""Meshlet build and per-frame skinning on a sample scene (issue: meshlets; woodstock §8.1, §8.3).
+
+Prints ``name value unit`` lines:
+    meshing_elements <n>          rod elements (one meshlet each)
+    meshing_seconds <v> s         wall time of ``wd.build_meshlets`` (one run; kinetic sweeps and
+                                  assembly), the target for samples/tree.toml is <= 60 s
+    meshlets_per_s <v> 1/s        meshlets built per second
+    meshing_faces / meshing_vertices   size of the shells
+    meshing_closed_fraction       closed and oriented meshlets (must be 1)
+    skin_seconds <v> s            one frame of skinning positions and six fields (best of 3)
+Usage: python benchmarks/meshing.py [samples/tree.toml]
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+import wooddecay as wd
+from wooddecay.meshlets import checks, skin
+
+from timing import best
+
+
+def main(path: str = "samples/tree.toml") -> None:
+    scene = wd.load_scene(path)
+    model = wd.build_model(scene)
+    t0 = time.perf_counter()
+    mesh = wd.build_meshlets(model, scene)
+    sec = time.perf_counter() - t0
+    closed = checks.closed_oriented(mesh)
+    link = skin.links(model, mesh)
+    fields = np.random.default_rng(0).random((model.n_elements, 6))
+    args = (model.particles, model.rest_quat, np.zeros(model.n_elements, dtype=np.int64),
+            np.ones((model.n_edges, 3), dtype=bool), fields)
+    t_skin = best(lambda: skin.skin(model, mesh, link, *args))
+    print(f"meshing_scene {scene.name}")
+    print(f"meshing_elements {model.n_elements}")
+    print(f"meshing_seconds {sec:.3f} s")
+    print(f"meshlets_per_s {mesh.count / sec:.1f} 1/s")
+    print(f"meshing_faces {mesh.n_faces}")
+    print(f"meshing_vertices {len(mesh.points)}")
+    print(f"meshing_closed_fraction {closed.mean():.6f}")
+    print(f"meshing_events {mesh.stats}")
+    print(f"skin_seconds {t_skin:.4f} s")
+
+
+if __name__ == "__main__":
+    main(*sys.argv[1:])
