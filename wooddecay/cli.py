@@ -197,6 +197,49 @@ def _meshlets_report(model, scene, usd_path: Path | None) -> dict:
     return rep
 
 
+@main.command()
+@click.argument("scene_path", metavar="SCENE", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", "out", type=click.Path(file_okay=False), default=None,
+              help="Output folder (default: bake/<scene name>).")
+@click.option("--days", type=float, default=None, help="Simulated days (overrides time.days).")
+@click.option("--frames", type=int, default=None, help="Output frames (overrides time.frames).")
+@click.option("--quality", type=click.Choice(["draft", "final"]), default="final", show_default=True,
+              help="final: coupled mechanics (cracks, debris); draft: biology only, fast preview.")
+@click.option("--resume", is_flag=True, help="Continue an interrupted bake in the same folder.")
+@click.option("--set", "set_items", multiple=True, metavar="KEY=VALUE", help="Override a scene key (repeatable).")
+def bake(scene_path: str, out: str | None, days: float | None, frames: int | None, quality: str,
+         resume: bool, set_items: tuple[str, ...]) -> None:
+    """Simulate SCENE and write DIR/<name>.usdc, DIR/<name>.glb and DIR/summary.json."""
+    from .bake import bake as run_bake
+
+    extra = tuple(f"time.{k}={v}" for k, v in (("days", days), ("frames", frames)) if v is not None)
+    scene = _load(scene_path, set_items + extra)
+    out_dir = Path(out) if out else Path("bake") / scene.name
+    tty = sys.stderr.isatty()
+    bar = click.progressbar(length=int(scene.time.frames), label=f"baking {scene.name}", file=sys.stderr) if tty else None
+
+    def progress(fr, n):
+        d = fr.diagnostics
+        if bar is not None:
+            bar.update(1)
+        else:
+            mech = d.get("mechanics", {})
+            click.echo(f"frame {fr.index + 1}/{n}  day {fr.t_days:.2f}  mass loss {d['mass_loss']:.4f}"
+                       + (f"  broken {mech['broken_connections']}  pieces {mech['components']}" if mech else ""),
+                       err=True)
+
+    if bar is not None:
+        with bar:
+            summary = run_bake(scene, out_dir, resume=resume, quality=quality, progress=progress)
+    else:
+        summary = run_bake(scene, out_dir, resume=resume, quality=quality, progress=progress)
+    sec = summary["seconds"]
+    for name, o in summary["outputs"].items():
+        click.echo(f"wrote {o['path']}  ({o['bytes'] / 2**20:.1f} MB)")
+    click.echo(f"wrote {out_dir / 'summary.json'}")
+    click.echo("seconds: " + ", ".join(f"{k} {v:.2f}" for k, v in sec.items()))
+
+
 def template_text(template: str, name: str) -> str:
     """The sample scene of ``template`` with its [scene] name replaced by ``name``."""
     text = resources.files("wooddecay").joinpath("samples", f"{template}.toml").read_text("utf-8")
