@@ -240,6 +240,26 @@ def bake(scene_path: str, out: str | None, days: float | None, frames: int | Non
     click.echo("seconds: " + ", ".join(f"{k} {v:.2f}" for k, v in sec.items()))
 
 
+@main.command()
+@click.argument("a", type=click.Path(dir_okay=False))
+@click.argument("b", type=click.Path(dir_okay=False))
+@click.option("--rtol", type=float, default=1e-6, show_default=True, help="Relative tolerance of numbers.")
+@click.option("--atol", type=float, default=1e-9, show_default=True, help="Absolute tolerance of numbers.")
+@click.pass_context
+def diff(ctx: click.Context, a: str, b: str, rtol: float, atol: float) -> None:
+    """Compare two USD stages: exit 0 equal, 1 different (each difference printed with its
+    largest absolute and relative error), 2 error."""
+    from .export.compare import compare_usd
+
+    found = compare_usd(a, b, rtol=rtol, atol=atol)
+    for d in found:
+        click.echo(str(d))
+    if found:
+        click.echo(f"{len(found)} difference(s)")
+        ctx.exit(1)
+    click.echo("equal")
+
+
 def template_text(template: str, name: str) -> str:
     """The sample scene of ``template`` with its [scene] name replaced by ``name``."""
     text = resources.files("wooddecay").joinpath("samples", f"{template}.toml").read_text("utf-8")

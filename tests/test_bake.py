@@ -1,0 +1,136 @@
+"""``wooddecay bake`` and ``wooddecay diff`` end to end (issue "Bake end to end")."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+from click.testing import CliRunner
+
+from wooddecay.cli import main
+
+from .conftest import ROOT, SAMPLES
+
+TINY = str(SAMPLES / "tiny.toml")
+SHORT = ["--days", "2", "--frames", "3"]
+GOLDEN = ROOT / "tests" / "golden" / "tiny.usda"
+#: the bake the golden file holds (regenerate: python scripts/regenerate_golden.py)
+GOLDEN_ARGS = ["--days", "2", "--frames", "2"]
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+@pytest.fixture(scope="module")
+def baked(tmp_path_factory):
+    out = tmp_path_factory.mktemp("bake")
+    res = run("bake", TINY, "-o", out, *SHORT)
+    assert res.exit_code == 0, res.output
+    return out
+
+
+def test_bake_writes_usd_glb_and_summary(baked):
+    names = sorted(p.name for p in baked.iterdir() if not p.name.startswith("."))
+    assert names == ["summary.json", "tiny.glb", "tiny.usdc"]
+    s = json.loads((baked / "summary.json").read_text())
+    assert s["counts"]["frames"] == 3 and s["counts"]["meshlets"] == s["counts"]["elements"]
+    assert set(s["seconds"]) == {"build", "simulation", "meshing", "export"}
+    assert [f["frame"] for f in s["frames"]] == [0, 1, 2]
+    assert all("broken_connections" in f and "mass_loss" in f for f in s["frames"])
+    assert s["outputs"]["tiny.usdc"]["bytes"] == (baked / "tiny.usdc").stat().st_size
+
+
+def test_baked_stage_follows_the_contract(baked):
+    from pxr import Usd, UsdGeom, UsdShade, UsdValidation
+
+    stage = Usd.Stage.Open(str(baked / "tiny.usdc"))
+    ctx = UsdValidation.ValidationContext(UsdValidation.ValidationRegistry().GetOrLoadAllValidators())
+    errors = [e for e in ctx.Validate(stage) if e.GetType() == UsdValidation.ValidationErrorType.Error]
+    assert errors == [], [e.GetMessage() for e in errors]
+    assert UsdGeom.GetStageUpAxis(stage) == "Z" and UsdGeom.GetStageMetersPerUnit(stage) == 1.0
+    assert stage.GetDefaultPrim().GetPath() == "/World"
+    assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (0.0, 2.0)
+    meta = stage.GetRootLayer().customLayerData
+    assert meta["scene"] == "tiny" and len(meta["scene_hash"]) == 64
+    wood = UsdGeom.Mesh(stage.GetPrimAtPath("/World/tiny/Wood"))
+    assert wood.GetPointsAttr().GetTimeSamples() == [0.0, 1.0, 2.0]
+    pv = UsdGeom.PrimvarsAPI(wood)
+    for name in ("H_c", "H_l", "M", "R_w", "R_b", "C"):
+        p = pv.GetPrimvar(name)
+        assert p.GetInterpolation() == "vertex" and p.GetAttr().GetTimeSamples() == [0.0, 1.0, 2.0]
+    for name in ("element", "tissue", "faceKind", "piece"):
+        assert pv.GetPrimvar(name).GetInterpolation() == "uniform"
+    assert pv.GetPrimvar("wood").GetAttr().GetTimeSamples() == []
+    H_c0 = pv.GetPrimvar("H_c").Get(0.0)
+    H_c2 = pv.GetPrimvar("H_c").Get(2.0)
+    assert min(H_c2) < max(H_c0)  # brown rot from the root end lowers H_c
+    mat, _ = UsdShade.MaterialBindingAPI(wood.GetPrim()).ComputeBoundMaterial()
+    assert mat.GetPath() == "/World/tiny/Looks/Wood"
+
+
+def test_diff_same_seed_equal_perturbed_different_malformed_error(baked, tmp_path):
+    other = tmp_path / "again"
+    assert run("bake", TINY, "-o", other, *SHORT).exit_code == 0
+    res = run("diff", baked / "tiny.usdc", other / "tiny.usdc")
+    assert res.exit_code == 0, res.output
+    from pxr import Usd, UsdGeom, Vt
+
+    stage = Usd.Stage.Open(str(other / "tiny.usdc"))
+    h = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/World/tiny/Wood")).GetPrimvar("H_l").GetAttr()
+    vals = list(h.Get(1.0))
+    vals[7] += 0.01
+    h.Set(Vt.FloatArray(vals), 1.0)
+    stage.GetRootLayer().Export(str(tmp_path / "perturbed.usda"))
+    res = run("diff", baked / "tiny.usdc", tmp_path / "perturbed.usda")
+    assert res.exit_code == 1
+    assert "/World/tiny/Wood.primvars:H_l" in res.output and "max abs 0.01" in res.output
+    (tmp_path / "bad.usda").write_text("#usda 1.0\n(\n  nonsense = [\n")
+    res = run("diff", baked / "tiny.usdc", tmp_path / "bad.usda")
+    assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1 and "bad.usda" in res.output
+
+
+@pytest.mark.parametrize("bad", sorted(p.name for p in (ROOT / "tests" / "data" / "bad").glob("*.toml")))
+def test_broken_scenes_exit_2_with_one_line_and_no_output(bad, tmp_path):
+    out = tmp_path / "out"
+    res = run("bake", ROOT / "tests" / "data" / "bad" / bad, "-o", out)
+    assert res.exit_code == 2
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and bad in lines[0]
+    assert not out.exists()
+
+
+@pytest.mark.slow
+def test_killed_bake_keeps_earlier_outputs_and_resume_equals_uninterrupted(tmp_path):
+    args = ["--days", "6", "--frames", "7"]
+    out, ref = tmp_path / "out", tmp_path / "ref"
+    assert run("bake", TINY, "-o", ref, *args).exit_code == 0
+    assert run("bake", TINY, "-o", out, "--days", "1", "--frames", "2").exit_code == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    env = dict(os.environ, NUMBA_NUM_THREADS="1")
+    proc = subprocess.Popen([sys.executable, "-m", "wooddecay.cli", "bake", TINY, "-o", str(out), *args],
+                            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 300
+    while not (out / ".bake" / "frame_00002.npz").exists():
+        assert proc.poll() is None and time.time() < deadline, "bake ended before it could be killed"
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    after = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    assert after == before  # the earlier bake's outputs are untouched, nothing half-written
+    res = run("bake", TINY, "-o", out, *args, "--resume")
+    assert res.exit_code == 0, res.output
+    diff = run("diff", ref / "tiny.usdc", out / "tiny.usdc", "--rtol", "0", "--atol", "0")
+    assert diff.exit_code == 0, diff.output
+
+
+def test_golden_tiny_bake(tmp_path):
+    """The baked tiny scene equals the committed golden stage (``wooddecay diff``)."""
+    res = run("bake", TINY, "-o", tmp_path, *GOLDEN_ARGS)
+    assert res.exit_code == 0, res.output
+    diff = run("diff", GOLDEN, tmp_path / "tiny.usdc", "--rtol", "1e-4", "--atol", "1e-5")
+    assert diff.exit_code == 0, diff.output
