@@ -146,8 +146,9 @@ def test_coupling_equations():
     coupling.apply(cs, setup, ms, state, M12, model.tissue)
     np.testing.assert_allclose(ms.rest_length, setup.rest_length0 * (1 - 0.1 * scene.mechanics.s))  # Eq. 17
     mech = scene.mechanics
-    S_edge = mech.S_R * model.reg_dir_weights[:, 0] + mech.S_T * model.reg_dir_weights[:, 1] + mech.S_L * model.reg_dir_weights[:, 2]
-    np.testing.assert_allclose(ms.rest_offset, setup.offset0 * (1 - 0.1 * mech.S * S_edge))  # Eq. 16
+    dw = model.reg_dir_weights
+    g_edge = mech.S * (mech.S_R * dw[:, 0] + mech.S_T * dw[:, 1]) + mech.s * dw[:, 2]
+    np.testing.assert_allclose(ms.rest_offset, setup.offset0 * (1 - 0.1 * g_edge))  # Eq. 16
     expect_I = np.where(model.reg_theta == 1, 1 - mech.k_c * 0.5, 1.0)  # Eq. 21, H_l = 1
     np.testing.assert_allclose(ms.integrity, expect_I)
     f = ((M_0 - 0.1 - 0.1) / 0.9) ** mech.p_l_stretch  # Eq. 19

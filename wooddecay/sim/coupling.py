@@ -4,7 +4,12 @@ Algorithm 1 lines 12-13; SPEC §4).
 After each biology step, with (x)^+ = max(x, 0):
 
 * Eq. 16 with the direction-dependent gain of SPEC §4 (Table 2, Fig. 6): REG rest offsets
-  dp = dp_0 (1 - (M_0 - M)^+ S S_edge), S_edge = S_R n_r^2 + S_T n_t^2 + S_L n_l^2;
+  dp = dp_0 (1 - (M_0 - M)^+ g_edge), g_edge = S (S_R n_r^2 + S_T n_t^2) + s n_l^2. To first
+  order this is the length change of the offset vector dp_0 n under the shrinkage strains
+  (S S_R, S S_T, s) (M_0 - M)^+ along (e_r, e_t, e_l). The along-grain gain is the strands' own
+  s of Eq. 17, in place of SPEC's S S_L: an offset's along-grain part is measured along the
+  strands, and a different gain there makes uniformly drying wood pull its strands apart
+  lengthwise (docs/decisions.md);
 * Eq. 17: rest lengths l_r = l_r0 (1 - (M_0 - M)^+ s);
 * Eqs. 18-19: strain limits L(M) = L_0 f(M - M_2), f(x) = clip(x / (M_1 - M_2), 0, 1)^p_l, per
   constraint type (stretch, shear on elements; bundle, bend, twist on REG pairs), with M_1, M_2
@@ -34,7 +39,7 @@ LIMIT_TYPES = ("stretch", "shear", "bundle", "bend", "twist")
 class CouplingSetup:
     M_0: np.ndarray  # (n,)
     s: np.ndarray  # (n,) rest-length gain
-    S_pair: np.ndarray  # (m,) S * S_edge (pair means)
+    g_pair: np.ndarray  # (m,) g_edge of Eq. 16 (pair means of the gains)
     M_0_pair: np.ndarray  # (m,)
     L_0: np.ndarray  # (n, 5) per LIMIT_TYPES
     p_l: np.ndarray  # (n, 5)
@@ -51,10 +56,10 @@ def prepare(model, scene) -> CouplingSetup:
         return 0.5 * (v[i] + v[j])
 
     dw = model.reg_dir_weights
-    S_edge = pair("S_R") * dw[:, 0] + pair("S_T") * dw[:, 1] + pair("S_L") * dw[:, 2]
+    g_edge = pair("S") * (pair("S_R") * dw[:, 0] + pair("S_T") * dw[:, 1]) + pair("s") * dw[:, 2]
     return CouplingSetup(
         M_0=per_element(scene, t, "M_0"), s=per_element(scene, t, "s"),
-        S_pair=pair("S") * S_edge, M_0_pair=pair("M_0"),
+        g_pair=g_edge, M_0_pair=pair("M_0"),
         L_0=np.stack([per_element(scene, t, f"L_0_{k}") for k in LIMIT_TYPES], axis=1),
         p_l=np.stack([per_element(scene, t, f"p_l_{k}") for k in LIMIT_TYPES], axis=1),
         k_c=model.reg_theta * pair("k_c"), k_l=pair("k_l"),
@@ -79,7 +84,7 @@ def apply(cs: CouplingSetup, setup: MechSetup, ms: MechState, state, M12: np.nda
     M = state.M
     i, j = setup.edges[:, 0], setup.edges[:, 1]
     M_pair = 0.5 * (M[i] + M[j])
-    ms.rest_offset = setup.offset0 * (1.0 - np.maximum(cs.M_0_pair - M_pair, 0.0) * cs.S_pair)
+    ms.rest_offset = setup.offset0 * (1.0 - np.maximum(cs.M_0_pair - M_pair, 0.0) * cs.g_pair)
     ms.rest_length = setup.rest_length0 * (1.0 - np.maximum(cs.M_0 - M, 0.0) * cs.s)
     f = limit_factor(M[:, None], M12[tissue, 0][:, None], M12[tissue, 1][:, None], cs.p_l)
     L = cs.L_0 * f

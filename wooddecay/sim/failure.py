@@ -6,12 +6,15 @@ Strains are measured after every substep, as the change since the settled refere
 
 * element stretch |p_b - p_a| / l_r - 1 (tension) and shear |gamma - (gamma . d3) d3| with
   gamma = (p_b - p_a) / l_r, against the element's limits. A failed element cuts its strand: its
-  stretch, shear and joint constraints and all its REG connections are switched off (the strand
-  separates there; the element stays with the strand part before it);
+  stretch, shear and joint constraints are switched off (the strand separates there; the element
+  stays with the strand part before it). Its REG connections stay and fail on their own strain,
+  like every other pair ("still permitting other constraints", §5.3): clearing them with the
+  element released all its pre-strained connections at once and mixed every orientation into the
+  crack statistics (docs/decisions.md);
 * pair (REG edge) bundle strain (|c_j - c_i| - dp) / max(dp_0, r_s) (tension), bend and twist angles of the
   relative rotation conj(Omega_0) conj(q_i) q_j (bend: about axes across the grain, twist: about
   d3), against the pair's limits. Bend or twist over its limit clears that flag; bundle over its
-  limit (or a failed end element) clears all three, since a separated pair transmits no moment.
+  limit clears all three, since a separated pair transmits no moment.
 
 Flags never come back. After a substep with a new element or connection failure the connected
 components (strand links of unbroken elements plus intact REG connections) are recomputed;
@@ -83,14 +86,14 @@ def _flag_elements(strain, limit, element_ok):
 
 
 @nb.njit(parallel=True, cache=True)
-def _flag_edges(edges, strain, limit, element_ok, edge_ok):
+def _flag_edges(strain, limit, edge_ok):
     """New failures per edge: 0 none, 1 bend / twist only, 2 connection (all flags)."""
-    m = len(edges)
+    m = len(edge_ok)
     new = np.zeros(m, dtype=np.int8)
     for k in nb.prange(m):
         if not edge_ok[k, 0]:
             continue
-        if (not element_ok[edges[k, 0]]) or (not element_ok[edges[k, 1]]) or strain[k, 0] > limit[k, 0]:
+        if strain[k, 0] > limit[k, 0]:
             edge_ok[k, 0] = edge_ok[k, 1] = edge_ok[k, 2] = False
             new[k] = 2
             continue
@@ -117,48 +120,13 @@ def strains(setup, ms) -> tuple[np.ndarray, np.ndarray]:
             pair_strains(setup.edges, setup.fp, ms.x, ms.q, ms.rest_offset, setup.edge_length, setup.edge_rest))
 
 
-CLEAR_EDGES = True
-LOCAL_MAX = False
-GLOBAL_MAX = False
-
-
-@nb.njit(cache=True)
-def _local_max(edges, ratio, n):
-    """keep only edges whose ratio is the max over edges sharing an element"""
-    best = np.zeros(n)
-    for k in range(len(edges)):
-        r = ratio[k]
-        for c in range(2):
-            e = edges[k, c]
-            if r > best[e]:
-                best[e] = r
-    keep = np.zeros(len(edges), dtype=np.bool_)
-    for k in range(len(edges)):
-        keep[k] = ratio[k] > 1.0 and ratio[k] >= best[edges[k, 0]] and ratio[k] >= best[edges[k, 1]]
-    return keep
-
-
 def update(setup, ms) -> int:
     """Flag the constraints whose strain beyond the settled reference (``ms.strain_ref_*``,
     :func:`mechanics.settle`) exceeds their limit; recompute components if anything separated.
     Returns the number of new failures (elements plus edges)."""
     elem, pair = strains(setup, ms)
     new_e = _flag_elements(elem - ms.strain_ref_elem, ms.limit_elem, ms.element_ok)
-    st = pair - ms.strain_ref_edge
-    lim = ms.limit_edge
-    if LOCAL_MAX:
-        ratio = np.where(ms.edge_ok[:, 0], st[:, 0] / lim[:, 0], 0.0)
-        keep = _local_max(setup.edges, ratio, setup.n_elements)
-        if GLOBAL_MAX:
-            keep = np.zeros_like(keep)
-            if ratio.max() > 1.0:
-                keep[np.argmax(ratio)] = True
-        lim = lim.copy()
-        lim[~keep, 0] = np.inf
-    if CLEAR_EDGES:
-        new_k = _flag_edges(setup.edges, st, lim, ms.element_ok, ms.edge_ok)
-    else:
-        new_k = _flag_edges(setup.edges, st, lim, np.ones_like(ms.element_ok), ms.edge_ok)
+    new_k = _flag_edges(pair - ms.strain_ref_edge, ms.limit_edge, ms.edge_ok)
     count = int(new_e.sum()) + int(np.count_nonzero(new_k))
     if new_e.any() or (new_k == 2).any():
         ms.component = components(setup, ms)
