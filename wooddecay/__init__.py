@@ -8,11 +8,14 @@ Python API (DESIGN "Python API")::
     mesh = wd.build_meshlets(model, scene)
 """
 from .errors import InputError
+from .export.compare import compare_usd
+from .export.gltf import export_gltf
+from .export.usd import export_usd
 from .meshlets.sweep import Meshlets, build_meshlets
 from .model import WoodModel, build_model
 from .scene import Scene, load_scene, parse_scene
 from .sim.driver import Simulation
 
-__all__ = ["InputError", "Meshlets", "Scene", "WoodModel", "build_meshlets", "build_model", "load_scene",
+__all__ = ["InputError", "Meshlets", "compare_usd", "export_gltf", "export_usd", "Scene", "WoodModel", "build_meshlets", "build_model", "load_scene",
            "parse_scene", "Simulation"]
 __version__ = "0.1.0"

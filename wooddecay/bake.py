@@ -122,7 +122,7 @@ def bake(scene, out, resume: bool = False, quality: str = "final", progress=None
 
     t0 = time.perf_counter()
     usd = export_usd(out / f"{scene.name}.usdc", model, mesh, frames, scene, version=__version__)
-    glb = export_gltf(out / f"{scene.name}.glb", model, mesh, frames[-1], scene)
+    glb = export_gltf(out / f"{scene.name}.glb", model, mesh, frames[-1], scene, version=__version__)
     seconds["export"] = time.perf_counter() - t0
 
     summary = {
