@@ -25,18 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
+from .atomic import write_bytes
 from .errors import InputError
 from .sim.driver import Frame, Simulation
 from .sim.state import FIELDS
 
 QUALITIES = ("draft", "final")
 _MECH_KEYS = ("x", "q", "component", "element_ok", "edge_ok", "integrity")
-
-
-def _write_json_atomic(path: Path, data: dict) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(json.dumps(data, indent=2), encoding="utf-8")
-    os.replace(tmp, path)
 
 
 def save_frame(path: Path, frame: Frame) -> None:
@@ -134,5 +129,5 @@ def bake(scene, out, resume: bool = False, quality: str = "final", progress=None
         "outputs": {p.name: {"path": str(p), "bytes": p.stat().st_size} for p in (usd, glb)},
         "frames": [frame_summary(f) for f in frames],
     }
-    _write_json_atomic(out / "summary.json", summary)
+    write_bytes(out / "summary.json", json.dumps(summary, indent=2).encode("utf-8"), "summary")
     return summary

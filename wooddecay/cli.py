@@ -16,6 +16,7 @@ from pathlib import Path
 import click
 import numpy as np
 
+from .atomic import write_bytes
 from .errors import InputError
 
 TEMPLATES = ("board", "log", "tree")
@@ -271,18 +272,6 @@ def template_text(template: str, name: str) -> str:
     return "".join(lines)
 
 
-def write_atomic(path: Path, data: bytes) -> None:
-    """Write to a temporary file in the same folder, then rename: never a half file."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 @main.command()
 @click.argument("name")
 @click.option("--template", type=click.Choice(TEMPLATES), default="log", show_default=True)
@@ -301,7 +290,7 @@ def init(name: str, template: str, force: bool) -> None:
     if existing and not force:
         raise InputError(existing[0], "", "already exists; use --force to overwrite")
     for path, text in files.items():
-        write_atomic(path, text.encode("utf-8"))
+        write_bytes(path, text.encode("utf-8"), "scene")
         click.echo(f"wrote {path}")
 
 

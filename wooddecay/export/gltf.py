@@ -30,13 +30,12 @@ atomically: a hidden temporary file in the target folder, then ``os.replace``.
 from __future__ import annotations
 
 import json
-import os
 import struct
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..atomic import check_output, write_bytes
 from ..meshlets import skin as skin_mod
 from ..sim.state import FIELDS
 from .usd import frame_arrays, rot_color, visible_faces
@@ -53,29 +52,7 @@ Z_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 def check_glb_path(path) -> Path:
     """``path`` as a Path after checking its suffix and that its folder exists."""
-    path = Path(path)
-    if path.suffix.lower() not in SUFFIXES:
-        raise InputError(str(path), "", f"a glTF file must end in {', '.join(SUFFIXES)} (binary glTF)")
-    if not path.parent.is_dir():
-        raise InputError(str(path), "", f"folder {path.parent} does not exist")
-    return path
-
-
-def write_atomic(data: bytes, path: Path) -> Path:
-    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename."""
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
-    try:
-        with open(tmp, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except OSError as err:
-        raise InputError(str(path), "", f"cannot write the glTF file: {err}") from None
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    return path
+    return check_output(path, SUFFIXES, "glTF (binary .glb)")
 
 
 def split_vertices(faces, face_kind, face_neighbour):
@@ -227,4 +204,4 @@ def export_gltf(path, model, mesh, frame, scene, version: str = "", link=None) -
     (.glb); ``link`` (from :func:`wooddecay.meshlets.skin.links`) may be passed to reuse it."""
     path = check_glb_path(path)
     doc, binary = gltf_document(model, mesh, frame, scene, version=version, link=link)
-    return write_atomic(glb_bytes(doc, binary), path)
+    return write_bytes(path, glb_bytes(doc, binary), "glTF")

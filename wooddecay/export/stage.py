@@ -1,16 +1,14 @@
 """USD stage plumbing shared by the exporters: the stage conventions of DESIGN "USD stage" (Z up,
 metres, default prim ``/World`` with one Xform per scene) and atomic writes.
 
-A stage is exported to a hidden temporary file in the target folder that keeps the real
-extension last (USD picks the format from the suffix), then renamed over the target, so a crash
-never leaves a half file. A failed write raises :class:`~wooddecay.errors.InputError`.
+Stages are written with :mod:`wooddecay.atomic` (temporary file and rename; a failed write raises
+:class:`~wooddecay.errors.InputError`).
 """
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
-from ..errors import InputError
+from ..atomic import check_output, replace_with
 
 SUFFIXES = (".usda", ".usdc", ".usd")
 
@@ -24,12 +22,7 @@ def prim_name(name: str) -> str:
 
 def check_usd_path(path, what: str) -> Path:
     """``path`` as a Path after checking its suffix and that its folder exists."""
-    path = Path(path)
-    if path.suffix.lower() not in SUFFIXES:
-        raise InputError(str(path), "", f"a {what} USD file must end in {', '.join(SUFFIXES)}")
-    if not path.parent.is_dir():
-        raise InputError(str(path), "", f"folder {path.parent} does not exist")
-    return path
+    return check_output(path, SUFFIXES, f"{what} USD")
 
 
 def new_stage(scene):
@@ -50,14 +43,11 @@ def export_atomic(stage, path: Path, what: str) -> Path:
     """Write ``stage`` to ``path`` through a temporary file and a rename."""
     from pxr import Tf
 
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
-    try:
-        if not stage.GetRootLayer().Export(str(tmp)):
+    def write(tmp: Path) -> None:
+        try:
+            ok = stage.GetRootLayer().Export(str(tmp))
+        except Tf.ErrorException as err:
+            raise OSError(str(err).strip().splitlines()[-1]) from None
+        if not ok:
             raise OSError(f"USD could not write {tmp}")
-        os.replace(tmp, path)
-    except (OSError, Tf.ErrorException) as err:
-        raise InputError(str(path), "", f"cannot write the {what} USD file: {err}") from None
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    return path
+    return replace_with(path, write, f"{what} USD")

@@ -1,0 +1,52 @@
+"""Atomic file output: never a half file (DESIGN "CLI": outputs are written to a temporary name
+and renamed).
+
+:func:`write_bytes` writes to a hidden temporary file in the target's folder that keeps the real
+suffix last (USD picks its format from it), flushes it to disk and renames it over the target;
+:func:`replace_with` runs any writer on such a temporary path. A failure raises
+:class:`~wooddecay.errors.InputError` naming the file, and removes the temporary file.
+:func:`check_output` validates an output path before any work is done.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from .errors import InputError
+
+
+def check_output(path, suffixes: tuple[str, ...], what: str) -> Path:
+    """``path`` as a Path after checking its suffix and that its folder exists."""
+    path = Path(path)
+    if path.suffix.lower() not in suffixes:
+        raise InputError(str(path), "", f"a {what} file must end in {', '.join(suffixes)}")
+    if not path.parent.is_dir():
+        raise InputError(str(path), "", f"folder {path.parent} does not exist")
+    return path
+
+
+def replace_with(path, write, what: str) -> Path:
+    """Call ``write(tmp)`` for a temporary path next to ``path``, then rename it over ``path``."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except Exception as err:
+        if isinstance(err, InputError):
+            raise
+        raise InputError(str(path), "", f"cannot write the {what} file: {err}") from None
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return path
+
+
+def write_bytes(path, data: bytes, what: str = "output") -> Path:
+    """Write ``data`` to ``path`` atomically (flushed to disk before the rename)."""
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+    return replace_with(path, write, what)
