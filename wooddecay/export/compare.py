@@ -32,7 +32,8 @@ class Difference:
     max_rel: float = 0.0
 
     def __str__(self) -> str:
-        err = f"  (max abs {self.max_abs:.3g}, max rel {self.max_rel:.3g})" if self.what == "value" else ""
+        numeric = self.what == "value" and (self.max_abs or self.max_rel)
+        err = f"  (max abs {self.max_abs:.3g}, max rel {self.max_rel:.3g})" if numeric else ""
         return f"{self.what:<13} {self.path or '<layer>'}: {self.detail}{err}"
 
 
