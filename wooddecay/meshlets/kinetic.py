@@ -35,6 +35,26 @@ X and V (:func:`incircle_coefficients`). With inf among the four points f is an 
 (a quadratic): z = inf: f = -orient(p, q, r); r = inf: f = -orient(q, p, z); p = inf:
 f = orient(z, q, r); q = inf: f = orient(r, p, z), where orient(a, b, c) = cross(x_b - x_a, x_c - x_a).
 
+Flatness. Every real triangle (a, b, c) also carries the certificate orient(a, b, c) >= -tau m (a
+quadratic, m its permanent bound; violated once the triangle is inverted beyond rounding), charged
+to its longest edge at that time, i.e. the edge p -> q opposite the middle vertex r of the flattening
+triangle; the event flips p-q, which moves r across it. In exact arithmetic this certificate never
+fires first: when r reaches p-q the circumcircle of (p, q, r) has become the half-plane beyond p-q,
+which holds the apex z across it, so the in-circle certificate of p-q is positive at the collinearity
+(flipping p-q there is the exact Delaunay move, and r then lies inside (q, p, z), so both new
+triangles are positive). With the hysteresis it is needed: that positive value is proportional to
+z's distance to the line through p, q, r (times the sites' distances along it), and for four
+nearly collinear sites (e.g. two pairs of nearly coincident sites: a strand on the profile and its
+ghost mirror, passing another such pair) it can stay below tau m, the bound being inflated besides
+by the expansion about a section where the four are far apart. The in-circle certificate then
+fires only after the triangle has turned over, the structure is folded in between, and the flip
+done then leaves an inverted triangle. The event time of an edge is therefore the earlier of its
+in-circle (or hull) certificate and the flatness of those of its two real triangles whose longest
+edge it is at their flatness time (all three edges of a triangle evaluate the same polynomial, from
+its canonical rotation, and agree on the longest edge). A flatness flip lowers the lifted surface
+too (the exact in-circle value is positive), and the new edge starts near -f, within the band, so
+the no-cycling argument below still holds.
+
 Roots. The event time of a certificate is the first s >= s_0 (the current time) with
 g(s) = f(s) - tau m(s) > 0 in the piece. It is found without companion matrices: the
 sign-changing roots of g', g'', ... split [s_0, 1] into intervals on which g is monotone
@@ -75,10 +95,14 @@ Degeneracies (documented treatment):
   (positions there computed directly) and all certificates are re-expanded, so the meeting point
   becomes a segment end. (Nearest neighbours are Delaunay neighbours, so every close pass is seen
   before it happens.) Virtual sections are not events: the triangulation just carries over.
-* Repair (last resort). If a flip would still duplicate an edge, it is not done: the sites are
-  re-triangulated from scratch at that time by incremental insertion (an event of kind ``repair``
-  with a full snapshot; ``counts['repairs']``), as when a triangle is found inverted at a section;
-  the triangulation may have been folded between the unresolved event and the repair.
+* Repair (last resort). If a flip would still duplicate an edge or create a triangle that is
+  inverted beyond rounding (both new triangles are checked before every flip; with positive old
+  triangles they are positive: a resolved in-circle violation implies a convex quad, and a
+  flatness flip moves the middle vertex into the neighbouring triangle), the structure is folded
+  already and the flip is not done: the sites are re-triangulated from scratch at that time by
+  incremental insertion (an event of kind ``repair`` with a full snapshot; ``counts['repairs']``),
+  as when a triangle is found inverted at a section; the triangulation may have been folded
+  between the unresolved event and the repair.
 * Three alive sites: the triangulation is one triangle; when the three become collinear all six
   certificates fire together and the triangle is re-oriented (counted as ``hull``). Fewer than three
   alive sites (or all collinear at a section, possible only with eta = 0): no triangles until a later
@@ -92,9 +116,10 @@ restores the Delaunay property by Lawson flips; deletion removes the site's star
 ear clipping (the hull pocket of a hull site likewise, keeping the new hull convex) and restores the
 Delaunay property by Lawson flips. The first build at a section inserts the sites in Morton order.
 
-Cost: O(1) flips and five certificate recomputations (numba) per event with a binary heap of event
-times (stale entries are skipped by version numbers); O(n) per section (all certificates are
-recomputed because the velocities change there, and the triangulation is snapshotted).
+Cost: O(1) flips and five edge certificate recomputations (numba; each with the flatness of the
+edge's two triangles) per event with a binary heap of event times (stale entries are skipped by
+version numbers); O(n) per section (all certificates are recomputed because the velocities change
+there, and the triangulation is snapshotted).
 """
 from __future__ import annotations
 
@@ -421,16 +446,95 @@ def _certificate(X, V, p, q, r, s, inf, tau, g):
 
 
 @nb.njit(cache=True)
-def _cert_time(X0, X1, V, p, q, r, s, inf, tau, half, val):
-    """First time at or after (half, val) at which the edge p -> q stops being locally Delaunay.
+def _flatness(X, V, a, b, c, tau):
+    """Flatness certificate of the real ccw triangle (a, b, c): the coefficients (g0, g1, g2) of
+    g = -orient(a, b, c) - tau * bound, > 0 once the triangle is inverted beyond rounding. As
+    :func:`_orient_best` (relative to the vertex with the smallest bound), from the triangle's
+    canonical rotation, so each of its three edges gets the same polynomial; no allocation."""
+    if b < a and b < c:
+        a, b, c = b, c, a
+    elif c < a and c < b:
+        a, b, c = c, a, b
+    best = np.inf
+    g0 = g1 = g2 = 0.0
+    for k in range(3):
+        if k == 0:
+            o, i, j = a, b, c
+        elif k == 1:
+            o, i, j = b, c, a
+        else:
+            o, i, j = c, a, b
+        ux0 = X[i, 0] - X[o, 0]
+        ux1 = V[i, 0] - V[o, 0]
+        uy0 = X[i, 1] - X[o, 1]
+        uy1 = V[i, 1] - V[o, 1]
+        vx0 = X[j, 0] - X[o, 0]
+        vx1 = V[j, 0] - V[o, 0]
+        vy0 = X[j, 1] - X[o, 1]
+        vy1 = V[j, 1] - V[o, 1]
+        m0 = abs(ux0 * vy0) + abs(uy0 * vx0)
+        m1 = abs(ux0 * vy1) + abs(ux1 * vy0) + abs(uy0 * vx1) + abs(uy1 * vx0)
+        m2 = abs(ux1 * vy1) + abs(uy1 * vx1)
+        score = m0 + 1e-3 * (0.5 * m0 + 0.125 * m1 + m2 * (0.125 / 3.0))     # _origin_score
+        if score < best:
+            best = score
+            g0 = -(ux0 * vy0 - uy0 * vx0) - tau * m0
+            g1 = -(ux0 * vy1 + ux1 * vy0 - uy0 * vx1 - uy1 * vx0) - tau * m1
+            g2 = -(ux1 * vy1 - uy1 * vx1) - tau * m2
+    return g0, g1, g2
 
-    Times are keys (half, val): half 0: t = val in [0, 1/2], from the expansion about the piece's
-    start (X0, powers of t); half 1: u = 1 - t = -val in [0, 1/2], from the expansion about its end
-    (X1, powers of u); (2, 0.0): never. Near a section, where strands often meet, values thus come
-    from that section's own positions (not from cancelling O(1) coefficients), and u keeps its full
-    relative precision (1 - u would round it to 1e-16, more than such events are apart).
-    Keys sort in time order as tuples.
-    """
+
+@nb.njit(cache=True)
+def _qbisect(g0, g1, g2, neg, pos):
+    """:func:`_bisect` for the quadratic g0 + g1 t + g2 t^2."""
+    while True:
+        mid = 0.5 * (neg + pos)
+        if mid == neg or mid == pos:
+            return pos
+        if (g2 * mid + g1) * mid + g0 > 0.0:
+            pos = mid
+        else:
+            neg = mid
+
+
+@nb.njit(cache=True)
+def _quad_first_positive(g0, g1, g2, t0, t1):
+    """:func:`_first_positive` for a quadratic (monotone pieces split at its vertex)."""
+    if (g2 * t0 + g1) * t0 + g0 > 0.0:
+        return t0
+    a = t0
+    if g2 != 0.0:
+        tc = -g1 / (2.0 * g2)
+        if t0 < tc < t1:
+            if (g2 * tc + g1) * tc + g0 > 0.0:
+                return _qbisect(g0, g1, g2, t0, tc)
+            a = tc
+    if (g2 * t1 + g1) * t1 + g0 > 0.0:
+        return _qbisect(g0, g1, g2, a, t1)
+    return np.inf
+
+
+@nb.njit(cache=True)
+def _quad_last_positive(g0, g1, g2, lo, hi):
+    """:func:`_last_positive` for a quadratic."""
+    if (g2 * hi + g1) * hi + g0 > 0.0:
+        return hi
+    b = hi
+    if g2 != 0.0:
+        uc = -g1 / (2.0 * g2)
+        if lo < uc < hi:
+            if (g2 * uc + g1) * uc + g0 > 0.0:
+                return _qbisect(g0, g1, g2, hi, uc)
+            b = uc
+    if (g2 * lo + g1) * lo + g0 > 0.0:
+        return _qbisect(g0, g1, g2, b, lo)
+    return -np.inf
+
+
+@nb.njit(cache=True)
+def _edge_key(X0, X1, V, NV, p, q, r, s, inf, tau, half, val):
+    """First time key at or after (half, val) at which the edge certificate of p -> q is violated
+    (see :func:`_cert_time`; (2, 0.0): never)."""
     g = np.empty(5)
     umax = 0.5
     if half == 0:
@@ -440,7 +544,7 @@ def _cert_time(X0, X1, V, p, q, r, s, inf, tau, half, val):
             return 0, te
     else:
         umax = -val
-    deg = _certificate(X1, -V, p, q, r, s, inf, tau, g)
+    deg = _certificate(X1, NV, p, q, r, s, inf, tau, g)
     u = _last_positive(g, deg, 0.0, umax)
     if u >= 0.0:
         return 1, -u
@@ -448,9 +552,106 @@ def _cert_time(X0, X1, V, p, q, r, s, inf, tau, half, val):
 
 
 @nb.njit(cache=True)
+def _flat_key(X0, X1, V, NV, a, b, c, tau, half, val, hmax, vmax):
+    """First time key in [(half, val), (hmax, vmax)] at which the triangle (a, b, c) is inverted
+    beyond rounding ((2, 0.0): none)."""
+    umax = 0.5
+    if half == 0:
+        g0, g1, g2 = _flatness(X0, V, a, b, c, tau)
+        t1 = vmax if hmax == 0 else 0.5
+        te = _quad_first_positive(g0, g1, g2, val, t1)
+        if te <= t1:
+            return 0, te
+        if hmax == 0:
+            return 2, 0.0
+    else:
+        umax = -val
+    ulo = -vmax if hmax == 1 else 0.0
+    g0, g1, g2 = _flatness(X1, NV, a, b, c, tau)
+    u = _quad_last_positive(g0, g1, g2, ulo, umax)
+    if u >= ulo:
+        return 1, -u
+    return 2, 0.0
+
+
+@nb.njit(cache=True)
+def _is_longest(X0, X1, V, a, b, c, p, q, half, val):
+    """Whether p-q is the longest edge of the triangle (a, b, c) at the key (half, val) (exactly one
+    edge is: ties go to the first in the canonical rotation, so all three edges agree)."""
+    if b < a and b < c:
+        a, b, c = b, c, a
+    elif c < a and c < b:
+        a, b, c = c, a, b
+    X = X0 if half == 0 else X1
+    t = val                                     # half 1: x = X1 - u V with u = -val
+    best = -1.0
+    u0, v0 = a, b
+    for k in range(3):
+        i, j = (a, b) if k == 0 else ((b, c) if k == 1 else (c, a))
+        dx = (X[j, 0] + t * V[j, 0]) - (X[i, 0] + t * V[i, 0])
+        dy = (X[j, 1] + t * V[j, 1]) - (X[i, 1] + t * V[i, 1])
+        l2 = dx * dx + dy * dy
+        if l2 > best:
+            best = l2
+            u0, v0 = i, j
+    return (u0 == p and v0 == q) or (u0 == q and v0 == p)
+
+
+@nb.njit(cache=True)
+def _cert_time(X0, X1, V, NV, p, q, r, s, inf, tau, half, val):
+    """First time at or after (half, val) at which the edge p -> q must flip.
+
+    That is the earlier of (a) its in-circle (or hull) certificate failing and (b) one of its two
+    real triangles (p, q, r) or (q, p, s) turning over (inverted beyond rounding) while p-q is that
+    triangle's longest edge (the flip then moves the middle vertex across p-q; module docstring).
+
+    Times are keys (half, val): half 0: t = val in [0, 1/2], from the expansion about the piece's
+    start (X0, powers of t); half 1: u = 1 - t = -val in [0, 1/2], from the expansion about its end
+    (X1, powers of u); (2, 0.0): never. Near a section, where strands often meet, values thus come
+    from that section's own positions (not from cancelling O(1) coefficients), and u keeps its full
+    relative precision (1 - u would round it to 1e-16, more than such events are apart).
+    Keys sort in time order as tuples.
+    """
+    h, v = _edge_key(X0, X1, V, NV, p, q, r, s, inf, tau, half, val)
+    if p == inf or q == inf:
+        return h, v
+    if r != inf:
+        h2, v2 = _flat_key(X0, X1, V, NV, p, q, r, tau, half, val, h, v)
+        if h2 < 2 and (h2 < h or (h2 == h and v2 < v)) and _is_longest(X0, X1, V, p, q, r, p, q, h2, v2):
+            h, v = h2, v2
+    if s != inf:
+        h2, v2 = _flat_key(X0, X1, V, NV, q, p, s, tau, half, val, h, v)
+        if h2 < 2 and (h2 < h or (h2 == h and v2 < v)) and _is_longest(X0, X1, V, q, p, s, p, q, h2, v2):
+            h, v = h2, v2
+    return h, v
+
+
+@nb.njit(cache=True)
+def _flip_inverts(X0, X1, V, NV, p, q, r, s, inf, tau, half, val):
+    """Whether flipping p -> q (left apex r, right apex s) at (half, val) would create a real
+    triangle (r, p, s) or (s, q, r) that is inverted beyond rounding (a folded quad)."""
+    if r == inf or s == inf:
+        return False
+    for k in range(2):
+        a, b, c = (r, p, s) if k == 0 else (s, q, r)
+        if a == inf or b == inf or c == inf:
+            continue
+        if half == 0:
+            g0, g1, g2 = _flatness(X0, V, a, b, c, tau)
+            t = val
+        else:
+            g0, g1, g2 = _flatness(X1, NV, a, b, c, tau)
+            t = -val
+        if (g2 * t + g1) * t + g0 > 0.0:
+            return True
+    return False
+
+
+@nb.njit(cache=True)
 def _cert_times(X0, X1, V, Q, inf, tau, halves, vals):
+    NV = -V
     for e in range(Q.shape[0]):
-        h, v = _cert_time(X0, X1, V, Q[e, 0], Q[e, 1], Q[e, 2], Q[e, 3], inf, tau, 0, 0.0)
+        h, v = _cert_time(X0, X1, V, NV, Q[e, 0], Q[e, 1], Q[e, 2], Q[e, 3], inf, tau, 0, 0.0)
         halves[e] = h
         vals[e] = v
 
@@ -711,6 +912,7 @@ class _KineticDelaunay:
         self.journal = []
         self.X = np.zeros((n, 2))
         self.V = np.zeros((n, 2))
+        self.NV = self.V
         self.X1 = self.X
         self.px = [0.0] * n
         self.py = [0.0] * n
@@ -724,6 +926,7 @@ class _KineticDelaunay:
         self.X = np.ascontiguousarray(X, dtype=float)
         self.X1 = np.ascontiguousarray(X1, dtype=float)
         self.V = self.X1 - self.X
+        self.NV = -self.V
         self.px = self.X[:, 0].tolist()
         self.py = self.X[:, 1].tolist()
 
@@ -1061,7 +1264,7 @@ class _KineticDelaunay:
         key = a * N + b
         r = ap[key]
         s = ap[b * N + a]
-        h, v = _cert_time(self.X, self.X1, self.V, a, b, r, s, INF, self.tau, half, val)
+        h, v = _cert_time(self.X, self.X1, self.V, self.NV, a, b, r, s, INF, self.tau, half, val)
         self.version += 1
         self.cert_ver[key] = self.version
         if h < 2:
@@ -1184,6 +1387,11 @@ class _KineticDelaunay:
                 r = ap[u * N + v]
                 s = ap[v * N + u]
                 try:
+                    if _flip_inverts(self.X, self.X1, self.V, self.NV, u, v, r, s, INF, self.tau, half,
+                                     val):
+                        raise _Degenerate(
+                            f"kinetic Delaunay: flip of edge {u}-{v} would leave an inverted triangle "
+                            "(the triangulation is folded there)")
                     self._flip(u, v, r, s)
                 except _Degenerate as exc:
                     exc.time = (half, val)
