@@ -43,7 +43,7 @@ per vertex, and the rest skinning data used by :mod:`wooddecay.meshlets.skin`.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
@@ -701,11 +701,54 @@ def build_meshlets(model, scene) -> Meshlets:
     ring = np.bincount(vrow, weights=skin_weight * model.ring_age[skin_element], minlength=len(points))
     uvv = guv[v_gid]
     wood = np.stack([np.hypot(uvv[:, 0], uvv[:, 1]), np.arctan2(uvv[:, 1], uvv[:, 0]), gd[v_gid]], axis=1)
-    counts["seconds"] = time.perf_counter() - t0
-    return Meshlets(
+    mesh = Meshlets(
         points=points, faces=faces.astype(np.int64), face_element=elem, face_kind=kind,
-        face_neighbour=nbr, vertex_element=v_elem, vertex_shared=v_gid, vertex_offsets=np.searchsorted(v_elem, np.arange(n + 1)),
+        face_neighbour=nbr, vertex_element=v_elem, vertex_shared=v_gid,
+        vertex_offsets=np.searchsorted(v_elem, np.arange(n + 1)),
         face_offsets=np.searchsorted(elem, np.arange(n + 1)), wood=wood, ring=ring,
         skin_indptr=skin_indptr, skin_element=skin_element, skin_weight=skin_weight,
         skin_local=skin_local, stats=counts,
     )
+    mesh = hull_repair(mesh)
+    counts["seconds"] = time.perf_counter() - t0
+    return mesh
+
+
+def hull_repair(mesh: Meshlets) -> Meshlets:
+    """Last resort for a meshlet the sweep left open (``checks.closed_oriented`` false; 3 of the
+    tree's 54,675 at the time of writing, where three sites pass through collinearity between
+    two element boundaries): its faces are replaced by the convex hull of its vertices, tagged
+    side faces with no neighbour (so they are always exported). The hull is closed and
+    outward-oriented; it may overlap its neighbours slightly. Counted in ``stats['hull_repairs']``."""
+    from .checks import closed_oriented
+
+    bad = np.flatnonzero(~closed_oriented(mesh))
+    mesh.stats["hull_repairs"] = int(len(bad))
+    if len(bad) == 0:
+        return mesh
+    fo, vo = mesh.face_offsets, mesh.vertex_offsets
+    blocks, last = [], 0
+    for e in bad:
+        blocks.append(("keep", last, fo[e]))
+        P = mesh.points[vo[e]:vo[e + 1]]
+        tri = ConvexHull(P).simplices
+        c = P.mean(axis=0)
+        nrm = np.cross(P[tri[:, 1]] - P[tri[:, 0]], P[tri[:, 2]] - P[tri[:, 0]])
+        flip = ((P[tri[:, 0]] - c) * nrm).sum(1) < 0
+        tri[flip] = tri[flip][:, ::-1]
+        blocks.append(("new", e, tri + vo[e]))
+        last = fo[e + 1]
+    blocks.append(("keep", last, len(mesh.faces)))
+    parts = {k: [] for k in ("faces", "face_element", "face_kind", "face_neighbour")}
+    for kind, a, b in blocks:
+        if kind == "keep":
+            for k in parts:
+                parts[k].append(getattr(mesh, k)[a:b])
+        else:
+            parts["faces"].append(b)
+            parts["face_element"].append(np.full(len(b), a, dtype=mesh.face_element.dtype))
+            parts["face_kind"].append(np.full(len(b), SIDE, dtype=mesh.face_kind.dtype))
+            parts["face_neighbour"].append(np.full(len(b), -1, dtype=mesh.face_neighbour.dtype))
+    new = {k: np.concatenate(v) for k, v in parts.items()}
+    new["face_offsets"] = np.searchsorted(new["face_element"], np.arange(mesh.count + 1))
+    return replace(mesh, **new)
