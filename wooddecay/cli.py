@@ -261,6 +261,27 @@ def diff(ctx: click.Context, a: str, b: str, rtol: float, atol: float) -> None:
     click.echo("equal")
 
 
+# --- wooddecay addon: the Blender extension (logic in wooddecay/addon.py) ---------------------
+@main.group()
+def addon() -> None:
+    """The Blender add-on (blender_addon/): build its installable extension zip."""
+
+
+@addon.command("build")
+@click.option("-o", "--output", "out", type=click.Path(file_okay=False), default="dist", show_default=True,
+              help="Folder for the zip (created if missing).")
+def addon_build(out: str) -> None:
+    """Make <id>-<version>.zip with Blender's own extension builder (from the bpy wheel)."""
+    from .addon import AddonError, build
+
+    try:
+        path = build(out)
+    except AddonError as err:
+        raise click.ClickException(str(err)) from None
+    click.echo(f"wrote {path}")
+# --- end of wooddecay addon -------------------------------------------------------------------
+
+
 def template_text(template: str, name: str) -> str:
     """The sample scene of ``template`` with its [scene] name replaced by ``name``."""
     text = resources.files("wooddecay").joinpath("samples", f"{template}.toml").read_text("utf-8")

@@ -1,0 +1,110 @@
+"""Blender side of the importer: a wooddecay bake through Blender's own USD or glTF importer,
+then the attributes renamed and the Wood Decay material assigned (DESIGN "Blender add-on").
+
+USD (``bpy.ops.wm.usd_import``): the mesh keeps the primvar names (H_c, H_l, M, R_w, R_b, C,
+wood, ring; faceKind, element, tissue, piece per face); points and the time-sampled primvars
+play back through the MeshSequenceCache modifier Blender adds. glTF (``bpy.ops.import_scene.gltf``):
+one object per piece with ``_H_c``, ``_H_l``, ``_M``, ``_WOOD``, ``_RING``, ``_FACE_KIND``,
+renamed here to the USD names (:data:`.importer.RENAMES`) so one material serves both.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import bpy
+
+from . import importer, material
+from .shader import DATA
+
+
+def _new(collection, before):
+    return [x for x in collection if x not in before]
+
+
+def import_usd(filepath: str, own_material: bool) -> None:
+    """Run Blender's USD importer (the scene's frame range set from the stage; its preview
+    material skipped when the Wood Decay material replaces it)."""
+    result = bpy.ops.wm.usd_import(filepath=filepath, set_frame_range=True, import_materials=not own_material)
+    if "FINISHED" not in result:
+        raise RuntimeError(f"Blender's USD importer could not read {filepath}")
+
+
+def import_gltf(filepath: str) -> dict[str, list[str]]:
+    """Run Blender's glTF importer; returns the vector attributes split by the importer
+    workaround (:func:`.importer.prepare_glb`) so they can be joined back."""
+    split = None
+    with tempfile.TemporaryDirectory(prefix="wooddecay_") as tmp:
+        fixed = os.path.join(tmp, Path(filepath).name)
+        try:
+            split = importer.prepare_glb(filepath, fixed)
+        except (OSError, ValueError, KeyError):
+            split = None  # let Blender's importer report what is wrong with the file
+        result = bpy.ops.import_scene.gltf(filepath=fixed if split else filepath)
+    if "FINISHED" not in result:
+        raise RuntimeError(f"Blender's glTF importer could not read {filepath}")
+    return split or {}
+
+
+def join_vectors(mesh, split: dict[str, list[str]]) -> None:
+    """Put split vector attributes back together (``_WOOD.0``.. -> ``wood``)."""
+    import numpy as np
+
+    for name, comps in importer.join_plan(split, [a.name for a in mesh.attributes]):
+        if name in mesh.attributes:
+            continue
+        n = len(mesh.attributes[comps[0]].data)
+        cols = []
+        for c in comps:
+            v = np.empty(n, dtype=np.float32)
+            mesh.attributes[c].data.foreach_get("value", v)
+            cols.append(v)
+        domain = mesh.attributes[comps[0]].domain
+        data_type = "FLOAT_VECTOR" if len(cols) == 3 else "FLOAT2" if len(cols) == 2 else "FLOAT_COLOR"
+        target = mesh.attributes.new(name, data_type, domain)
+        key = "color" if data_type == "FLOAT_COLOR" else "vector"
+        target.data.foreach_set(key, np.stack(cols, axis=1).ravel())
+        for c in comps:
+            mesh.attributes.remove(mesh.attributes[c])
+
+
+def rename_attributes(mesh) -> list[tuple[str, str]]:
+    """glTF names -> USD names on ``mesh`` (see :func:`.importer.rename_plan`)."""
+    plan = importer.rename_plan([a.name for a in mesh.attributes])
+    for old, new in plan:
+        mesh.attributes[old].name = new
+    return plan
+
+
+def import_bake(filepath: str, assign_material: bool = True) -> dict:
+    """Import ``filepath`` (.usd/.usda/.usdc/.glb) and dress it. Returns a report:
+    ``objects`` (names of the imported meshes), ``format``, ``material`` (name or None),
+    ``attributes`` (the attribute names the material reads)."""
+    fmt = importer.file_format(filepath)
+    objects_before, materials_before = set(bpy.data.objects), set(bpy.data.materials)
+    split = {}
+    if fmt == "usd":
+        import_usd(filepath, assign_material)
+    else:
+        split = import_gltf(filepath)
+    new_objects = _new(bpy.data.objects, objects_before)
+    meshes = [ob for ob in new_objects if ob.type == "MESH"]
+    for data in {ob.data for ob in meshes}:
+        join_vectors(data, split)
+        rename_attributes(data)
+    names = set()
+    for ob in meshes:
+        names.update(a.name for a in ob.data.attributes)
+    report = {"format": fmt, "objects": [ob.name for ob in meshes], "material": None,
+              "attributes": sorted(n for n in names if n in {s.attribute for s in DATA})}
+    if assign_material and meshes:
+        mat = material.build_material(names)
+        for data in {ob.data for ob in meshes}:
+            data.materials.clear()
+            data.materials.append(mat)
+        for old in _new(bpy.data.materials, materials_before):
+            if old is not mat and old.users == 0:
+                bpy.data.materials.remove(old)
+        report["material"] = mat.name
+    return report

@@ -1,0 +1,530 @@
+"""The Blender add-on (DESIGN "Blender add-on"; issue 6, item 5 and "Show"), headless with the
+``bpy`` wheel.
+
+Every bpy step runs in a subprocess (``bpy`` bundles its own ``pxr``, which must not meet
+usd-core's in this interpreter). The extension is built with ``wooddecay addon build`` (Blender's
+own extension builder), installed from the zip with Blender's ``extension install-file`` into a
+throw-away user folder (BLENDER_USER_RESOURCES), enabled, and driven through its operator
+``bpy.ops.import_scene.wooddecay``. The bakes are made here with the Python API.
+
+These tests FAIL (never skip) when bpy is missing.
+"""
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import tomllib
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import wooddecay as wd
+from wooddecay import addon
+from wooddecay.cli import main
+from wooddecay.export.gltf import export_gltf
+from wooddecay.export.usd import export_usd
+
+pytestmark = pytest.mark.blender
+
+ROOT = Path(__file__).resolve().parent.parent
+ADDON_DIR = ROOT / "blender_addon"
+MODULE = "bl_ext.user_default.wooddecay"
+#: seconds one bpy subprocess may take
+TIMEOUT = 300
+#: the render test: brown rot must move the rotted end's mean colour (sRGB, 0..1) by more than
+#: this (measured ~0.26) and by more than RATIO times what the sound end moves (measured ~0.03);
+#: the rotted end must also get darker by more than DARKER in mean luminance (measured ~0.15)
+MARGIN, RATIO, DARKER = 0.12, 3.0, 0.06
+
+
+def load_pure(name: str):
+    """A bpy-free module of the add-on (importer.py, shader.py) loaded from its file."""
+    key = f"wooddecay_addon_{name}"
+    if key not in sys.modules:
+        spec = importlib.util.spec_from_file_location(key, ADDON_DIR / f"{name}.py")
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[key] = module  # dataclasses look their module up
+        spec.loader.exec_module(module)
+    return sys.modules[key]
+
+
+def run_blender(script: str, *args, user: Path, timeout: float = TIMEOUT) -> dict:
+    """Run ``script`` in a bpy subprocess with Blender's user folder ``user``; the script writes
+    its results as JSON to ``argv[1]``. Fails with the subprocess output on any error."""
+    out = Path(tempfile.mkdtemp(dir=user)) / "result.json"
+    proc = subprocess.run([sys.executable, "-c", script, str(out), *map(str, args)],
+                          env=addon_env(user), capture_output=True, text=True, timeout=timeout)
+    log = (proc.stdout + proc.stderr)[-6000:]
+    assert proc.returncode == 0 and out.is_file(), f"bpy subprocess failed (exit {proc.returncode}):\n{log}"
+    res = json.loads(out.read_text())
+    assert "error" not in res, f"{res['error']}\n{log}"
+    return res
+
+
+def addon_env(user: Path) -> dict:
+    return dict(os.environ) | {"BLENDER_USER_RESOURCES": str(user), "PYTHONUNBUFFERED": "1"}
+
+
+# ----------------------------------------------------------------------------- bpy-side scripts
+
+#: shared start of the bpy scripts: enable the installed extension, helpers, result writing.
+#: (Classes left registered make the bpy module hang at exit, so the scripts disable the add-on
+#: and leave through os._exit.)
+PRELUDE = r'''
+import json, math, os, sys, time, traceback
+import numpy as np
+import bpy, addon_utils
+
+OUT = sys.argv[1]
+MODULE = "bl_ext.user_default.wooddecay"
+res = {}
+
+def finish(code=0):
+    try:
+        addon_utils.disable(MODULE)
+    except Exception:
+        pass
+    with open(OUT, "w") as f:
+        json.dump(res, f)
+    sys.stdout.flush(); sys.stderr.flush()
+    os._exit(code)
+
+def enable():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    res["found"] = sorted(m.__name__ for m in addon_utils.modules() if m.__name__.endswith("wooddecay"))
+    addon_utils.enable(MODULE, default_set=True, handle_error=None)
+    res["enabled"] = MODULE in bpy.context.preferences.addons
+    res["operator"] = hasattr(bpy.types, "IMPORT_SCENE_OT_wooddecay")
+    res["menu"] = any(getattr(f, "__module__", "").startswith(MODULE)
+                      for f in bpy.types.TOPBAR_MT_file_import._dyn_ui_initialize())
+
+def import_file(path):
+    before = set(bpy.data.objects)
+    result = bpy.ops.import_scene.wooddecay(filepath=path)
+    return sorted((o for o in bpy.data.objects if o not in before and o.type == "MESH"), key=lambda o: o.name), result
+
+def values(mesh, name):
+    a = mesh.attributes[name]
+    n = len(a.data)
+    if a.data_type == "FLOAT_VECTOR":
+        v = np.empty(3 * n, np.float32); a.data.foreach_get("vector", v); return v.reshape(n, 3)
+    v = np.empty(n, np.float32 if a.data_type == "FLOAT" else np.int32); a.data.foreach_get("value", v)
+    return v
+
+def evaluated(ob, frame):
+    bpy.context.scene.frame_set(frame)
+    ev = ob.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    me = ev.to_mesh()
+    P = np.empty(3 * len(me.vertices), np.float32); me.vertices.foreach_get("co", P)
+    out = {"P": P.reshape(-1, 3), **{k: values(me, k) for k in ("H_c", "H_l", "M") if k in me.attributes}}
+    ev.to_mesh_clear()
+    return out
+
+def describe(mat):
+    group = next((n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeGroup"), None) if mat and mat.use_nodes else None
+    d = {"name": mat.name if mat else None, "group": None}
+    if group is not None:
+        d["group"] = group.node_tree.name
+        d["group_nodes"] = len(group.node_tree.nodes)
+        d["inputs"] = [s.name for s in group.inputs]
+        d["outputs"] = [s.name for s in group.outputs]
+        d["linked"] = {s.name: s.links[0].from_node.attribute_name for s in group.inputs
+                       if s.is_linked and s.links[0].from_node.bl_idname == "ShaderNodeAttribute"}
+        d["surface"] = any(l.from_node == group and l.to_node.bl_idname == "ShaderNodeOutputMaterial"
+                           for l in mat.node_tree.links)
+    return d
+
+try:
+'''
+
+INSPECT = PRELUDE + r'''
+    usd, glb = sys.argv[2], sys.argv[3]
+    enable()
+    # USD
+    obs, result = import_file(usd)
+    sc = bpy.context.scene
+    u = {"result": sorted(result), "objects": [o.name for o in obs], "frames": [sc.frame_start, sc.frame_end],
+         "modifiers": [m.type for o in obs for m in o.modifiers]}
+    ob = obs[0]
+    u["attributes"] = {a.name: [a.domain, a.data_type] for a in ob.data.attributes if not a.name.startswith(".")}
+    first, last = evaluated(ob, sc.frame_start), evaluated(ob, sc.frame_end)
+    u["frame_start"] = {k: np.sort(v).tolist() for k, v in first.items() if k != "P"}
+    u["frame_end"] = {k: np.sort(v).tolist() for k, v in last.items() if k != "P"}
+    u["dP"] = float(np.abs(first["P"] - last["P"]).max())
+    u["faceKind"] = sorted(set(values(ob.data, "faceKind").tolist())) if "faceKind" in ob.data.attributes else None
+    u["material"] = [describe(s.material) for o in obs for s in o.material_slots]
+    res["usd"] = u
+    # glTF
+    obs, result = import_file(glb)
+    g = {"result": sorted(result), "objects": [o.name for o in obs]}
+    g["attributes"] = sorted({a.name for o in obs for a in o.data.attributes if not a.name.startswith(".")})
+    g["values"] = {k: np.sort(np.concatenate([values(o.data, k) for o in obs])).tolist()
+                   for k in ("H_c", "H_l", "M", "ring", "faceKind") if all(k in o.data.attributes for o in obs)}
+    if all("wood" in o.data.attributes for o in obs):
+        W = np.concatenate([values(o.data, "wood") for o in obs])
+        g["wood"] = W[np.lexsort(W.T[::-1])].tolist()
+    g["material"] = [describe(s.material) for o in obs for s in o.material_slots]
+    res["gltf"] = g
+    # a glTF without _FACE_KIND and _RING (not from wooddecay's exporter)
+    obs, result = import_file(sys.argv[4])
+    mat = obs[0].material_slots[0].material
+    f = describe(mat)
+    f["result"] = sorted(result)
+    group = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeGroup")
+    f["face_kind_default"] = group.inputs["Face Kind"].default_value
+    res["fallback"] = f
+    res["materials"] = sorted(m.name for m in bpy.data.materials if m.users)
+    res["groups"] = sorted(t.name for t in bpy.data.node_groups)
+except Exception:
+    res["error"] = traceback.format_exc()
+    finish(1)
+finish(0)
+'''
+
+RENDER = PRELUDE + r'''
+    rot, sound, png_dir = sys.argv[2], sys.argv[3], sys.argv[4]
+    samples, threads = int(sys.argv[5]), int(sys.argv[6])
+    enable()
+    logs = {"rot": import_file(rot)[0], "sound": import_file(sound)[0]}
+    sc = bpy.context.scene
+    sc.frame_set(sc.frame_end)  # the last frame of each bake (a cache holds its last sample)
+    import mathutils
+    cam = bpy.data.objects.new("camera", bpy.data.cameras.new("camera"))
+    cam.data.type, cam.data.ortho_scale = "ORTHO", 0.36
+    sc.collection.objects.link(cam)
+    cam.location = (-0.35, -0.8, 0.5)  # above and in front of the root end (x = 0): it is on the left
+    cam.rotation_euler = (mathutils.Vector((0.15, 0.0, 0.06)) - cam.location).to_track_quat("-Z", "Y").to_euler()
+    sc.camera = cam
+    sun = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
+    sun.data.energy = 3.0
+    sun.rotation_euler = (math.radians(50), 0.0, math.radians(-60))
+    sc.collection.objects.link(sun)
+    sc.world = bpy.data.worlds.new("world")
+    sc.world.use_nodes = True
+    sc.world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.3, 0.3, 0.3, 1.0)
+    r = sc.render
+    r.engine = "CYCLES"
+    sc.cycles.device, sc.cycles.samples, sc.cycles.use_denoising = "CPU", samples, False
+    r.threads_mode, r.threads = "FIXED", threads
+    r.resolution_x = r.resolution_y = 128
+    r.resolution_percentage = 100
+    r.film_transparent = True
+    sc.view_settings.view_transform = "Standard"
+    r.image_settings.file_format, r.image_settings.color_mode = "PNG", "RGBA"
+    res["seconds"] = {}
+    for name in ("rot", "sound"):
+        for other, obs in logs.items():
+            for o in obs:
+                o.hide_render = other != name
+        r.filepath = os.path.join(png_dir, f"{name}.png")
+        t = time.perf_counter()
+        bpy.ops.render.render(write_still=True)
+        res["seconds"][name] = time.perf_counter() - t
+        img = bpy.data.images.load(r.filepath)
+        w, h = img.size
+        px = np.array(img.pixels[:], dtype=np.float32).reshape(h, w, 4)
+        cover = px[..., 3] > 0.9
+        cols = np.flatnonzero(cover.any(0))
+        x0, x1 = int(cols.min()), int(cols.max()) + 1
+        third = (x1 - x0) // 3
+        regions = {"rotted_end": (x0, x0 + third), "sound_end": (x1 - third, x1)}
+        out = {"bbox": [x0, x1], "pixels": int(cover.sum())}
+        for key, (a, b) in regions.items():
+            m = cover.copy(); m[:, :a] = False; m[:, b:] = False
+            out[key] = px[m][:, :3].mean(0).tolist()
+            out[key + "_pixels"] = int(m.sum())
+        res[name] = out
+except Exception:
+    res["error"] = traceback.format_exc()
+    finish(1)
+finish(0)
+'''
+
+
+# ----------------------------------------------------------------------------- fixtures
+
+@pytest.fixture(scope="module")
+def addon_zip(tmp_path_factory) -> Path:
+    """The extension zip, built through the CLI: ``wooddecay addon build -o DIR``."""
+    out = tmp_path_factory.mktemp("addon_dist")
+    result = CliRunner().invoke(main, ["addon", "build", "-o", str(out)])
+    assert result.exit_code == 0, (result.output, result.exception)
+    path = out / addon.zip_name()
+    assert f"wrote {path}" in result.output
+    return path
+
+
+@pytest.fixture(scope="module")
+def blender_user(tmp_path_factory, addon_zip) -> Path:
+    """A throw-away Blender user folder with the extension installed from the zip."""
+    user = tmp_path_factory.mktemp("blender_user")
+    addon.install(addon_zip, user_resources=user, timeout=TIMEOUT)
+    return user
+
+
+@pytest.fixture(scope="module")
+def bake(tmp_path_factory):
+    """samples/tiny.toml, 4 days, 3 frames, coupled mechanics: .usdc of all frames and .glb of
+    the last, with the scene and frames."""
+    out = tmp_path_factory.mktemp("tiny_bake")
+    scene = wd.load_scene(ROOT / "samples" / "tiny.toml", overrides={"time.days": 4, "time.frames": 3})
+    model = wd.build_model(scene)
+    frames = list(wd.Simulation(model, scene).run())
+    mesh = wd.build_meshlets(model, scene)
+    usd = export_usd(out / "tiny.usdc", model, mesh, frames, scene)
+    glb = export_gltf(out / "tiny.glb", model, mesh, frames[-1], scene)
+    # the same GLB without the face kind and ring attributes
+    importer = load_pure("importer")
+    doc, binary = importer.read_glb(Path(glb).read_bytes())
+    for m in doc["meshes"]:
+        for prim in m["primitives"]:
+            prim["attributes"] = {k: v for k, v in prim["attributes"].items() if k not in ("_FACE_KIND", "_RING")}
+    plain = out / "plain.glb"
+    plain.write_bytes(importer.write_glb(doc, binary))
+    return {"usd": Path(usd), "glb": Path(glb), "glb_plain": plain, "scene": scene, "frames": frames}
+
+
+@pytest.fixture(scope="module")
+def rot_usd(tmp_path_factory) -> Path:
+    """samples/tiny.toml decayed for 1000 days (biology only; brown rot from the root end: H_c
+    about 0.1-0.3 there, above 0.8 at the far end), two frames."""
+    out = tmp_path_factory.mktemp("rot_bake")
+    scene = wd.load_scene(ROOT / "samples" / "tiny.toml", overrides={"time.days": 1000, "time.frames": 2})
+    model = wd.build_model(scene)
+    frames = list(wd.Simulation(model, scene, mechanics=False).run())
+    mesh = wd.build_meshlets(model, scene)
+    return Path(export_usd(out / "rot.usdc", model, mesh, frames, scene))
+
+
+@pytest.fixture(scope="module")
+def imported(blender_user, bake) -> dict:
+    """The installed add-on imports the USD and the GLB (one bpy subprocess)."""
+    return run_blender(INSPECT, bake["usd"], bake["glb"], bake["glb_plain"], user=blender_user)
+
+
+def usd_primvar(path: Path, name: str, frame: int) -> np.ndarray:
+    from pxr import Usd
+
+    stage = Usd.Stage.Open(str(path))
+    prim = next(p for p in stage.Traverse() if p.GetTypeName() == "Mesh")
+    return np.asarray(prim.GetAttribute(f"primvars:{name}").Get(float(frame)))
+
+
+def glb_attribute(path: Path, name: str) -> np.ndarray:
+    """All values of vertex attribute ``name`` over the GLB's primitives (float32 accessors)."""
+    importer = load_pure("importer")
+    doc, binary = importer.read_glb(path.read_bytes())
+    arrays = []
+    for mesh in doc["meshes"]:
+        for prim in mesh["primitives"]:
+            arrays.append(decode(doc, binary, prim["attributes"][name]))
+    return np.concatenate(arrays)
+
+
+def decode(doc, binary, index) -> np.ndarray:
+    acc = doc["accessors"][index]
+    view = doc["bufferViews"][acc["bufferView"]]
+    n = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}[acc["type"]]
+    stride = view.get("byteStride", 4 * n)
+    start = view.get("byteOffset", 0) + acc.get("byteOffset", 0)
+    raw = np.frombuffer(binary, dtype=np.uint8)[start:start + stride * (acc["count"] - 1) + 4 * n]
+    raw = np.concatenate([raw, np.zeros(stride * acc["count"] - len(raw), np.uint8)])
+    out = raw.reshape(acc["count"], stride)[:, :4 * n].copy().view(np.float32)
+    return out[:, 0] if n == 1 else out
+
+
+# ----------------------------------------------------------------------------- tests
+
+def test_bpy_is_installed():
+    """The Blender tests need the bpy wheel (pip install 'bpy==4.5.*'): fail, never skip."""
+    assert importlib.util.find_spec("bpy") is not None, "bpy is missing: pip install -e '.[test]'"
+
+
+def test_manifest():
+    m = addon.manifest()
+    assert m["schema_version"] == "1.0.0"
+    assert m["id"] == "wooddecay" and m["type"] == "add-on"
+    assert m["blender_version_min"] == "4.2.0"
+    assert m["name"] and m["tagline"] and m["maintainer"]
+    assert all(x.startswith("SPDX:") for x in m["license"])
+    with open(ROOT / "pyproject.toml", "rb") as f:
+        assert m["version"] == tomllib.load(f)["project"]["version"], "keep the add-on and package versions equal"
+
+
+def test_addon_build_zip(addon_zip):
+    """``wooddecay addon build`` writes <id>-<version>.zip with Blender's builder: the
+    manifest and the add-on modules at the top, no caches."""
+    names = zipfile.ZipFile(addon_zip).namelist()
+    for f in ("blender_manifest.toml", "__init__.py", "importer.py", "shader.py", "material.py",
+              "blender_import.py"):
+        assert f in names
+    assert not [n for n in names if "__pycache__" in n or n.endswith(".pyc")]
+
+
+def test_pure_modules_have_no_bpy():
+    """importer.py and shader.py are plain Python (the glTF-Blender-IO split)."""
+    for name in ("importer", "shader"):
+        text = (ADDON_DIR / f"{name}.py").read_text()
+        assert "import bpy" not in text
+        load_pure(name)
+
+
+def test_importer_helpers():
+    importer = load_pure("importer")
+    assert importer.file_format("a/b.USDC") == "usd" and importer.file_format("x.usda") == "usd"
+    assert importer.file_format("x.usd") == "usd" and importer.file_format("x.glb") == "gltf"
+    with pytest.raises(ValueError):
+        importer.file_format("x.obj")
+    plan = dict(importer.rename_plan(["_H_c", "_H_l", "_M", "_WOOD", "position", "M"]))
+    assert plan == {"_H_c": "H_c", "_H_l": "H_l", "_WOOD": "wood"}  # "M" taken: "_M" stays
+
+
+def test_glb_split_keeps_the_bytes(bake, tmp_path):
+    """The workaround for Blender's glTF importer (mixed custom attribute types) rewrites only
+    the JSON: the split scalars read exactly the vector's values."""
+    importer = load_pure("importer")
+    fixed = tmp_path / "fixed.glb"
+    split = importer.prepare_glb(bake["glb"], fixed)
+    assert split == {"_WOOD": ["_WOOD.0", "_WOOD.1", "_WOOD.2"]}
+    assert importer.read_glb(fixed.read_bytes())[1] == importer.read_glb(bake["glb"].read_bytes())[1]
+    wood = glb_attribute(bake["glb"], "_WOOD")
+    comps = np.stack([glb_attribute(fixed, c) for c in split["_WOOD"]], axis=1)
+    np.testing.assert_array_equal(wood, comps)
+    np.testing.assert_array_equal(glb_attribute(fixed, "_H_c"), glb_attribute(bake["glb"], "_H_c"))
+    assert importer.join_plan(split, ["_WOOD.0", "_WOOD.1", "_WOOD.2"]) == [("wood", split["_WOOD"])]
+
+
+def test_shader_graph_is_complete():
+    """Every group input is declared and used; the graph only reads existing nodes."""
+    shader = load_pure("shader")
+    g = shader.wood_decay_graph()
+    users = g.users()
+    assert set(users) == {s.name for s in shader.INPUTS}, "the graph reads an undeclared input"
+    assert not [k for k, n in users.items() if n == 0], "an input that nothing reads"
+    for node in g.nodes:
+        for ref in node.refs():
+            if isinstance(ref, shader.Out):
+                assert 0 <= ref.node < len(g.nodes)
+    assert set(g.outputs) == {s.name for s in shader.OUTPUTS}
+    names = {s.name for s in shader.CONTROLS}
+    for control in ("Base Color", "Ring Contrast", "Brown Rot Strength", "White Rot Strength",
+                    "Moisture Darkening", "Bark Color"):
+        assert control in names
+
+
+def test_extension_installs_and_enables(imported, blender_user):
+    """Installed from the zip into the user repository; enabling registers the operator and the
+    File > Import menu entry."""
+    assert (blender_user / "extensions" / "user_default" / "wooddecay" / "blender_manifest.toml").is_file()
+    assert imported["found"] == [MODULE]
+    assert imported["enabled"] and imported["operator"] and imported["menu"]
+
+
+def test_usd_import_attributes(imported, bake):
+    u = imported["usd"]
+    assert u["result"] == ["FINISHED"] and len(u["objects"]) == 1
+    attrs = u["attributes"]
+    for name in ("H_c", "H_l", "M", "R_w", "R_b", "C", "ring"):
+        assert attrs[name] == ["POINT", "FLOAT"], name
+    assert attrs["wood"] == ["POINT", "FLOAT_VECTOR"]
+    for name in ("faceKind", "element", "tissue", "piece"):
+        assert attrs[name] == ["FACE", "INT"], name
+    assert set(u["faceKind"]) <= {0, 1, 2} and 0 in u["faceKind"]
+    m = bake["scene"].moisture
+    for frame in ("frame_start", "frame_end"):
+        v = u[frame]
+        assert 0.0 <= min(v["H_c"]) and max(v["H_c"]) <= 1.0
+        assert 0.0 <= min(v["H_l"]) and max(v["H_l"]) <= 1.0
+        # moisture is held in [M_2, M_1] (kg/kg; 0.1 and 1 here) by the moisture model (Eq. 15)
+        assert m["M_2"] - 1e-5 <= min(v["M"]) and max(v["M"]) <= m["M_1"] + 1e-5
+
+
+def test_usd_frames_differ_over_time(imported, bake):
+    """Blender's USD import plays the bake back (MeshSequenceCache): the fields it shows at the
+    first and last frame are the stage's time samples, and they differ."""
+    u = imported["usd"]
+    assert u["frames"] == [0, len(bake["frames"]) - 1]
+    assert "MESH_SEQUENCE_CACHE" in u["modifiers"]
+    for frame, key in ((0, "frame_start"), (u["frames"][1], "frame_end")):
+        for name in ("H_c", "M"):
+            np.testing.assert_allclose(u[key][name], np.sort(usd_primvar(bake["usd"], name, frame)), atol=1e-6)
+    dH = np.abs(np.subtract(u["frame_end"]["H_c"], u["frame_start"]["H_c"])).max()
+    dM = np.abs(np.subtract(u["frame_end"]["M"], u["frame_start"]["M"])).max()
+    assert dH > 1e-4 and dM > 1e-4, (dH, dM)
+    assert u["dP"] > 0.0, "points do not move between frames"
+
+
+def test_gltf_import_attributes(imported, bake):
+    """glTF attributes are renamed to the USD names, none is left behind, values match the file."""
+    g = imported["gltf"]
+    assert g["result"] == ["FINISHED"] and g["objects"]
+    for name in ("H_c", "H_l", "M", "wood", "ring", "faceKind"):
+        assert name in g["attributes"], name
+    assert not [a for a in g["attributes"] if a.startswith("_")], g["attributes"]
+    v = g["values"]
+    assert 0.0 <= v["H_c"][0] and v["H_c"][-1] <= 1.0 and 0.0 <= v["H_l"][0] and v["H_l"][-1] <= 1.0
+    m = bake["scene"].moisture
+    assert m["M_2"] - 1e-5 <= v["M"][0] and v["M"][-1] <= m["M_1"] + 1e-5
+    for name, gname in (("H_c", "_H_c"), ("H_l", "_H_l"), ("M", "_M"), ("ring", "_RING")):
+        np.testing.assert_allclose(v[name], np.sort(glb_attribute(bake["glb"], gname)), atol=1e-6)
+    W = glb_attribute(bake["glb"], "_WOOD")
+    np.testing.assert_allclose(g["wood"], W[np.lexsort(W.T[::-1])], atol=1e-6)
+    # the glTF holds the last frame: the same field values as the stage's last time sample
+    np.testing.assert_allclose([v["H_c"][0], v["H_c"][-1]], [imported["usd"]["frame_end"]["H_c"][0],
+                                                            imported["usd"]["frame_end"]["H_c"][-1]], atol=1e-5)
+
+
+@pytest.mark.parametrize("fmt", ["usd", "gltf"])
+def test_material_has_wood_decay_group(imported, fmt):
+    """Every imported mesh gets the Wood Decay material: its group node holds the controls and
+    reads the attributes through Attribute nodes; the file's preview material is gone."""
+    mats = imported[fmt]["material"]
+    assert mats
+    for d in mats:
+        assert d["name"].startswith("Wood Decay") and d["group"] == "Wood Decay", d
+        assert d["surface"]
+        assert d["linked"] == {"H_c": "H_c", "H_l": "H_l", "M": "M", "Wood": "wood", "Ring": "ring",
+                               "Face Kind": "faceKind"}
+        for control in ("Brown Rot Strength", "White Rot Strength", "Moisture Darkening", "Ring Contrast",
+                        "Base Color", "Bark Color"):
+            assert control in d["inputs"]
+        assert d["outputs"][:1] == ["BSDF"] and d["group_nodes"] > 50
+    assert imported["groups"] == ["Wood Decay"], "one node group serves both imports"
+    assert not [m for m in imported["materials"] if not m.startswith("Wood Decay")]
+
+
+def test_gltf_without_face_kind_falls_back(imported):
+    """Without a face kind (or ring) the material still builds: those group inputs stay unlinked
+    and Face Kind keeps its default 1 (wood, no bark)."""
+    f = imported["fallback"]
+    assert f["result"] == ["FINISHED"] and f["group"] == "Wood Decay"
+    assert f["linked"] == {"H_c": "H_c", "H_l": "H_l", "M": "M", "Wood": "wood"}
+    assert f["face_kind_default"] == 1.0
+
+
+@pytest.mark.slow
+def test_render_rotted_and_sound_wood_differ(blender_user, bake, rot_usd, tmp_path):
+    """128x128 Cycles render (CPU, 16 samples, 2 threads) of the tiny log after 4 days (sound)
+    and after 1000 days of brown rot from the root end, same view: the root end (left third of
+    the log in the image) changes colour by more than MARGIN and gets darker; the far end, which
+    the rot has barely reached, changes far less."""
+    res = run_blender(RENDER, rot_usd, bake["usd"], tmp_path, 16, 2, user=blender_user)
+    rot, sound = res["rot"], res["sound"]
+    for r in (rot, sound):
+        assert r["pixels"] > 2000 and r["rotted_end_pixels"] > 400 and r["sound_end_pixels"] > 400, r
+    d_rotted = float(np.linalg.norm(np.subtract(rot["rotted_end"], sound["rotted_end"])))
+    d_sound = float(np.linalg.norm(np.subtract(rot["sound_end"], sound["sound_end"])))
+    luma = np.array([0.2126, 0.7152, 0.0722])
+    darker = float(luma @ np.subtract(sound["rotted_end"], rot["rotted_end"]))
+    print(f"render seconds {res['seconds']}; rotted end moved {d_rotted:.3f}, sound end {d_sound:.3f}, "
+          f"rotted end darker by {darker:.3f} (sRGB)")
+    assert d_rotted > MARGIN, (d_rotted, rot, sound)
+    assert d_rotted > RATIO * d_sound, (d_rotted, d_sound)
+    assert darker > DARKER, darker
