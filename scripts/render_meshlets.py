@@ -35,6 +35,16 @@ import sys
 import tempfile
 import time
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b -P: not on the path
+from _render_common import (
+    evaluated_positions,
+    frame_camera,
+    label_font,
+    paste_panels,
+    publish_png,
+    view_direction,
+)
+
 # ring ramp (linear RGB, positions in [0, 1] of the oldest ring): pale pith -> deep outer rings
 RING_RAMP = [
     (0.00, (0.98, 0.90, 0.45)),
@@ -219,75 +229,6 @@ def add_cut_and_gaps(bpy, ob, gap, flat=True):
     mod.node_group = ng
 
 
-def evaluated_positions(bpy, ob, max_points=200_000):
-    import numpy as np
-
-    ev = ob.evaluated_get(bpy.context.evaluated_depsgraph_get())
-    d = ev.data
-    pos = np.empty(len(d.vertices) * 3, np.float32)
-    d.vertices.foreach_get("co", pos)
-    pos = pos.reshape(-1, 3).astype(np.float64)
-    if len(pos) > max_points:
-        pos = pos[:: len(pos) // max_points + 1]
-    m = np.array(ob.matrix_world)
-    return pos @ m[:3, :3].T + m[:3, 3]
-
-
-def view_direction(axis, azimuth, elevation):
-    """Unit vector from the log towards the camera: ``azimuth`` about +z from ``axis``."""
-    import numpy as np
-
-    az, el = math.radians(azimuth), math.radians(elevation)
-    a = np.asarray(axis, float).copy()
-    a[2] = 0.0
-    if np.linalg.norm(a) < 1e-9:
-        a = np.array([1.0, 0.0, 0.0])
-    a /= np.linalg.norm(a)
-    b = np.array([-a[1], a[0], 0.0])  # a rotated by +90 degrees about z
-    h = math.cos(az) * a + math.sin(az) * b
-    return math.cos(el) * h + np.array([0.0, 0.0, math.sin(el)])
-
-
-def frame_camera(bpy, points, v, aspect, lens=50.0, margin=1.04):
-    """Perspective camera looking along ``-v`` whose frustum holds all ``points`` (n, 3)."""
-    import numpy as np
-    from mathutils import Vector
-
-    v = np.asarray(v, float) / np.linalg.norm(v)
-    fwd = -v
-    right = np.cross(fwd, [0.0, 0.0, 1.0])
-    right /= np.linalg.norm(right)
-    up = np.cross(right, fwd)
-    pr, pu, pv = points @ right, points @ up, points @ v
-    center = right * (pr.min() + pr.max()) / 2 + up * (pu.min() + pu.max()) / 2 + v * (pv.min() + pv.max()) / 2
-    cam_data = bpy.data.cameras.new("Camera")
-    cam_data.lens = lens
-    cam_data.sensor_fit = "AUTO"  # the 36 mm sensor spans the larger image side
-    tan_big = cam_data.sensor_width / 2 / lens
-    tan_w = tan_big * min(1.0, aspect)
-    tan_h = tan_big / max(1.0, aspect)
-    # the nearer points subtend more: iterate on the distance, then re-centre on the projection
-    dist = 0.0
-    for _ in range(3):
-        o = points - center
-        ov = o @ v
-        dist = float(max((np.abs(o @ right) * margin / tan_w + ov).max(),
-                         (np.abs(o @ up) * margin / tan_h + ov).max()))
-        eye = center + v * dist
-        rel = points - eye
-        depth = -(rel @ v)
-        sx, sy = (rel @ right) / depth, (rel @ up) / depth
-        cx, cy = (sx.min() + sx.max()) / 2, (sy.min() + sy.max()) / 2
-        center = center + (right * cx + up * cy) * dist
-    cam = bpy.data.objects.new("Camera", cam_data)
-    cam.location = Vector(center + v * dist)
-    cam.rotation_euler = Vector(fwd).to_track_quat("-Z", "Y").to_euler()
-    cam_data.clip_start = max(0.01, dist / 1000)
-    cam_data.clip_end = dist * 10
-    bpy.context.scene.collection.objects.link(cam)
-    bpy.context.scene.camera = cam
-
-
 def _bsdf(mat):
     bsdf = mat.node_tree.nodes.get("Principled BSDF")
     bsdf.inputs["Roughness"].default_value = 0.8
@@ -425,20 +366,12 @@ def _srgb(c):
 
 def compose(paths, out, layout, labels, ring_min, ring_max, band):
     """Paste the panel PNGs side by side or stacked; captions and a ring legend if ``labels``."""
-    from PIL import Image, ImageDraw, ImageFont
+    from PIL import ImageDraw
 
-    ims = [Image.open(p).convert("RGB") for p in paths]
-    w, h = ims[0].size
-    W, H = (2 * w, h) if layout == "side" else (w, 2 * h)
-    img = Image.new("RGB", (W, H))
-    for i, im in enumerate(ims):
-        img.paste(im, (i * w, 0) if layout == "side" else (0, i * h))
+    img, (w, h) = paste_panels(paths, layout)
     if labels:
         draw = ImageDraw.Draw(img)
-        try:
-            font = ImageFont.load_default(size=15)
-        except TypeError:  # Pillow < 10.1
-            font = ImageFont.load_default()
+        font = label_font(15)
         ink = (25, 28, 34)
         caps = ["coloured by element (bark darker)",
                 f"coloured by ring age ({band:g}-year bands)" if band > 0 else "coloured by ring age"]
@@ -468,19 +401,6 @@ def compose(paths, out, layout, labels, ring_min, ring_max, band):
                        outline=ink)
         draw.text((bx + bw + 29, by - 4), "bark", fill=ink, font=font)
     img.save(out, optimize=True)
-
-
-def shrink_png(path, max_kb):
-    if not max_kb or os.path.getsize(path) <= max_kb * 1024:
-        return
-    from PIL import Image
-
-    for colors in (256, 128, 64):
-        img = Image.open(path).convert("RGB").quantize(colors=colors, method=Image.Quantize.MEDIANCUT,
-                                                      dither=Image.Dither.NONE)
-        img.save(path, optimize=True)
-        if os.path.getsize(path) <= max_kb * 1024:
-            return
 
 
 def main(argv=None) -> None:
@@ -544,11 +464,7 @@ def main(argv=None) -> None:
             bpy.ops.render.render(write_still=True)
             t_render += time.perf_counter() - t1
         compose(panels, tmp, args.layout, args.labels, ring_lo, ring_hi, args.ring_band)
-        shrink_png(tmp, args.max_kb)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, out)
+        publish_png(tmp, out, args.max_kb)
     finally:
         for p in panels + [tmp]:
             if os.path.exists(p):

@@ -25,6 +25,9 @@ import sys
 import tempfile
 import time
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b -P: not on the path
+from _render_common import publish_png
+
 
 def parse_args(argv=None):
     if argv is None:
@@ -269,19 +272,6 @@ def add_lights(bpy, view_dir):
     scene.world = world
 
 
-def shrink_png(path, max_kb):
-    if not max_kb or os.path.getsize(path) <= max_kb * 1024:
-        return
-    from PIL import Image
-
-    for colors in (256, 128, 64):
-        img = Image.open(path).convert("RGB").quantize(colors=colors, method=Image.Quantize.MEDIANCUT,
-                                                      dither=Image.Dither.NONE)
-        img.save(path, optimize=True)
-        if os.path.getsize(path) <= max_kb * 1024:
-            return
-
-
 def main(argv=None) -> None:
     args = parse_args(argv)
     t0 = time.perf_counter()
@@ -326,11 +316,7 @@ def main(argv=None) -> None:
         t1 = time.perf_counter()
         bpy.ops.render.render(write_still=True)
         t_render = time.perf_counter() - t1
-        shrink_png(tmp, args.max_kb)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp made it 0600
-        os.replace(tmp, out)
+        publish_png(tmp, out, args.max_kb)  # mkstemp made it 0600
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
