@@ -516,19 +516,8 @@ def _quad_first_positive(g0, g1, g2, t0, t1):
 
 @nb.njit(cache=True)
 def _quad_last_positive(g0, g1, g2, lo, hi):
-    """:func:`_last_positive` for a quadratic."""
-    if (g2 * hi + g1) * hi + g0 > 0.0:
-        return hi
-    b = hi
-    if g2 != 0.0:
-        uc = -g1 / (2.0 * g2)
-        if lo < uc < hi:
-            if (g2 * uc + g1) * uc + g0 > 0.0:
-                return _qbisect(g0, g1, g2, hi, uc)
-            b = uc
-    if (g2 * lo + g1) * lo + g0 > 0.0:
-        return _qbisect(g0, g1, g2, b, lo)
-    return -np.inf
+    """:func:`_last_positive` for a quadratic: the first positive time of q(-s) on [-hi, -lo]."""
+    return -_quad_first_positive(g0, -g1, g2, -hi, -lo)
 
 
 @nb.njit(cache=True)
