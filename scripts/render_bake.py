@@ -28,9 +28,7 @@ Cycles on the CPU with few samples and the denoiser; the PNG is quantised if ove
 """
 from __future__ import annotations
 
-import argparse
 import importlib
-import math
 import os
 import shutil
 import subprocess
@@ -40,13 +38,7 @@ import time
 import traceback
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b -P: not on the path
-from _render_common import (
-    frame_camera,
-    label_font,
-    paste_panels,
-    publish_png,
-    view_direction,
-)
+import _render_common as common
 
 #: the extension's module once installed into the user repository
 MODULE = "bl_ext.user_default.wooddecay"
@@ -62,33 +54,20 @@ addon.install(addon.build(sys.argv[1]), user_resources=sys.argv[2])
 
 
 def parse_args(argv=None):
-    if argv is None:
-        argv = sys.argv[1:]
-        if "--" in argv:  # blender -b -P script -- args
-            argv = argv[argv.index("--") + 1:]
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("usd", help="bake written by `wooddecay bake` (.usdc/.usda/.usd, or .glb)")
-    ap.add_argument("png", help="output PNG")
+    ap = common.render_parser(__doc__, "bake written by `wooddecay bake` (.usdc/.usda/.usd, or .glb)")
     ap.add_argument("--frame", type=int, default=None, help="frame to show (default: the bake's last)")
-    ap.add_argument("--samples", type=int, default=24)
-    ap.add_argument("--width", type=int, default=640, help="width of the whole image (all views)")
-    ap.add_argument("--height", type=int, default=360, help="height of the whole image (all views)")
-    ap.add_argument("--threads", type=int, default=2, help="render threads (0: all cores)")
+    common.add_size_args(ap, 24, 640, 360, views="all views")
+    common.add_threads_arg(ap, 2)
     ap.add_argument("--azimuth", type=float, nargs="+", default=[-145.0, -35.0], metavar="DEG",
                     help="camera azimuths in degrees about +z from the log's axis (+x), one view "
                          "each (default -145 -35: the x = 0 end, then the far end, both from -y)")
-    ap.add_argument("--layout", choices=["side", "stacked"], default="side",
-                    help="the views side by side (default) or one above the other")
-    ap.add_argument("--elevation", type=float, default=28.0, help="camera elevation in degrees")
-    ap.add_argument("--lens", type=float, default=50.0, help="focal length in mm (36 mm sensor)")
+    common.add_layout_arg(ap, "the views")
+    common.add_camera_args(ap, 28.0, lens=50.0)
     ap.add_argument("--margin", type=float, default=1.08, help="room around the log in each view (1: tight)")
     ap.add_argument("--no-ground", dest="ground", action="store_false", help="no ground plane")
-    ap.add_argument("--no-labels", dest="labels", action="store_false",
-                    help="no captions (near end's mean H_c and H_l; day and mass loss from the "
-                         "bake's summary.json)")
-    ap.add_argument("--max-kb", type=int, default=250,
-                    help="quantise the PNG (PIL) if it is larger than this many KB; 0: never")
-    args = ap.parse_args(argv)
+    common.add_labels_arg(ap, "no captions (near end's mean H_c and H_l; day and mass loss from the "
+                              "bake's summary.json)")
+    args = common.parse_render_args(ap, argv, max_kb=250)
     if not os.path.isfile(args.usd):
         ap.error(f"no such file: {args.usd}")
     return args
@@ -104,80 +83,17 @@ def install_addon(folder):
     return user
 
 
-def log_axis(points):
-    """Unit vector along the longest side of the points' bounding box (positive direction)."""
-    import numpy as np
-
-    axis = np.zeros(3)
-    axis[int(np.argmax(points.max(0) - points.min(0)))] = 1.0
-    return axis
-
-
 def add_ground(bpy, z, size):
     """A square plane of side ``size`` at height ``z`` with a matt grey material."""
     mesh = bpy.data.meshes.new("Ground")
     h = size / 2
     mesh.from_pydata([(-h, -h, z), (h, -h, z), (h, h, z), (-h, h, z)], [], [(0, 1, 2, 3)])
     ob = bpy.data.objects.new("Ground", mesh)
-    mat = bpy.data.materials.new("Ground")
-    mat.use_nodes = True
-    bsdf = mat.node_tree.nodes.get("Principled BSDF")
+    mat, bsdf = common.principled_material(bpy, "Ground", 0.95)
     bsdf.inputs["Base Color"].default_value = (*GROUND_COLOR, 1.0)
-    bsdf.inputs["Roughness"].default_value = 0.95
     mesh.materials.append(mat)
     bpy.context.scene.collection.objects.link(ob)
     return ob
-
-
-def add_lights(bpy):
-    """A sun (aimed per view by :func:`aim_sun`) and a grey sky as the world; returns the sun."""
-    scene = bpy.context.scene
-    sun = bpy.data.lights.new("Sun", "SUN")
-    sun.energy = 3.5
-    sun.angle = math.radians(6)
-    ob = bpy.data.objects.new("Sun", sun)
-    scene.collection.objects.link(ob)
-    world = bpy.data.worlds.new("World")
-    world.use_nodes = True
-    bg = world.node_tree.nodes["Background"]
-    bg.inputs["Color"].default_value = (*SKY_COLOR, 1.0)
-    bg.inputs["Strength"].default_value = 0.8
-    scene.world = world
-    return ob
-
-
-def aim_sun(sun, v):
-    """Light from above, from behind the camera's left shoulder (``v``: towards the camera)."""
-    from mathutils import Vector
-
-    d = Vector((v[0] * 0.6 + v[1] * 0.5, v[1] * 0.6 - v[0] * 0.5, 1.2)).normalized()
-    sun.rotation_euler = (-d).to_track_quat("-Z", "Y").to_euler()
-
-
-def setup_render(bpy, args, width, height):
-    scene = bpy.context.scene
-    r = scene.render
-    r.resolution_x, r.resolution_y, r.resolution_percentage = width, height, 100
-    r.use_persistent_data = True  # later views reuse the synced mesh and BVH
-    r.image_settings.file_format = "PNG"
-    r.image_settings.color_mode = "RGB"
-    r.image_settings.color_depth = "8"
-    r.image_settings.compression = 100
-    r.film_transparent = False
-    if args.threads:
-        r.threads_mode, r.threads = "FIXED", args.threads
-    scene.view_settings.view_transform = "Standard"
-    scene.view_settings.look = "None"
-    r.engine = "CYCLES"
-    scene.cycles.device = "CPU"
-    scene.cycles.samples = args.samples
-    scene.cycles.use_adaptive_sampling = False
-    scene.cycles.max_bounces = 4
-    scene.cycles.use_denoising = True
-    try:
-        scene.cycles.denoiser = "OPENIMAGEDENOISE"
-    except TypeError:
-        scene.cycles.use_denoising = False
 
 
 def evaluated_fields(bpy, obs, names):
@@ -189,16 +105,11 @@ def evaluated_fields(bpy, obs, names):
     pos, fields = [], {n: [] for n in names}
     for ob in obs:
         d = ob.evaluated_get(depsgraph).data
-        p = np.empty(len(d.vertices) * 3, np.float32)
-        d.vertices.foreach_get("co", p)
-        m = np.array(ob.matrix_world)
-        pos.append(p.reshape(-1, 3).astype(np.float64) @ m[:3, :3].T + m[:3, 3])
+        pos.append(common.to_world(ob, common.local_positions(d).astype(np.float64)))
         for n in names:
             a = d.attributes.get(n)
             if a is not None and a.domain == "POINT" and a.data_type == "FLOAT":
-                v = np.empty(len(a.data), np.float32)
-                a.data.foreach_get("value", v)
-                fields[n].append(v)
+                fields[n].append(common.attribute_values(a))
     return np.concatenate(pos), {n: np.concatenate(v) for n, v in fields.items() if len(v) == len(obs)}
 
 
@@ -239,17 +150,10 @@ def end_caption(pos, fields, axis, v):
 
 def compose(paths, out, layout, captions, footer):
     """The views in one image (side by side or stacked), a caption on each and a footer."""
-    from PIL import ImageDraw
-
-    img, (w, h) = paste_panels(paths, layout)
-    draw = ImageDraw.Draw(img)
-    font = label_font(14)
-    ink = (25, 28, 34)
-    for i, cap in enumerate(captions):
-        x0, y0 = (i * w, 0) if layout == "side" else (0, i * h)
-        draw.text((x0 + 10, y0 + 8), cap, fill=ink, font=font)
+    img, size = common.paste_panels(paths, layout)
+    draw, font = common.caption_panels(img, size, layout, captions, 14)
     if footer:
-        draw.text((10, img.size[1] - 24), footer, fill=ink, font=font)
+        draw.text((10, img.size[1] - 24), footer, fill=common.INK, font=font)
     img.save(out, optimize=True)
 
 
@@ -274,44 +178,32 @@ def render(bpy, args, t0):
     bpy.context.view_layer.update()
     pos, fields = evaluated_fields(bpy, obs, ("H_c", "H_l"))
     lo, hi = pos.min(0), pos.max(0)
-    axis = log_axis(pos)
+    axis = common.log_axis(lo, hi)
     n = len(args.azimuth)
-    pw, ph = (args.width // n, args.height) if args.layout == "side" else (args.width, args.height // n)
-    setup_render(bpy, args, pw, ph)
+    pw, ph = common.panel_size(args.width, args.height, n, args.layout)
+    # persistent: later views reuse the synced mesh and BVH
+    common.setup_render(bpy, pw, ph, args.samples, args.threads, persistent=True)
     if args.ground:
         add_ground(bpy, float(lo[2]), 40.0 * float(np.max(hi - lo)))
-    sun = add_lights(bpy)
-
-    out = os.path.abspath(args.png)
-    os.makedirs(os.path.dirname(out), exist_ok=True)
-    tmpdir = tempfile.mkdtemp(prefix=".render-", dir=os.path.dirname(out))
-    panels = [os.path.join(tmpdir, f"view{i}.png") for i in range(n)]
-    tmp = os.path.join(tmpdir, "out.png")
+    sun = common.add_sun_and_sky(bpy, 3.5, 6, SKY_COLOR, 0.8)  # aimed per view
     captions = []
-    t_render = 0.0
-    try:
-        for az, path in zip(args.azimuth, panels):
-            v = view_direction(axis, az, args.elevation)
-            frame_camera(bpy, pos, v, pw / ph, lens=args.lens, margin=args.margin)
-            aim_sun(sun, v)
-            captions.append(end_caption(pos, fields, axis, v))
-            scene.render.filepath = path
-            t1 = time.perf_counter()
-            bpy.ops.render.render(write_still=True)
-            t_render += time.perf_counter() - t1
+
+    def view(i):
+        v = common.view_direction(axis, args.azimuth[i], args.elevation)
+        common.frame_camera(bpy, pos, v, pw / ph, lens=args.lens, margin=args.margin)
+        common.aim_sun(sun, v, 0.6, -0.5, 1.2)  # from above, behind the camera's left shoulder
+        captions.append(end_caption(pos, fields, axis, v))
+
+    def picture(panels, path):
         summary = bake_summary(args.usd, frame)
         footer = (f"day {summary[0]:g}, mass loss {100 * summary[1]:.1f} %; " if summary else "") + \
             "H_c, H_l: cellulose, lignin left (1 sound, 0 gone)"
         if args.labels:
-            compose(panels, tmp, args.layout, captions, footer)
+            compose(panels, path, args.layout, captions, footer)
         else:
-            paste_panels(panels, args.layout)[0].save(tmp, optimize=True)
-        publish_png(tmp, out, args.max_kb)
-    finally:
-        for p in panels + [tmp]:
-            if os.path.exists(p):
-                os.unlink(p)
-        os.rmdir(tmpdir)
+            common.paste_panels(panels, args.layout)[0].save(path, optimize=True)
+
+    out, t_render = common.render_views(bpy, args.png, n, args.max_kb, view, picture)
     hc = fields.get("H_c")
     hc_text = f"H_c {hc.min():.3f}..{hc.max():.3f}" if hc is not None else "no H_c"
     shown = "last" if frame is None else frame
@@ -367,7 +259,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    code = main()
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(code)
+    common.exit_now(main())
