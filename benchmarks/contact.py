@@ -10,7 +10,7 @@ wedges x 5 axial pieces (50 components); a ground plane and a cylinder collider.
     project_contacts_seconds, project_contacts_reference_seconds, project_contacts_speedup
     project_contacts_seconds_threads_<k>, project_contacts_max_abs_diff_reference
     project_colliders_seconds, project_colliders_reference_seconds, project_colliders_speedup
-    apply_friction_seconds, apply_friction_reference_seconds, apply_friction_speedup
+    contact_velocities_seconds, contact_velocities_reference_seconds, contact_velocities_speedup
     candidate_pairs_equal_reference (1 = identical)
 Each timing is the best of 5 after a warm-up call (the reference: best of 2).
 """
@@ -91,9 +91,9 @@ def main() -> None:
            lambda: C.project_colliders_reference(x.copy(), w, prad, colliders, K_COL, DT, force))
 
     v = np.random.default_rng(1).normal(size=(P, 3))
-    mass = np.full(P, 1e-3)
-    report("apply_friction", lambda: C.apply_friction(v.copy(), force, mass, 0.7, DT, 1e-6),
-           lambda: C.apply_friction_reference(v.copy(), force, mass, 0.7, DT, 1e-6))
+    touched = np.ones(len(pairs), dtype=bool)
+    report("contact_velocities", lambda: C.contact_velocities(v.copy(), x, w, fp, radius, pairs, touched),
+           lambda: C.contact_velocities_reference(v.copy(), x, w, fp, radius, pairs, touched))
 
     ok = np.array_equal(pairs, C.candidate_pairs_reference(x, fp, radius, comp, MARGIN))
     print(f"candidate_pairs_equal_reference {int(ok)} -")

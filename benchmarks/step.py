@@ -29,7 +29,8 @@ def _instrument(totals: dict) -> None:
                              (rods, "bend_twist", "stage1"), (rods, "reg_pass", "stage2"),
                              (contact, "project_colliders", "contact"), (contact, "project_contacts", "contact"),
                              (mechanics, "refresh_pairs", "contact"), (mechanics, "_velocities", "velocities"),
-                             (contact, "apply_friction", "velocities"), (failure, "update", "failure"),
+                             (contact, "collider_velocities", "velocities"),
+                             (contact, "contact_velocities", "velocities"), (failure, "update", "failure"),
                              (biology, "step", "biology"), (coupling, "apply", "coupling")):
         fn = getattr(mod, name)
 

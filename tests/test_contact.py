@@ -327,29 +327,117 @@ def test_particle_resting_on_ground_settles_at_eq4_penetration():
 # ----------------------------------------------------------------------------- friction
 
 
-def test_friction_decelerates_by_mu_g_dt():
-    mu, m = 0.7, 2.0
-    v = _rows([1.0, 0, 0], [0, 0.5, 0.5], [1e-3, 0, 0], [3.0, 0, 0])
-    force = np.array([m * G, m * G, m * G, 0.0])
-    v0 = v.copy()
-    C.apply_friction(v, force, np.full(4, m), mu, DT, 1e-9)
-    speed0, speed = np.linalg.norm(v0, axis=1), np.linalg.norm(v, axis=1)
-    assert speed0[:2] - speed[:2] == pytest.approx([mu * G * DT] * 2, rel=1e-12)
-    assert np.allclose(np.cross(v, v0), 0.0)  # no turning
-    assert np.array_equal(v[2], [0.0, 0.0, 0.0])  # min(1, ...): stops, never reverses
-    assert np.array_equal(v[3], v0[3])  # no contact force, no friction
+def _slide(normal, v0, steps, mu=0.5, k_col=1e6, m=0.01, r=0.005, dt=1e-3):
+    """A particle on the plane through the origin with unit ``normal``, run through the
+    substep of :func:`wooddecay.sim.mechanics.substep`: gravity, prediction, collider projection
+    with the depenetration cap and friction from the start-of-substep positions, velocities,
+    restitution 0. Starts at rest penetration with velocity ``v0``; returns the velocity history."""
+    n = np.asarray(normal, dtype=np.float64)
+    ground = C.collider_row(C.PLANE, 0, 0, 0, *n)[None]
+    x = (r - np.sqrt(m * G * n[2] / k_col)) * n[None, :]
+    v = np.array([v0], dtype=np.float64)
+    w, rad = np.array([1 / m]), np.array([r])
+    out = []
+    for _ in range(steps):
+        v[:, 2] -= G * dt
+        x_old = x.copy()
+        x += v * dt
+        hit = np.zeros((1, 1), dtype=bool)
+        C.project_colliders(x, w, rad, ground, k_col, dt, np.zeros(1), 0.1 * dt, x_old, hit, mu, 1e-6)
+        v = (x - x_old) / dt
+        C.collider_velocities(v, x, w, ground, hit)
+        out.append(v[0].copy())
+    return np.array(out)
 
 
-def test_friction_matches_reference():
-    rng = np.random.default_rng(5)
-    v = rng.normal(size=(4000, 3)) * rng.uniform(0, 2, (4000, 1))
-    force = np.where(rng.random(4000) < 0.5, 0.0, rng.uniform(0, 50, 4000))
-    mass = rng.uniform(0.01, 1, 4000)
-    v1, v2 = v.copy(), v.copy()
-    C.apply_friction(v1, force, mass, 0.8, DT, 1e-6)
-    C.apply_friction_reference(v2, force, mass, 0.8, DT, 1e-6)
-    assert np.allclose(v1, v2, rtol=1e-12, atol=1e-15)
-    assert not np.array_equal(v1, v)
+def test_friction_decelerates_a_sliding_particle_by_mu_g_dt_and_stops_it():
+    """Once the contact has settled into its discrete equilibrium penetration (the first ~50
+    steps start 3% above it) the speed drops by mu g dt per step."""
+    mu, dt = 0.5, 1e-3
+    v = _slide([0, 0, 1], [0.3, 0.4, 0], 150, mu=mu, dt=dt)
+    speed = np.linalg.norm(v[:, :2], axis=1)
+    decel = -np.diff(speed[50:95]) / dt
+    assert decel == pytest.approx(np.full(len(decel), mu * G), rel=2e-3)  # Eq. 7: mu |F_n| / m
+    assert np.allclose(np.cross(v[:95, :2], [0.3, 0.4]), 0.0, atol=1e-12)  # no turning
+    assert np.abs(v[-1]).max() < 1e-9  # stops after 0.5 / (mu g) = 0.1 s and never reverses
+
+
+@pytest.mark.parametrize("angle", [20.0, 35.0])
+def test_friction_on_an_incline_is_static_inside_the_cone_and_kinetic_outside(angle):
+    """mu = 0.5 (cone 26.6 deg): at 20 deg the particle stays; at 35 deg it slides down with
+    g (sin - mu cos)."""
+    mu, dt, steps = 0.5, 1e-3, 300
+    a = np.radians(angle)
+    v = _slide([np.sin(a), 0, np.cos(a)], [0, 0, 0], steps, mu=mu, dt=dt)
+    if np.tan(a) < mu:
+        assert np.abs(v[-100:]).max() < 1e-9
+    else:
+        down = np.array([np.cos(a), 0, -np.sin(a)])
+        accel = (v[-1] - v[-101]) @ down / (100 * dt)
+        assert accel == pytest.approx(G * (np.sin(a) - mu * np.cos(a)), rel=1e-3)
+
+
+def _moved(x, seed):
+    """x displaced as by a substep: the start-of-substep positions and the predicted ones."""
+    x_prev = x.copy()
+    return x_prev, x + np.random.default_rng(seed).normal(0.0, 2e-3, x.shape)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_contacts_with_cap_and_friction_match_reference(seed):
+    x, w, fp, r, pairs = _contact_setup(seed)
+    x_prev, x = _moved(x, seed)
+    out = []
+    for fn in (C.project_contacts, C.project_contacts_reference):
+        xk, f, hit = x.copy(), np.zeros(len(x)), np.zeros(len(pairs), dtype=bool)
+        fn(xk, w, fp, r, pairs, 1e6, DT, f, 1e-3, x_prev, hit, 0.6, 1e-6)
+        v = (xk - x_prev) / DT
+        (C.contact_velocities if fn is C.project_contacts else C.contact_velocities_reference)(
+            v, xk, w, fp, r, pairs, hit)
+        out.append((xk, f, hit, v))
+    (x1, f1, h1, v1), (x2, f2, h2, v2) = out
+    assert h1.sum() > 100 and np.array_equal(h1, h2)
+    assert np.allclose(x1, x2, rtol=0, atol=1e-12) and np.allclose(f1, f2, rtol=1e-10, atol=1e-9)
+    assert np.allclose(v1, v2, rtol=0, atol=1e-9)
+    xf = x.copy()
+    C.project_contacts(xf, w, fp, r, pairs, 1e6, DT, np.zeros(len(x)), 1e-3, x_prev, None, 0.0, 1e-6)
+    assert np.abs(xf - x1).max() > 1e-5  # friction changed the result
+
+
+def test_colliders_with_cap_and_friction_match_reference():
+    rng = np.random.default_rng(7)
+    x = rng.random((4000, 3))
+    w = rng.uniform(0.5, 2.0, len(x))
+    w[::9] = 0.0
+    prad = rng.uniform(0.0, 0.03, len(x))
+    x_prev, x = _moved(x, 7)
+    out = []
+    for proj, vel in ((C.project_colliders, C.collider_velocities),
+                      (C.project_colliders_reference, C.collider_velocities_reference)):
+        xk, f, hit = x.copy(), np.zeros(len(x)), np.zeros((len(x), 4), dtype=bool)
+        proj(xk, w, prad, _colliders(), 1e6, DT, f, 1e-3, x_prev, hit, 0.6, 1e-6)
+        v = (xk - x_prev) / DT
+        changed = vel(v, xk, w, _colliders(), hit)
+        out.append((xk, f, hit, v, changed))
+    (x1, f1, h1, v1, c1), (x2, f2, h2, v2, c2) = out
+    assert h1.sum() > 300 and np.array_equal(h1, h2) and c1 == c2 > 0
+    assert np.allclose(x1, x2, rtol=0, atol=1e-12) and np.allclose(f1, f2, rtol=1e-10, atol=1e-9)
+    assert np.allclose(v1, v2, rtol=0, atol=1e-9)
+
+
+def test_restitution_zero_keeps_approach_and_removes_separation():
+    # two capsules crossing along z (normal +z from i to j): j moving up separates, down approaches
+    x = _rows([-0.5, 0.1, 0], [0.3, 0.1, 0], [0, -0.2, 0.09], [0, 0.6, 0.09])
+    fp, r, w = np.array([0, 2]), np.array([0.05, 0.05]), np.ones(4)
+    pairs, hit = np.array([[0, 1]]), np.array([True])
+    for vz, moved in ((1.0, 1), (-1.0, 0)):
+        v = np.zeros((4, 3))
+        v[2:, 2] = vz
+        assert C.contact_velocities(v, x, w, fp, r, pairs, hit) == moved
+        s, t = 0.625, 0.375
+        vn = (1 - t) * v[2, 2] + t * v[3, 2] - (1 - s) * v[0, 2] - s * v[1, 2]
+        assert vn == pytest.approx(0.0 if moved else vz, abs=1e-12)
+        assert np.sum(v[:, 2]) == pytest.approx(2 * vz)  # equal masses: momentum kept
 
 
 # ----------------------------------------------------------------------------- determinism
@@ -359,7 +447,6 @@ def test_bit_identical_for_one_and_two_threads():
     x, w, fp, r, _ = _contact_setup(6)
     comp = np.random.default_rng(6).integers(0, 6, len(fp)).astype(np.int64)
     prad = np.full(len(x), 0.02)
-    mass = np.full(len(x), 0.3)
     runs = []
     try:
         for k in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
@@ -368,9 +455,12 @@ def test_bit_identical_for_one_and_two_threads():
             xk, f = x.copy(), np.zeros(len(x))
             C.project_contacts(xk, w, fp, r, pairs, 40.0, DT, f)
             C.project_colliders(xk, w, prad, _colliders(), 40.0, DT, f)
-            v = (xk - x) / DT
-            C.apply_friction(v, f, mass, 0.7, DT, 1e-6)
-            runs.append((pairs, xk, f, v))
+            xk2, f2, hit = x.copy(), np.zeros(len(x)), np.zeros(len(pairs), dtype=bool)
+            x_prev = xk2 + 1e-3
+            C.project_contacts(xk2, w, fp, r, pairs, 1e6, DT, f2, 1e-3, x_prev, hit, 0.7, 1e-6)
+            v = (xk2 - x_prev) / DT
+            C.contact_velocities(v, xk2, w, fp, r, pairs, hit)
+            runs.append((pairs, xk, f, xk2, f2, v))
     finally:
         numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     for a, b in zip(runs[0], runs[1]):

@@ -126,30 +126,61 @@ def test_balanced_shrinkage_opens_a_few_dominant_radial_cracks(tmp_path):
     assert max(spread) < 30.0 and depth[0] > radius / 3
 
 
+def _run_with_snapshot(scene, days, snapshot_day):
+    """Simulation run to ``days``, with the broken-connection flags at ``snapshot_day``."""
+    sim = wd.Simulation(wd.build_model(scene), scene)
+    sim.advance(snapshot_day)
+    broken = _broken(sim).copy()
+    sim.advance(days - snapshot_day)
+    return sim, broken
+
+
+def _loose_pieces(sim):
+    """Sizes (elements) of the pieces that came loose (every component but the largest) and
+    their BSP purity: the fraction of a piece's elements in its most common BSP leaf."""
+    comp, leaf = sim.state.mech.component, sim.model.bsp_leaf
+    sizes = np.bincount(comp)
+    loose = np.delete(np.arange(len(sizes)), np.argmax(sizes))
+    purity = np.array([np.bincount(leaf[comp == c]).max() / sizes[c] for c in loose])
+    return sizes[loose], purity
+
+
 @pytest.mark.slow
-def test_brown_rot_breaks_bsp_boundaries_white_rot_does_not_and_wet_wood_breaks_less(tmp_path):
-    """Figs. 7, 8, 13 and Eq. 21: the same log rotting everywhere while it dries. Brown rot
-    (carbohydrates only, gamma_cb 0.1 / day) lowers I_ij = 1 - theta_ij k_c (1 - H_c) on the BSP
-    boundaries alone, so most broken connections have theta = 1; a lignin-selective white rot
-    (gamma_lw 0.1, gamma_cw 0.02 / day) weakens every pair through (1 - k_l (1 - H_l)), and its broken
-    connections have theta = 1 about as often as the REG as a whole. Fig. 16: the same brown-rotting
-    log in a wetter environment (M_1 / M_2 = 0.6 / 0.4) breaks far fewer connections by the same day."""
-    days = 10.0
-    brown = _run(_scene(tmp_path, "brown", fungi__gamma_cb=0.1), days)
-    white = _run(_scene(tmp_path, "white", fungi__gamma_lw=0.1, fungi__gamma_cw=0.02), days)
-    wet = _run(_scene(tmp_path, "brown", fungi__gamma_cb=0.1, moisture__M_2=0.4), days)
+def test_brown_rot_breaks_bsp_boundaries_into_blocks_white_rot_does_not_and_wet_wood_breaks_less(tmp_path):
+    """Figs. 7, 8, 12, 13 and Eq. 21: the same log rotting everywhere while it dries. Brown rot
+    (carbohydrates only, gamma_cb 0.1 / day) lowers I = 1 - theta k_c (1 - H_c) on the BSP
+    boundaries alone (REG pairs and strand links), so by day 10 most broken connections have
+    theta = 1, and by day 22 blocks come loose along the BSP cells: a few pieces, each mostly
+    inside one leaf. A lignin-selective white rot (gamma_lw 0.1, gamma_cw 0.02 / day) weakens every
+    pair and strand through (1 - k_l (1 - H_l)): its broken connections have theta = 1 about as
+    often as the REG as a whole, and the log frays into many small fragments instead. Fig. 16: the
+    same brown-rotting log in a wetter environment (M_1 / M_2 = 0.6 / 0.4) breaks far fewer
+    connections by day 10."""
+    brown, brown10 = _run_with_snapshot(_scene(tmp_path, "brown", fungi__gamma_cb=0.1), 22.0, 10.0)
+    white, white10 = _run_with_snapshot(_scene(tmp_path, "white", fungi__gamma_lw=0.1, fungi__gamma_cw=0.02),
+                                        22.0, 10.0)
+    wet = _run(_scene(tmp_path, "brown", fungi__gamma_cb=0.1, moisture__M_2=0.4), 10.0)
     theta = brown.model.reg_theta.astype(bool)
     base = theta.mean()
-    frac = {}
-    for name, sim in (("brown", brown), ("white", white), ("wet brown", wet)):
-        b = _broken(sim)
-        s = sim.state
-        frac[name] = theta[b].mean() if b.any() else np.nan
-        print(f"{name}: day {s.t_days:.1f}, H_c {s.H_c.mean():.2f}, H_l {s.H_l.mean():.2f}, M {s.M.mean():.3f}, "
-              f"broken {np.count_nonzero(b)} of {len(b)}, theta=1 among broken {frac[name]:.2f} "
-              f"(all edges {base:.2f}), components {sim.state.mech.component.max() + 1}")
-    n_brown, n_white, n_wet = (np.count_nonzero(_broken(s)) for s in (brown, white, wet))
-    assert n_brown >= 200 and n_white >= 200
+    frac = {"brown": theta[brown10].mean(), "white": theta[white10].mean()}
+    n_wet = np.count_nonzero(_broken(wet))
+    for name, b in (("brown", brown10), ("white", white10)):
+        print(f"{name} day 10: broken {np.count_nonzero(b)} of {len(b)}, theta=1 among broken {frac[name]:.2f} "
+              f"(all edges {base:.2f})")
+    print(f"wet brown day 10: broken {n_wet}")
+    pieces = {}
+    for name, sim in (("brown", brown), ("white", white)):
+        sizes, purity = _loose_pieces(sim)
+        pieces[name] = sizes, purity
+        blocks = sizes >= 5
+        print(f"{name} day 22: H_c {sim.state.H_c.mean():.2f}, H_l {sim.state.H_l.mean():.2f}, loose pieces "
+              f"{len(sizes)} ({np.count_nonzero(blocks)} of >= 5 elements, {np.count_nonzero(~blocks)} smaller), "
+              f"BSP purity of those >= 5: {np.round(purity[blocks], 2)}")
+    assert np.count_nonzero(brown10) >= 200 and np.count_nonzero(white10) >= 200
     assert frac["brown"] > base + 0.15
     assert abs(frac["white"] - base) < 0.08
-    assert n_wet < n_brown / 10
+    assert n_wet < np.count_nonzero(brown10) / 10
+    (bs, bp), (ws, wp) = pieces["brown"], pieces["white"]
+    assert np.count_nonzero(bs >= 5) >= 4  # blocks came loose
+    assert np.median(bp[bs >= 5]) >= 0.8  # each mostly one BSP cell
+    assert np.count_nonzero(ws < 5) >= 5 * max(np.count_nonzero(bs < 5), 1)  # white rot frays

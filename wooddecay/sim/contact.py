@@ -28,11 +28,38 @@ averaging). Colliders use the same step per particle along the collider normal, 
 phi = particle_radius - sd (sd the signed distance to the solid) and W = w_p, one collider after
 the other.
 
-Friction (Eqs. 5-7). v -= min(1, mu_f |dF| dt / (m max(|v|, eps))) v (Eq. 7), where |dF| is the
-normal contact force the particle received in the projections of this substep (capsule pairs and
-colliders, accumulated in ``force`` as g_k dlambda / dt^2) instead of the particle-capsule force of
-Eqs. 5-6: once Eq. 3 is resolved a particle of i lies at r_i + r_j from the axis of j, so
-phi_ikj = max(r_j - dist(p_ik, j), 0) of Eq. 5 vanishes and resting contacts would slide freely.
+Friction (Eqs. 5-7), on positions. Eq. 7 scales the velocity by 1 - min(1, mu_f |dF| dt /
+(m max(|v|, eps))). Multiplied by dt it acts on the displacement of the substep: a contact whose
+normal correction this projection is w dlambda takes back
+
+    d_t <- d_t - min(1, mu_f w dlambda / max(|d_t|, eps dt)) d_t
+
+of the tangential part d_t of the displacement since the start of the substep (for a pair: of
+the relative displacement of its two contact points, shared like the normal step). The normal
+correction w dlambda stands for |dF| dt^2 / m, the normal force of the contact itself rather than
+the particle-capsule force of Eqs. 5-6: once Eq. 3 is resolved a particle of i lies at r_i + r_j
+from the axis of j, so phi_ikj = max(r_j - dist(p_ik, j), 0) of Eq. 5 vanishes and resting
+contacts would slide freely. Applied inside the projection, friction is static below the cone
+(a particle on an incline with tan(angle) < mu_f stays) and kinetic above it (it slides with
+g (sin - mu_f cos)); both are tested.
+
+Depenetration and restitution. A pair's (or a particle's) correction may remove all the
+penetration made in this substep and at most ``max_push`` (v_depenetration dt) of the penetration
+it started the substep with (:func:`_allowed`): capsules that overlap when their connection breaks
+part gently, while an approaching or loaded contact is held at once. After the velocity update,
+every contact touched in the substep loses its separating normal velocity
+(:func:`contact_velocities`, :func:`collider_velocities`; restitution 0): the position step that
+resolves a penetration would otherwise turn it into an outward velocity (a bounce that grows
+with k_col).
+
+Rest overlap. Capsules of neighbouring strands overlap in the intact wood (strands converge
+between profiles: up to 1.5 r_s at rest spacing). That overlap is the wood's own volume, not an
+interpenetration: when a crack separates the two elements, pushing it out would drive the pieces
+apart against friction for ever (the capped push moves a piece by its contact particle's share of
+its mass per substep, less than ground friction takes back), feeding a jitter that never
+settles. So a pair's phi counts only beyond ``phi_rest``, its overlap at the rest positions
+(:func:`pair_overlaps`, zero for elements that were apart): broken pieces fit back together as
+they were, and every other contact is the plain Eq. 3.
 
 Broad phase. :func:`candidate_pairs` bins element centres in a uniform hash grid (Teschner et al.
 2003) of cell h = max(length + 2 r) + margin, so the partners of an element lie in the 27 cells
@@ -563,8 +590,9 @@ def _moved(x, x_prev, a, b, s, t, k):
 
 
 @nb.njit(parallel=True, cache=True)
-def _pair_multipliers(x, x_prev, w_p, first_particle, radius, pairs, k_col, dt, max_push, mu, eps, pc, phi):
-    """Per pair: penetration phi (Eq. 3) and ``pc`` = (e, dlambda, s, t), e the correction per
+def _pair_multipliers(x, x_prev, w_p, first_particle, radius, pairs, phi_rest, k_col, dt, max_push, mu, eps, pc,
+                      phi):
+    """Per pair: penetration phi (Eq. 3) beyond the pair's rest overlap ``phi_rest`` and ``pc`` = (e, dlambda, s, t), e the correction per
     unit w_k g_k of j's particles (i's: -e): dlambda n_ij less the friction step (dlambda 0, e 0
     if inactive). The relative correction W dlambda is capped at max_push, or with the
     start-of-substep positions ``x_prev`` (P, 3) (not (0, 3)) at :func:`_allowed`; friction
@@ -575,13 +603,15 @@ def _pair_multipliers(x, x_prev, w_p, first_particle, radius, pairs, k_col, dt, 
         i, j = pairs[q, 0], pairs[q, 1]
         a, b = first_particle[i], first_particle[j]
         s, t, nx, ny, nz, ph = capsule_contact(x, a, a + 1, radius[i], b, b + 1, radius[j])
+        ph -= phi_rest[q]
         W = (w_p[a] * (1.0 - s) * (1.0 - s) + w_p[a + 1] * s * s + w_p[b] * (1.0 - t) * (1.0 - t)
              + w_p[b + 1] * t * t)
         phi[q] = ph
-        dl = _dlambda(ph, W, k_col, dt2) if ph > 0.0 else 0.0
+        dl = _dlambda(ph, W, k_col, dt2) if ph > 0.0 and W > 0.0 else 0.0  # W = 0: both pinned
         cap = max_push
         if len(x_prev) > 0 and ph > 0.0:
-            cap = _allowed(ph, capsule_contact(x_prev, a, a + 1, radius[i], b, b + 1, radius[j])[5], max_push)
+            ph_prev = capsule_contact(x_prev, a, a + 1, radius[i], b, b + 1, radius[j])[5] - phi_rest[q]
+            cap = _allowed(ph, ph_prev, max_push)
         if W * dl > cap:  # depenetration cap
             dl = cap / W
         ex, ey, ez = dl * nx, dl * ny, dl * nz
@@ -643,9 +673,28 @@ def _rows(x_prev) -> np.ndarray:
     return np.zeros((0, 3)) if x_prev is None else x_prev
 
 
+def _rest(phi_rest, k: int) -> np.ndarray:
+    return np.zeros(k) if phi_rest is None else np.ascontiguousarray(phi_rest, dtype=np.float64)
+
+
+@nb.njit(parallel=True, cache=True)
+def _overlaps(x, first_particle, radius, pairs, out):
+    for q in nb.prange(len(pairs)):
+        i, j = pairs[q, 0], pairs[q, 1]
+        a, b = first_particle[i], first_particle[j]
+        out[q] = capsule_contact(x, a, a + 1, radius[i], b, b + 1, radius[j])[5]
+
+
+def pair_overlaps(x, first_particle, radius, pairs) -> np.ndarray:
+    """(k,) overlap phi (Eq. 3) of each capsule pair of ``pairs`` at the positions ``x``."""
+    out = np.empty(len(pairs))
+    _overlaps(x, first_particle, radius, pairs, out)
+    return out
+
+
 def project_contacts(x, w_p, first_particle, radius, pairs, k_col, dt, force,
                      max_push: float = np.inf, x_prev=None, touched=None, mu: float = 0.0,
-                     eps: float = 0.0) -> tuple[int, float]:
+                     eps: float = 0.0, phi_rest=None) -> tuple[int, float]:
     """One Jacobi XPBD projection of the capsule contacts of ``pairs`` (k, 2) (element pairs i, j
     as from :func:`candidate_pairs`; Eqs. 3-4, module docstring).
 
@@ -659,13 +708,15 @@ def project_contacts(x, w_p, first_particle, radius, pairs, k_col, dt, force,
     with ``mu`` > 0 friction (Eq. 7 on positions, module docstring) takes back part of the
     relative tangential displacement of the contact points since ``x_prev``. ``touched`` (k,)
     bool, if given, is or-ed with the pairs that had phi > 0 (for :func:`contact_velocities`).
+    ``phi_rest`` (k,), if given, is each pair's overlap in the rest state (:func:`pair_overlaps`
+    of the rest positions, module docstring "Rest overlap"); phi counts only beyond it.
     Returns (number of pairs with phi > 0, largest phi), measured on the positions before the
     projection; k_col <= 0 means no contact: nothing changes and (0, 0.0) is returned."""
     if k_col <= 0.0 or len(pairs) == 0:
         return 0, 0.0
     pc, phi = np.empty((len(pairs), 6)), np.empty(len(pairs))
-    _pair_multipliers(x, _rows(x_prev), w_p, first_particle, radius, pairs, float(k_col), float(dt),
-                      float(max_push), float(mu), float(eps), pc, phi)
+    _pair_multipliers(x, _rows(x_prev), w_p, first_particle, radius, pairs, _rest(phi_rest, len(pairs)),
+                      float(k_col), float(dt), float(max_push), float(mu), float(eps), pc, phi)
     if touched is not None:
         touched |= phi > 0.0
     active = np.flatnonzero(phi > 0.0)
@@ -716,24 +767,27 @@ def _points_reference(y, parts, g):
 
 def project_contacts_reference(x, w_p, first_particle, radius, pairs, k_col, dt, force,
                                max_push: float = np.inf, x_prev=None, touched=None, mu: float = 0.0,
-                               eps: float = 0.0) -> tuple[int, float]:
+                               eps: float = 0.0, phi_rest=None) -> tuple[int, float]:
     """numpy version of :func:`project_contacts`."""
     if k_col <= 0.0 or len(pairs) == 0:
         return 0, 0.0
     parts, g, w, W, n, phi = _pair_geometry_reference(x, w_p, first_particle, radius, pairs)
+    rest = _rest(phi_rest, len(pairs))
+    phi = phi - rest
     if touched is not None:
         touched |= phi > 0.0
     act = phi > 0.0
     parts, g, w, W, n, ph = parts[act], g[act], w[act], W[act], n[act], phi[act]
     dt2 = dt * dt
-    dl = k_col * ph * ph * dt2 / (1.0 + W * k_col * ph * dt2)
+    dl = np.where(W > 0.0, k_col * ph * ph * dt2 / (1.0 + W * k_col * ph * dt2), 0.0)  # W = 0: both pinned
     cap = np.full(len(dl), float(max_push))
     if x_prev is not None:
-        prev = _pair_geometry_reference(x_prev, w_p, first_particle, radius, pairs)[5][act]
+        prev = (_pair_geometry_reference(x_prev, w_p, first_particle, radius, pairs)[5] - rest)[act]
         cap = np.maximum(ph - np.maximum(prev - max_push, 0.0), 0.0)
     over = W * dl > cap
     dl[over] = cap[over] / W[over]
     e = dl[:, None] * n
+    W = np.where(W > 0.0, W, 1.0)  # dl = 0 there
     if mu > 0.0 and x_prev is not None:
         fr = _friction_reference(_points_reference(x - x_prev, parts, g), n, W * dl, mu, eps * dt)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -1046,36 +1100,3 @@ def project_colliders_reference(x, w_p, particle_radius, colliders, k_col, dt, f
             fr = _friction_reference(x[act] - x_prev[act], n, w * dl, mu, eps * dt)
             x[act] -= np.where((dl > 0.0)[:, None], fr, 0.0)
     return n_active, pen
-
-
-# ----------------------------------------------------------------------------- friction
-
-
-@nb.njit(parallel=True, cache=True)
-def _friction_kernel(v, force, mass_p, mu_f, dt, eps):
-    """Eq. 7 per particle with a contact force."""
-    for p in nb.prange(len(v)):
-        if force[p] <= 0.0:
-            continue
-        speed = np.sqrt(v[p, 0] * v[p, 0] + v[p, 1] * v[p, 1] + v[p, 2] * v[p, 2])
-        c = min(1.0, mu_f * force[p] * dt / (mass_p[p] * max(speed, eps)))
-        for k in range(3):
-            v[p, k] -= c * v[p, k]
-
-
-def apply_friction(v, force, mass_p, mu_f, dt, eps) -> None:
-    """Eq. 7 in place: v -= min(1, mu_f |dF| dt / (m max(|v|, eps))) v per particle, |dF| = force
-    (P,), the normal contact force of this substep (module docstring: it stands for Eq. 6's dF).
-    Particles without contact force are left alone; mass_p > 0, eps > 0."""
-    if mu_f > 0.0 and len(v):
-        _friction_kernel(v, force, mass_p, float(mu_f), float(dt), float(eps))
-
-
-def apply_friction_reference(v, force, mass_p, mu_f, dt, eps) -> None:
-    """numpy version of :func:`apply_friction`."""
-    if mu_f <= 0.0 or len(v) == 0:
-        return
-    hit = force > 0.0
-    speed = np.sqrt(_dot(v, v))
-    c = np.minimum(1.0, mu_f * force * dt / (mass_p * np.maximum(speed, eps)))
-    v[hit] -= c[hit, None] * v[hit]

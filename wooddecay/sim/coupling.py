@@ -18,7 +18,12 @@ After each biology step, with (x)^+ = max(x, 0):
   the pair's stiffness (SPEC §4) and, as the paper's "connection strength", its strain limits:
   with stiff wood and dt = 0.01 s a connection is effectively rigid until I_ij is tiny, so the
   stiffness alone would not let decay concentrate failure on the weakened pairs
-  (docs/decisions.md);
+  (docs/decisions.md). The strand link between consecutive elements e, e + 1 is a pair of the
+  same kind: its theta is 1 where the two lie in different BSP leaves, and its I (pair means of
+  H_c, H_l) scales the stretch and shear limits of e, the element whose failure cuts that link
+  (:mod:`wooddecay.sim.failure`). Without it decay never weakened a strand, and brown rot could
+  break the REG across a BSP boundary but not the strands running through it, so no cubical
+  pieces came loose (Figs. 7, 12);
 * the element masses rho_dry (1 + M) pi r^2 l (SPEC §2).
 
 Pair quantities (M, H_c, H_l and the per-tissue parameters) are the mean of the two elements.
@@ -45,6 +50,9 @@ class CouplingSetup:
     p_l: np.ndarray  # (n, 5)
     k_c: np.ndarray  # (m,) theta_ij k_c (pair mean)
     k_l: np.ndarray  # (m,)
+    link_next: np.ndarray  # (n,) e + 1, or e for the last element of a strand
+    k_c_link: np.ndarray  # (n,) theta k_c of the link e, e + 1 (pair mean; 0 at a strand end)
+    k_l_link: np.ndarray  # (n,)
 
 
 def prepare(model, scene) -> CouplingSetup:
@@ -55,6 +63,11 @@ def prepare(model, scene) -> CouplingSetup:
         v = per_element(scene, t, name)
         return 0.5 * (v[i] + v[j])
 
+    n = model.n_elements
+    nxt = np.arange(n) + 1
+    nxt[model.element_offsets[1:] - 1] -= 1  # the last element of a strand links to itself
+    leaf = model.bsp_leaf
+    k_c_e, k_l_e = per_element(scene, t, "k_c"), per_element(scene, t, "k_l")
     dw = model.reg_dir_weights
     g_edge = pair("S") * (pair("S_R") * dw[:, 0] + pair("S_T") * dw[:, 1]) + pair("s") * dw[:, 2]
     return CouplingSetup(
@@ -62,7 +75,8 @@ def prepare(model, scene) -> CouplingSetup:
         g_pair=g_edge, M_0_pair=pair("M_0"),
         L_0=np.stack([per_element(scene, t, f"L_0_{k}") for k in LIMIT_TYPES], axis=1),
         p_l=np.stack([per_element(scene, t, f"p_l_{k}") for k in LIMIT_TYPES], axis=1),
-        k_c=model.reg_theta * pair("k_c"), k_l=pair("k_l"),
+        k_c=model.reg_theta * pair("k_c"), k_l=pair("k_l"), link_next=nxt,
+        k_c_link=(leaf != leaf[nxt]) * 0.5 * (k_c_e + k_c_e[nxt]), k_l_link=0.5 * (k_l_e + k_l_e[nxt]),
     )
 
 
@@ -71,9 +85,9 @@ def limit_factor(M: np.ndarray, M_1: np.ndarray, M_2: np.ndarray, p_l: np.ndarra
     return np.clip((M - M_2) / (M_1 - M_2), 0.0, 1.0) ** p_l
 
 
-def integrity(cs: CouplingSetup, H_c_pair: np.ndarray, H_l_pair: np.ndarray) -> np.ndarray:
-    """I_ij of Eq. 21, clipped to [0, 1]."""
-    I = (1.0 - cs.k_c * (1.0 - H_c_pair)) * (1.0 - cs.k_l * (1.0 - H_l_pair))
+def integrity(k_c: np.ndarray, k_l: np.ndarray, H_c_pair: np.ndarray, H_l_pair: np.ndarray) -> np.ndarray:
+    """I_ij of Eq. 21 with k_c already multiplied by theta_ij, clipped to [0, 1]."""
+    I = (1.0 - k_c * (1.0 - H_c_pair)) * (1.0 - k_l * (1.0 - H_l_pair))
     return np.clip(I, 0.0, 1.0)
 
 
@@ -88,7 +102,9 @@ def apply(cs: CouplingSetup, setup: MechSetup, ms: MechState, state, M12: np.nda
     ms.rest_length = setup.rest_length0 * (1.0 - np.maximum(cs.M_0 - M, 0.0) * cs.s)
     f = limit_factor(M[:, None], M12[tissue, 0][:, None], M12[tissue, 1][:, None], cs.p_l)
     L = cs.L_0 * f
-    ms.integrity = integrity(cs, 0.5 * (state.H_c[i] + state.H_c[j]), 0.5 * (state.H_l[i] + state.H_l[j]))
-    ms.limit_elem = np.ascontiguousarray(L[:, :2])
+    ms.integrity = integrity(cs.k_c, cs.k_l, 0.5 * (state.H_c[i] + state.H_c[j]), 0.5 * (state.H_l[i] + state.H_l[j]))
+    e1 = cs.link_next
+    link = integrity(cs.k_c_link, cs.k_l_link, 0.5 * (state.H_c + state.H_c[e1]), 0.5 * (state.H_l + state.H_l[e1]))
+    ms.limit_elem = np.ascontiguousarray(L[:, :2] * link[:, None])
     ms.limit_edge = np.ascontiguousarray(0.5 * (L[i, 2:] + L[j, 2:]) * ms.integrity[:, None])
     set_masses(setup, ms, M)

@@ -10,7 +10,10 @@ Strains are measured after every substep, as the change since the settled refere
   stays with the strand part before it). Its REG connections stay and fail on their own strain,
   like every other pair ("still permitting other constraints", §5.3): clearing them with the
   element released all its pre-strained connections at once and mixed every orientation into the
-  crack statistics (docs/decisions.md);
+  crack statistics (docs/decisions.md). Only an inner element whose strand neighbours are both
+  intact can fail: at a strand end, or next to an element that already failed, a failure
+  separates nothing and would leave a particle that no element holds, flopping on the REG
+  connections of its element's centre (its strain there is no longer the wood's);
 * pair (REG edge) bundle strain (|c_j - c_i| - dp) / max(dp_0, r_s) (tension), bend and twist angles of the
   relative rotation conj(Omega_0) conj(q_i) q_j (bend: about axes across the grain, twist: about
   d3), against the pair's limits. Bend or twist over its limit clears that flag; bundle over its
@@ -19,7 +22,8 @@ Strains are measured after every substep, as the change since the settled refere
 Flags never come back. After a substep with a new element or connection failure the connected
 components (strand links of unbroken elements plus intact REG connections) are recomputed;
 labels are numbered in order of each component's smallest element id, so they are
-deterministic. The kernels write only their own element's or edge's entries (race-free).
+deterministic. The edge kernels write only their own edge's entries (race-free); elements are
+flagged in one serial pass in element order (the neighbour rule reads the flags it writes).
 """
 from __future__ import annotations
 
@@ -74,12 +78,16 @@ def pair_strains(edges, fp, x, q, rest_offset, edge_length, edge_rest):
     return out
 
 
-@nb.njit(parallel=True, cache=True)
-def _flag_elements(strain, limit, element_ok):
+@nb.njit(cache=True)
+def _flag_elements(strain, limit, inner, element_ok):
+    """New element failures, in element order (serial, so deterministic): an element over its
+    limit cuts its strand only where that separates something, i.e. it is ``inner`` (a neighbour
+    on both sides in its strand) and both neighbours are intact (module docstring)."""
     n = len(strain)
     new = np.zeros(n, dtype=np.bool_)
-    for e in nb.prange(n):
-        if element_ok[e] and (strain[e, 0] > limit[e, 0] or strain[e, 1] > limit[e, 1]):
+    for e in range(n):
+        if (element_ok[e] and inner[e] and element_ok[e - 1] and element_ok[e + 1]
+                and (strain[e, 0] > limit[e, 0] or strain[e, 1] > limit[e, 1])):
             element_ok[e] = False
             new[e] = True
     return new
@@ -125,10 +133,11 @@ def update(setup, ms) -> int:
     :func:`mechanics.settle`) exceeds their limit; recompute components if anything separated.
     Returns the number of new failures (elements plus edges)."""
     elem, pair = strains(setup, ms)
-    new_e = _flag_elements(elem - ms.strain_ref_elem, ms.limit_elem, ms.element_ok)
+    new_e = _flag_elements(elem - ms.strain_ref_elem, ms.limit_elem, setup.inner, ms.element_ok)
     new_k = _flag_edges(pair - ms.strain_ref_edge, ms.limit_edge, ms.edge_ok)
     count = int(new_e.sum()) + int(np.count_nonzero(new_k))
     if new_e.any() or (new_k == 2).any():
         ms.component = components(setup, ms)
+        ms.pairs_x = None  # new pieces: rebuild the contact list (mechanics.refresh_pairs)
     ms.failures += count
     return count

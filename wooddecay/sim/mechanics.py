@@ -8,14 +8,17 @@ One substep of length dt (``substep``):
 2. ``iterations`` sweeps (:mod:`wooddecay.sim.rods`) of: Stage 1 per strand (stretch and shear of even then odd elements,
    bend-twist of even then odd joints: a red-black order along each chain), Stage 2 on the REG
    one colour class at a time (connection of Eq. 2 scaled by I_ij, pair bend-twist by the rest
-   Darboux vector), colliders and capsule contact (:mod:`wooddecay.sim.contact`, Eqs. 3-4);
-3. velocities from the positions, particle friction (Eqs. 5-7);
+   Darboux vector), colliders and capsule contact (:mod:`wooddecay.sim.contact`, Eqs. 3-4, with
+   the particle friction of Eq. 7 applied to the displacements of the substep);
+3. velocities from the positions; contacts touched in this substep keep no separating normal
+   velocity (restitution 0);
 4. failure against the limits L(M) and recomputed components (:mod:`wooddecay.sim.failure`).
 
 Anchored elements (a stump) have zero inverse mass and inertia. Stiffnesses come from the strand's
 E A, G A, E I, G J (``[mechanics] E, G``, radius r_s); a REG connection has stiffness
 G A_c / dp_0 with A_c = 2 r_s l the strands' contact area, and its pair bend-twist coupling the
-strand's E I, G J over dp_0. :func:`substep_reference` is the same substep in plain numpy.
+strand's E I, G J over dp_0. The kernels of :mod:`~wooddecay.sim.rods` and
+:mod:`~wooddecay.sim.contact` each have a plain-numpy ``*_reference`` twin.
 """
 from __future__ import annotations
 
@@ -31,10 +34,6 @@ from .quaternion import conj_np, mul, mul_np, rotate
 #: contact candidate pairs are searched with this margin (in r_s) and rebuilt once a particle
 #: has moved half of it (a Verlet list)
 CONTACT_MARGIN = 2.0
-import os
-_DBG_CAPC = os.environ.get('DBG_CAPC', '1') == '1'
-_DBG_VFR = os.environ.get('DBG_VFR', '0') == '1'
-_DBG_VEL = os.environ.get('DBG_VEL', '1') == '1'
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,6 +57,8 @@ class MechSetup:
     dry_mass: np.ndarray  # (n,) rho_dry pi r^2 l_r0 (element mass = dry_mass (1 + M))
     anchored_p: np.ndarray  # (P,) pinned particles
     anchored_e: np.ndarray  # (n,) elements without rotation
+    x_rest: np.ndarray  # (P, 3) rest particle positions (the rest overlap of contact pairs)
+    inner: np.ndarray  # (n,) elements with a neighbour on both sides in their strand
     edges: np.ndarray  # (m, 2) REG
     edge_rest: np.ndarray  # (m, 4) rest Darboux
     offset0: np.ndarray  # (m,) dp_0
@@ -110,6 +111,7 @@ class MechState:
     failures: int = 0  # failure events so far (elements + edge flags)
     pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))  # contact list
     pairs_x: np.ndarray | None = None  # positions when ``pairs`` was built
+    pairs_rest: np.ndarray = field(default_factory=lambda: np.zeros(0))  # rest overlap per pair
 
     def copy(self) -> "MechState":
         return MechState(**{f.name: (getattr(self, f.name).copy() if isinstance(getattr(self, f.name), np.ndarray)
@@ -118,7 +120,7 @@ class MechState:
     def arrays(self) -> dict[str, np.ndarray]:
         """The arrays a checkpoint needs (the contact list is rebuilt from them)."""
         return {f.name: getattr(self, f.name) for f in fields(self)
-                if isinstance(getattr(self, f.name), np.ndarray) and f.name not in ("pairs", "pairs_x")}
+                if isinstance(getattr(self, f.name), np.ndarray) and f.name not in ("pairs", "pairs_x", "pairs_rest")}
 
 
 def per_element(scene, tissue: np.ndarray, name: str) -> np.ndarray:
@@ -159,6 +161,14 @@ def _particle_radius(fp: np.ndarray, r: np.ndarray, P: int) -> np.ndarray:
     np.maximum.at(rp, fp, r)
     np.maximum.at(rp, fp + 1, r)
     return rp
+
+
+def _inner(element_offsets: np.ndarray, n: int) -> np.ndarray:
+    """Elements that are neither the first nor the last of their strand."""
+    inner = np.ones(n, dtype=bool)
+    inner[element_offsets[:-1]] = False
+    inner[element_offsets[1:] - 1] = False
+    return inner
 
 
 def _parity_sets(ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -209,7 +219,8 @@ def prepare(model, scene) -> MechSetup:
         joint_kb=0.5 * (E[je] + E[je + 1]) * I_b[je], joint_kt=0.5 * (G[je] + G[je + 1]) * 2 * I_b[je],
         rest_length0=l0.copy(), radius=r.copy(), k_stretch=E * A, k_shear=G * A,
         inertia_factor=mech.inertia_scale * (r**2 / 4.0 + l0**2 / 12.0), dry_mass=dry, anchored_p=anchored_p,
-        anchored_e=model.anchored.copy(), edges=ij, edge_rest=model.reg_rest_darboux.copy(),
+        anchored_e=model.anchored.copy(), x_rest=model.particles.astype(np.float64),
+        inner=_inner(model.element_offsets, n), edges=ij, edge_rest=model.reg_rest_darboux.copy(),
         offset0=model.reg_rest_offset.copy(), edge_length=edge_length,
         k_conn0=Gm * 2.0 * r_s * lm / edge_length,
         k_pb0=Em * np.pi * r_s**4 / 4.0, k_pt0=Gm * np.pi * r_s**4 / 2.0,
@@ -353,7 +364,7 @@ def substep(setup: MechSetup, ms: MechState, dt: float, force: np.ndarray) -> in
              np.exp(-setup.damping * dt), dt, x_old, q_old)
     kreg, kjoint = reg_stiffness(setup, ms), _joint_stiffness(setup, ms)
     lam = _multipliers(setup)
-    fn = np.zeros(setup.n_particles)
+    normal_force = np.zeros(setup.n_particles)
     refresh_pairs(setup, ms)
     # contact (docs/decisions.md "Contact"): depenetration capped at v_depenetration beyond the
     # approach of this substep (ms.v holds the predicted velocities), restitution 0 afterwards
@@ -362,27 +373,31 @@ def substep(setup: MechSetup, ms: MechState, dt: float, force: np.ndarray) -> in
     hit_p = np.zeros(len(ms.pairs), dtype=bool)
     for _ in range(setup.iterations):
         _project(setup, ms, kjoint, kreg, lam, dt)
-        contact.project_colliders(ms.x, ms.w_p, setup.radius_p, setup.colliders, setup.k_col, dt, fn, push if _DBG_CAPC else np.inf, x_old,
-                                  hit_c, setup.mu_f, setup.epsilon)
-        contact.project_contacts(ms.x, ms.w_p, setup.fp, setup.radius, ms.pairs, setup.k_col, dt, fn, push, x_old,
-                                 hit_p, setup.mu_f, setup.epsilon)
+        contact.project_colliders(ms.x, ms.w_p, setup.radius_p, setup.colliders, setup.k_col, dt, normal_force,
+                                  push, x_old, hit_c, setup.mu_f, setup.epsilon)
+        contact.project_contacts(ms.x, ms.w_p, setup.fp, setup.radius, ms.pairs, setup.k_col, dt, normal_force,
+                                 push, x_old, hit_p, setup.mu_f, setup.epsilon, ms.pairs_rest)
     _velocities(ms.x, ms.v, ms.q, ms.omega, x_old, q_old, ms.w_p, ms.w_q, dt)
-    if _DBG_VEL:
-        contact.collider_velocities(ms.v, ms.x, ms.w_p, setup.colliders, hit_c)
-        contact.contact_velocities(ms.v, ms.x, ms.w_p, setup.fp, setup.radius, ms.pairs, hit_p)
-    if _DBG_VFR:
-        contact.apply_friction(ms.v, fn, ms.mass_p, setup.mu_f, dt, setup.epsilon)
+    contact.collider_velocities(ms.v, ms.x, ms.w_p, setup.colliders, hit_c)
+    contact.contact_velocities(ms.v, ms.x, ms.w_p, setup.fp, setup.radius, ms.pairs, hit_p)
     ms.t_seconds += dt
     return failure.update(setup, ms)
 
 
 def refresh_pairs(setup: MechSetup, ms: MechState) -> None:
     """Contact candidates between components (a Verlet list with margin CONTACT_MARGIN r_s),
-    rebuilt when a particle has moved half the margin since the last build."""
+    rebuilt when a particle has moved half the margin since the last build or when
+    :func:`failure.update` changed the components (it clears ``pairs_x``). Failed elements take
+    no part: a broken element's segment joins the end of one piece to the start of the next
+    (its second particle is the next element's first), so it is no longer wood and its capsule
+    would drag through both pieces. ``pairs_rest`` holds each pair's overlap at the rest
+    positions, which contact does not push out (:mod:`~wooddecay.sim.contact`, "Rest overlap")."""
     margin = CONTACT_MARGIN * float(setup.radius.max(initial=0.0))
     if ms.pairs_x is not None and np.max(np.abs(ms.x - ms.pairs_x), initial=0.0) < 0.5 * margin:
         return
-    ms.pairs = contact.candidate_pairs(ms.x, setup.fp, setup.radius, ms.component, margin)
+    pairs = contact.candidate_pairs(ms.x, setup.fp, setup.radius, ms.component, margin)
+    ms.pairs = np.ascontiguousarray(pairs[ms.element_ok[pairs[:, 0]] & ms.element_ok[pairs[:, 1]]])
+    ms.pairs_rest = contact.pair_overlaps(setup.x_rest, setup.fp, setup.radius, ms.pairs)
     ms.pairs_x = ms.x.copy()
 
 
