@@ -717,3 +717,19 @@ def test_fuzz_overrides(over):
         assert err.file == "<--set>"
         return
     only_input_errors(parse_scene, SKELETON, source="fuzz.toml", overrides=parsed)
+
+
+def test_parse_scene_takes_the_parsed_toml_mapping(tmp_path):
+    """A scene built in code (a dict as tomllib returns it) validates like its text and is
+    not changed by the parse."""
+    import copy
+    import tomllib
+    from pathlib import Path
+    path = Path(__file__).resolve().parent.parent / "wooddecay" / "samples" / "tiny.toml"
+    data = tomllib.loads(path.read_text())
+    before = copy.deepcopy(data)
+    assert parse_scene(data, source=str(path), base_dir=path.parent).hash == load_scene(path).hash
+    assert data == before
+    data["strands"]["r_s"] = -1.0
+    with pytest.raises(InputError, match="strands.r_s"):
+        parse_scene(data, source="built")

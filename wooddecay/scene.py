@@ -56,6 +56,8 @@ line and column. No other exception type escapes for any input.
 """
 from __future__ import annotations
 
+import copy
+
 import hashlib
 import json
 import os
@@ -327,14 +329,17 @@ def load_scene(path: str | os.PathLike, overrides: Mapping[str, Any] | None = No
     return _parse(text, label, p.parent, p, overrides)
 
 
-def parse_scene(text: str | bytes, source: str = "<string>", base_dir: str | os.PathLike = Path("."),
-                overrides: Mapping[str, Any] | None = None) -> Scene:
-    """Validate and resolve a scene given as TOML text (``bytes`` must be UTF-8).
+def parse_scene(text: str | bytes | Mapping[str, Any], source: str = "<string>",
+                base_dir: str | os.PathLike = Path("."), overrides: Mapping[str, Any] | None = None) -> Scene:
+    """Validate and resolve a scene given as TOML text (``bytes`` must be UTF-8) or as the
+    mapping TOML text parses to (``tomllib.loads``; copied, not changed).
 
     ``source`` names the text in messages (and gives the default scene name when it looks like a
     file name); relative skeleton files are looked up in ``base_dir``.
     """
     source = str(source)
+    if isinstance(text, Mapping):
+        return _resolve_data(copy.deepcopy(dict(text)), source, Path(base_dir), None, overrides)
     if isinstance(text, (bytes, bytearray, memoryview)):
         text = _decode(bytes(text), source)
     elif not isinstance(text, str):
@@ -415,6 +420,11 @@ def _parse(text: str, label: str, base_dir: Path, path: Path | None,
         raise InputError(label, "", f"TOML syntax error: {err}") from None
     except RecursionError:
         raise InputError(label, "", "TOML syntax error: nesting too deep") from None
+    return _resolve_data(data, label, base_dir, path, overrides)
+
+
+def _resolve_data(data: dict, label: str, base_dir: Path, path: Path | None,
+                  overrides: Mapping[str, Any] | None) -> Scene:
     ctx = _Ctx(label)
     if overrides is not None:
         _apply_overrides(data, overrides, ctx)
