@@ -1,0 +1,40 @@
+"""Pull test (woodstock Fig. 17; issue 4): a decayed branch breaks under a pull at least 10x
+smaller than the healthy branch needs.
+
+The specimen is the branch through node b1_2 of ``samples/tree.toml`` cut out of the tree and
+clamped at its fork, at ``quality = "draft"`` (539 rod elements); ``benchmarks/pull.py`` runs the
+same study (:mod:`wooddecay.pull`) on that branch inside the whole tree at the tree's resolution.
+The draft specimen's thresholds are about 6.4 N (healthy) and 0.25 N (decayed, H_c = H_l = 0.5:
+I_ij 0.5 and 0.25 across BSP cells), a ratio of about 26; the tree's are given by the benchmark
+and docs/decisions.md. About 30 s.
+"""
+from __future__ import annotations
+
+import pytest
+
+import wooddecay as wd
+from wooddecay import pull
+
+
+@pytest.fixture(scope="module")
+def draft_study():
+    scene = pull.specimen_scene(quality="draft")
+    return pull.study(scene, wd.build_model(scene), healthy=(4.0, 8.0), decayed=(0.2, 0.4), rel=0.1)
+
+
+@pytest.mark.slow
+def test_thresholds_are_bracketed(draft_study):
+    for th in (draft_study.healthy, draft_study.decayed):
+        lo, hi = th.at(th.lo), th.at(th.hi)
+        assert hi.broke and not lo.broke, th
+        assert th.hi / th.lo <= 1.1 + 1e-12
+        # clear outcomes: the unbroken branch stays far below the break displacement, and the
+        # broken one breaks well within the loaded time
+        assert lo.max_displacement < 0.5 * draft_study.displacement, lo
+        assert hi.t_break < draft_study.seconds, hi
+
+
+@pytest.mark.slow
+def test_decayed_branch_breaks_under_a_tenth_of_the_load(draft_study):
+    assert draft_study.decayed_elements == draft_study.n_elements  # the specimen is the branch
+    assert draft_study.ratio_min >= 10.0, (draft_study.healthy, draft_study.decayed)

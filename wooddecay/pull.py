@@ -1,0 +1,379 @@
+"""Pull test (woodstock Fig. 17; SPEC §4 "Loads"): the smallest horizontal pull that breaks a
+side branch, healthy and decayed, each found by bisection on a log scale.
+
+Used by ``benchmarks/pull.py`` (the branch through node ``b1_2`` of ``samples/tree.toml``, in the
+whole tree and cut out as a specimen at the tree's resolution) and ``tests/test_pull.py`` (the
+specimen at ``quality = "draft"``). docs/decisions.md ("Mechanics") gives reasons and figures.
+
+* **Load.** One ``[[load]]`` appended to the scene (:func:`pull_scene`): the elements within
+  ``radius`` of the skeleton node ``tip`` (by default the last node on the branch's axis), a
+  horizontal force along the branch's horizontal direction, from its fork towards ``tip``
+  (Fig. 17's "leftward pull to the left branch"). :func:`wooddecay.sim.mechanics.prepare` spreads
+  it over the region's particles by mass; the scene's force is 1 N and a probe of F newtons
+  scales those particle forces by F.
+* **Specimen** (:func:`specimen_scene`): the same scene with the skeleton cut down to the branch,
+  clamped at its fork (an anchored root node at the fork with the first branch node's profile;
+  for b1_2 the trunk there is 34 times stiffer in bending than the branch) and the BSP cells
+  scaled with the wood volume so that cells keep their size.
+* **Cases** (:func:`pull_cases`). The rods settle once with the initial fields (the scene's
+  ``settle`` seconds at ``settle_damping``, as ``wd.Simulation`` does). From that equilibrium
+  each case settles again for ``resettle`` seconds (default: the scene's ``settle``) and takes its
+  own reference strains: *healthy* as it is, *decayed* after H_c = H_l = ``decay`` in every
+  element of the branch and its side branches and the coupling (Eq. 21: I_ij = (1 - theta_ij k_c
+  (1 - H_c)) (1 - k_l (1 - H_l)), which scales the pairs' stiffness and strain limits). Decay
+  takes months: the branch sags into its weakened connections quasi-statically rather than being
+  dropped from its rest pose, and both cases share the same settling history. Every probe starts
+  from a copy of its case's settled :class:`~wooddecay.sim.mechanics.MechState`.
+* **Probe** (:func:`probe`). ``seconds`` of mechanics (the scene's dt_mech, damping, gravity,
+  failure on) under the constant pull F. The branch **breaks** when within that time the
+  mass-weighted centroid of the loaded particles moves more than ``displacement`` from its
+  settled position (the branch has lost its bending capacity and swings or sags away), or at
+  least half of the loaded mass lies in pieces without an anchored element (it came off).
+  Checked every ``check_every`` substeps; a probe stops at the first break. Coming off alone is
+  no criterion: strand joints have no bending limit, so a branch whose base has failed still
+  hangs on strands that the pull now loads in tension (a strand holds about E pi r_s^2 L(M)),
+  and it swings and sags for a long time before the last one snaps.
+* **Threshold** (:func:`threshold`). Bisection on log F: the bracket [lo, hi] is widened by
+  ``grow`` until hi breaks and lo does not, then split at its geometric mean until hi / lo <= 1 +
+  ``rel``. The threshold is the geometric mean of the final bracket.
+"""
+from __future__ import annotations
+
+import time
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .model import build_model
+from .scene import Scene, load_scene, parse_scene
+from .sim import mechanics
+from .sim.driver import Simulation
+from .sim.state import region_mask
+from .strands.topology import build_topology
+
+#: the sample tree (the same file as the repository's ``samples/tree.toml``)
+TREE = Path(__file__).resolve().parent / "samples" / "tree.toml"
+#: H_c = H_l of the decayed branch: I_ij = 0.5 (0.25 across BSP cells)
+DECAY = 0.5
+#: loaded seconds of a probe: the slowest breaks near the thresholds come at 0.24 s
+SECONDS = 0.3
+#: displacement of the load centroid (m) that counts as a break; unbroken branches stay below 2 cm
+DISPLACEMENT = 0.05
+
+
+# ------------------------------------------------------------------ scenes
+def _first_node(skel, node: str) -> int:
+    """The first node of the branch through ``node`` (its parent lies on another branch), or
+    the root when ``node`` is on the root's branch."""
+    topo = build_topology(skel)
+    i = skel.ids.index(node)
+    first = i
+    while skel.parent[first] >= 0 and topo.branch[skel.parent[first]] == topo.branch[i]:
+        first = skel.parent[first]
+    return first
+
+
+def _subtree(skel, node: str) -> list[int]:
+    """Node indices of the branch through ``node`` and its side branches: the subtree that
+    starts at the branch's first node."""
+    first = _first_node(skel, node)
+    if skel.parent[first] < 0:
+        raise ValueError(f"node {node!r} is on the trunk, not on a side branch")
+    nodes = [first]
+    for k in range(first + 1, len(skel.ids)):  # parents precede children
+        if skel.parent[k] in nodes:
+            nodes.append(k)
+    return nodes
+
+
+def _branch_tip(skel, nodes: list[int]) -> int:
+    """The node of ``nodes`` farthest along the branch's own axis (same branch id as the first)."""
+    topo = build_topology(skel)
+    axis = [k for k in nodes if topo.branch[k] == topo.branch[nodes[0]]]
+    return axis[-1]
+
+
+def pull_direction(skel, node: str, tip: str) -> np.ndarray:
+    """Unit horizontal vector from the fork of ``node``'s branch towards ``tip``."""
+    first = _subtree(skel, node)[0]
+    d = skel.positions[skel.ids.index(tip)] - skel.positions[skel.parent[first]]
+    d = np.array([d[0], d[1], 0.0])
+    return d / np.linalg.norm(d)
+
+
+def pull_scene(path=TREE, node: str = "b1_2", tip: str | None = None, radius: float = 0.15,
+               specimen: bool = False, quality: str | None = None) -> Scene:
+    """The scene at ``path`` plus the pull ``[[load]]`` (module docstring) of 1 N on the branch
+    through ``node``; ``tip`` defaults to the last node on the branch's axis. With
+    ``specimen`` the skeleton is cut down to that branch (:func:`specimen_scene`); ``quality``
+    overrides ``[scene] quality``."""
+    path = Path(path)
+    data = tomllib.loads(path.read_text("utf-8"))
+    base = load_scene(path)
+    skel = base.skeleton
+    nodes = _subtree(skel, node)
+    tip = skel.ids[_branch_tip(skel, nodes)] if tip is None else tip
+    direction = pull_direction(skel, node, tip)
+    if specimen:
+        data = _specimen_data(data, base, nodes)
+    if quality is not None:
+        data.setdefault("scene", {})["quality"] = quality
+    data["load"] = data.get("load", []) + [{
+        "region": {"kind": "node", "id": tip, "radius": float(radius)},
+        "force": [float(c) for c in direction], "days": [0.0, 1e9]}]
+    return parse_scene(data, source=str(path), base_dir=path.parent)
+
+
+def _frustum_volume(skel, nodes, radius_of) -> float:
+    v = 0.0
+    for k in nodes:
+        p = skel.parent[k]
+        if p >= 0:
+            ra, rb = radius_of(p), radius_of(k)
+            v += np.pi / 3.0 * np.linalg.norm(skel.positions[k] - skel.positions[p]) * (ra * ra + ra * rb + rb * rb)
+    return v
+
+
+def _specimen_data(data: dict, scene: Scene, nodes: list[int]) -> dict:
+    """Scene data whose skeleton is the branch ``nodes`` alone, clamped at its fork: an anchored
+    root node at the fork with the profile of the branch's first node. Inoculations are dropped
+    (they may name nodes that are gone); the BSP keeps the tree's cell size
+    (cells scaled by the skeleton volume)."""
+    skel = scene.skeleton
+    first = nodes[0]
+    fork = skel.parent[first]
+    profiles = {n["id"]: n["profile"] for n in scene.to_dict()["skeleton"]["nodes"]}
+    root = {"id": "stump", "position": [float(c) for c in skel.positions[fork]], "anchored": True,
+            "profile": profiles[skel.ids[first]]}
+    out = [root]
+    for k in nodes:
+        par = "stump" if k == first else skel.ids[skel.parent[k]]
+        out.append({"id": skel.ids[k], "position": [float(c) for c in skel.positions[k]], "parent": par,
+                    "profile": profiles[skel.ids[k]]})
+    data = {k: v for k, v in data.items() if k not in ("skeleton", "inoculation", "load")}
+    data["skeleton"] = {"node": out}
+
+    def radius(k):
+        return skel.profiles[k].equivalent_radius
+
+    def cut_radius(k):  # the specimen's root takes the first node's profile
+        return radius(first if k == fork else k)
+
+    share = _frustum_volume(skel, nodes, cut_radius) / _frustum_volume(skel, range(len(skel.ids)), radius)
+    bsp = dict(data.get("bsp", {}))
+    if bsp.get("cells", 0) > 0:
+        bsp["cells"] = max(1, int(round(bsp["cells"] * share)))
+        data["bsp"] = bsp
+    return data
+
+
+def specimen_scene(path=TREE, node: str = "b1_2", quality: str = "draft", **kw) -> Scene:
+    """The branch through ``node`` cut out of the tree at ``path`` and clamped at its fork
+    (the trunk of the tree is far stiffer than the branch), at ``quality``, with the pull load."""
+    return pull_scene(path, node=node, specimen=True, quality=quality, **kw)
+
+
+# ------------------------------------------------------------------ cases and probes
+@dataclass(eq=False)
+class PullCase:
+    """A settled model ready to be pulled (module docstring)."""
+
+    name: str
+    setup: object  # MechSetup (with the 1 N pull as its load)
+    settled: object  # MechState after settling
+    unit_force: np.ndarray  # (P, 3) particle forces of a 1 N pull
+    loaded_p: np.ndarray  # particles the pull acts on
+    weight_p: np.ndarray  # their share of the force (sums to 1)
+    loaded_e: np.ndarray  # (n,) bool: elements of the load region
+    decayed_e: np.ndarray  # (n,) bool: elements whose H_c, H_l were lowered
+    settle_seconds: float  # wall time of its own settling (after the shared first one)
+    base_settle_seconds: float  # wall time of the first settling, shared by both cases
+
+
+def branch_elements(model, scene, node: str) -> np.ndarray:
+    """(n,) bool: the elements of the branch through ``node`` and its side branches (all
+    elements for a specimen scene, whose root is the fork)."""
+    skel = scene.skeleton
+    if skel.parent[_first_node(skel, node)] < 0:  # a specimen: the branch is the whole skeleton
+        return np.ones(model.n_elements, dtype=bool)
+    return np.isin(model.branch, np.unique(build_topology(skel).branch[_subtree(skel, node)]))
+
+
+def pull_cases(scene: Scene, model=None, node: str = "b1_2", decay: float = DECAY,
+               resettle: float | None = None) -> tuple[PullCase, PullCase]:
+    """The healthy and the decayed case of ``scene`` (its model built if not given).
+
+    Module docstring, "Cases"; ``resettle`` defaults to the scene's ``settle``."""
+    model = build_model(scene) if model is None else model
+    sim = Simulation(model, scene, settle=False)
+    setup = sim.mech_setup
+    if len(setup.loads) != 1:
+        raise ValueError("the pull scene must have exactly one [[load]]")
+    unit = mechanics.external_forces(setup, setup.loads[0][0])
+    unit = unit / np.linalg.norm(unit.sum(axis=0))
+    mag = np.linalg.norm(unit, axis=1)
+    loaded_p = np.flatnonzero(mag > 0.0)
+    loaded_e = region_mask(model, scene, scene.loads[0]["region"])
+    damping = scene.mechanics.settle_damping
+    resettle = scene.mechanics.settle if resettle is None else resettle
+    t0 = time.perf_counter()
+    mechanics.settle(setup, sim.state.mech, scene.mechanics.settle, damping)
+    first = time.perf_counter() - t0
+    base = sim.state.mech.copy()
+
+    def case(name, decayed):
+        t0 = time.perf_counter()
+        mechanics.settle(setup, sim.state.mech, resettle, damping)
+        return PullCase(name=name, setup=setup, settled=sim.state.mech.copy(), unit_force=unit, loaded_p=loaded_p,
+                        weight_p=mag[loaded_p] / mag[loaded_p].sum(), loaded_e=loaded_e, decayed_e=decayed,
+                        settle_seconds=time.perf_counter() - t0, base_settle_seconds=first)
+
+    healthy = case("healthy", np.zeros(model.n_elements, dtype=bool))
+    decayed = branch_elements(model, scene, node)
+    sim.state.mech = base
+    sim.state.H_c[decayed] = decay
+    sim.state.H_l[decayed] = decay
+    sim._couple()  # Eq. 21 and the limits from the new fields
+    return healthy, case("decayed", decayed)
+
+
+@dataclass(frozen=True)
+class Probe:
+    force: float  # N
+    broke: bool
+    t_break: float | None  # s of loaded time at the break
+    reason: str  # "displaced", "separated" or ""
+    max_displacement: float  # m, of the load centroid over the probe
+    detached: float  # largest fraction of the loaded mass separated from the stump
+    failures: int  # failure events during the probe
+    t_last_failure: float | None  # s: the check at which the failure count last grew (None: none)
+    seconds: float  # loaded time simulated
+    wall: float  # s
+
+
+def probe(case: PullCase, force: float, seconds: float = SECONDS, displacement: float = DISPLACEMENT,
+          check_every: int = 10, trace: list | None = None) -> Probe:
+    """Pull the settled ``case`` with ``force`` newtons for up to ``seconds`` (module docstring);
+    ``trace`` collects (t, displacement, detached fraction, failures) at every check."""
+    setup = case.setup
+    ms = case.settled.copy()
+    ms.pairs_x = None  # rebuild the contact list from this state
+    f = force * case.unit_force
+    x0 = case.weight_p @ ms.x[case.loaded_p]
+    failures0 = ms.failures
+    anchored = setup.anchored_e
+    loaded_w = setup.dry_mass * case.loaded_e
+    loaded_w = loaded_w / loaded_w.sum()
+    n = int(round(seconds / setup.dt))
+    d_max = detached = 0.0
+    t0 = time.perf_counter()
+    reason, k, last, t_last = "", 0, failures0, None
+    for k in range(1, n + 1):
+        mechanics.substep(setup, ms, setup.dt, f)
+        if k % check_every and k != n:
+            continue
+        d_max = max(d_max, float(np.linalg.norm(case.weight_p @ ms.x[case.loaded_p] - x0)))
+        now = float(loaded_w[~np.isin(ms.component, ms.component[anchored])].sum())
+        detached = max(detached, now)
+        if ms.failures > last:
+            last, t_last = ms.failures, k * setup.dt
+        if trace is not None:
+            trace.append((k * setup.dt, d_max, now, ms.failures - failures0))
+        if d_max > displacement:
+            reason = "displaced"
+        elif detached >= 0.5:
+            reason = "separated"
+        if reason:
+            break
+    return Probe(force=float(force), broke=bool(reason), t_break=k * setup.dt if reason else None, reason=reason,
+                 max_displacement=d_max, detached=detached, failures=ms.failures - failures0,
+                 t_last_failure=t_last, seconds=k * setup.dt, wall=time.perf_counter() - t0)
+
+
+@dataclass
+class Threshold:
+    """Bracket [lo, hi] of the breaking force: ``hi`` broke, ``lo`` did not."""
+
+    case: str
+    lo: float
+    hi: float
+    probes: list = field(default_factory=list)
+
+    @property
+    def force(self) -> float:
+        """Geometric mean of the bracket."""
+        return float(np.sqrt(self.lo * self.hi))
+
+    def at(self, force: float) -> Probe:
+        return next(p for p in self.probes if p.force == force)
+
+
+def threshold(case: PullCase, lo: float, hi: float, seconds: float = SECONDS, displacement: float = DISPLACEMENT,
+              rel: float = 0.1, grow: float = 4.0, max_probes: int = 16, log=None) -> Threshold:
+    """Bisect the breaking force of ``case`` on a log scale, starting from the guess [lo, hi]
+    (module docstring); ``log(case name, probe)`` is called after every probe."""
+    probes: list[Probe] = []
+
+    def run(F):
+        p = probe(case, F, seconds, displacement)
+        probes.append(p)
+        if log is not None:
+            log(case.name, p)
+        if len(probes) > max_probes:
+            raise RuntimeError(f"{case.name}: no bracket after {max_probes} probes (forces "
+                               f"{[q.force for q in probes]} N); does it break under its own weight?")
+        return p.broke
+
+    while not run(hi):
+        lo, hi = hi, hi * grow
+    if not any(p.force == lo for p in probes):
+        while run(lo):
+            lo, hi = lo / grow, lo
+    while hi / lo > 1.0 + rel:
+        mid = float(np.sqrt(lo * hi))
+        if run(mid):
+            hi = mid
+        else:
+            lo = mid
+    return Threshold(case=case.name, lo=lo, hi=hi, probes=probes)
+
+
+@dataclass
+class PullStudy:
+    """Both thresholds of one scene (:func:`study`)."""
+
+    healthy: Threshold
+    decayed: Threshold
+    n_elements: int
+    loaded_elements: int
+    decayed_elements: int
+    settle_seconds: float  # wall time of all settling
+    seconds: float  # loaded time of a probe
+    displacement: float
+
+    @property
+    def ratio(self) -> float:
+        """Healthy over decayed threshold (geometric means of the brackets)."""
+        return self.healthy.force / self.decayed.force
+
+    @property
+    def ratio_min(self) -> float:
+        """The smallest ratio the brackets allow: healthy lo over decayed hi."""
+        return self.healthy.lo / self.decayed.hi
+
+
+def study(scene: Scene, model=None, healthy=(2.0, 4.0), decayed=(0.1, 0.3), rel: float = 0.1,
+          seconds: float = SECONDS, displacement: float = DISPLACEMENT, decay: float = DECAY,
+          node: str = "b1_2", log=None) -> PullStudy:
+    """Settle both cases of ``scene`` and bisect their thresholds from the guesses ``healthy``
+    and ``decayed`` (brackets in N; widened automatically when wrong)."""
+    model = build_model(scene) if model is None else model
+    h, d = pull_cases(scene, model, node=node, decay=decay)
+    th = threshold(h, *healthy, seconds, displacement, rel=rel, log=log)
+    td = threshold(d, *decayed, seconds, displacement, rel=rel, log=log)
+    return PullStudy(healthy=th, decayed=td, n_elements=model.n_elements, loaded_elements=int(h.loaded_e.sum()),
+                     decayed_elements=int(d.decayed_e.sum()),
+                     settle_seconds=h.base_settle_seconds + h.settle_seconds + d.settle_seconds,
+                     seconds=seconds, displacement=displacement)
