@@ -235,7 +235,7 @@ def pull_cases(scene: Scene, model=None, node: str = "b1_2", decay: float = DECA
     sim.state.mech = base
     sim.state.H_c[decayed] = decay
     sim.state.H_l[decayed] = decay
-    sim._couple()  # Eq. 21 and the limits from the new fields
+    sim.couple()  # Eq. 21 and the limits from the new fields
     return healthy, case("decayed", decayed)
 
 

@@ -76,7 +76,7 @@ class Simulation:
             self.mech_setup = mech.prepare(model, scene)
             self.coupling = coupling.prepare(model, scene)
             self.state.mech = mech.initial_state(model, self.mech_setup)
-            self._couple()
+            self.couple()
             if settle:
                 mech.settle(self.mech_setup, self.state.mech, scene.mechanics.settle, scene.mechanics.settle_damping)
         self.history: list[dict] = [self._diagnostics()]
@@ -86,7 +86,9 @@ class Simulation:
         """Biology substeps per ``dt_bio`` (1 when dt_bio is within the stability bound)."""
         return biology.substeps(self.scene.time.dt_bio, self.setup.bound)
 
-    def _couple(self) -> None:
+    def couple(self) -> None:
+        """Coupling (Eqs. 16-19, 21) of the current fields into the rods: rest lengths and offsets,
+        masses, integrity and limits."""
         M12 = biology.moisture_bounds(self.setup, self.state.t_days)
         coupling.apply(self.coupling, self.mech_setup, self.state.mech, self.state, M12, self.setup.tissue)
 
@@ -103,7 +105,7 @@ class Simulation:
         biology.step(self.state, self.setup, dt_bio)
         inoculate(self.model, self.scene, self.state)
         if self.mechanics:
-            self._couple()
+            self.couple()
         self.history.append(self._diagnostics())
 
     def advance(self, days: float) -> None:
