@@ -6,7 +6,7 @@ First the branch cut out of the tree at the tree's resolution and clamped at its
 specimen: cheap), whose brackets, widened by ``--widen``, start the bisection in the whole tree.
 Prints ``name value unit`` lines:
     specimen_elements, specimen_threshold_<case>, specimen_ratio, specimen_seconds
-    elements, loaded_elements, decayed_elements       the tree
+    elements, loaded_elements                         the tree
     probe <case> <F> N broke|held <reason> t <s> dmax <m> failures <k> last_failure <s> wall <s>
     pull_threshold_<case>       geometric mean of the final bracket (N)
     pull_bracket_<case>_lo/hi   the bracket: hi broke, lo held (N)
@@ -75,7 +75,6 @@ def main() -> None:
                     decayed=(spec.decayed.lo / w, spec.decayed.hi * w), rel=args.rel, log=_log(""))
     print(f"elements {st.n_elements} 1")
     print(f"loaded_elements {st.loaded_elements} 1")
-    print(f"decayed_elements {st.decayed_elements} 1")
     _report("pull_", st)
     print(f"settle_seconds {st.settle_seconds:.1f} s")
     print(f"probe_seconds {sum(p.wall for th in (st.healthy, st.decayed) for p in th.probes):.1f} s")

@@ -36,5 +36,4 @@ def test_thresholds_are_bracketed(draft_study):
 
 @pytest.mark.slow
 def test_decayed_branch_breaks_under_a_tenth_of_the_load(draft_study):
-    assert draft_study.decayed_elements == draft_study.n_elements  # the specimen is the branch
     assert draft_study.ratio_min >= 10.0, (draft_study.healthy, draft_study.decayed)
