@@ -67,21 +67,14 @@ DISPLACEMENT = 0.05
 
 
 # ------------------------------------------------------------------ scenes
-def _first_node(skel, node: str) -> int:
-    """The first node of the branch through ``node`` (its parent lies on another branch), or
-    the root when ``node`` is on the root's branch."""
-    topo = build_topology(skel)
+def _subtree(skel, branch: np.ndarray, node: str) -> list[int]:
+    """Node indices of the branch through ``node`` and its side branches (``branch``: the
+    topology's branch id per node): the subtree that starts at the branch's first node, the one
+    whose parent lies on another branch."""
     i = skel.ids.index(node)
     first = i
-    while skel.parent[first] >= 0 and topo.branch[skel.parent[first]] == topo.branch[i]:
+    while skel.parent[first] >= 0 and branch[skel.parent[first]] == branch[i]:
         first = skel.parent[first]
-    return first
-
-
-def _subtree(skel, node: str) -> list[int]:
-    """Node indices of the branch through ``node`` and its side branches: the subtree that
-    starts at the branch's first node."""
-    first = _first_node(skel, node)
     if skel.parent[first] < 0:
         raise ValueError(f"node {node!r} is on the trunk, not on a side branch")
     nodes = [first]
@@ -91,17 +84,9 @@ def _subtree(skel, node: str) -> list[int]:
     return nodes
 
 
-def _branch_tip(skel, nodes: list[int]) -> int:
-    """The node of ``nodes`` farthest along the branch's own axis (same branch id as the first)."""
-    topo = build_topology(skel)
-    axis = [k for k in nodes if topo.branch[k] == topo.branch[nodes[0]]]
-    return axis[-1]
-
-
-def pull_direction(skel, node: str, tip: str) -> np.ndarray:
-    """Unit horizontal vector from the fork of ``node``'s branch towards ``tip``."""
-    first = _subtree(skel, node)[0]
-    d = skel.positions[skel.ids.index(tip)] - skel.positions[skel.parent[first]]
+def _pull_direction(skel, nodes: list[int], tip: int) -> np.ndarray:
+    """Unit horizontal vector from the fork of the subtree ``nodes`` towards node ``tip``."""
+    d = skel.positions[tip] - skel.positions[skel.parent[nodes[0]]]
     d = np.array([d[0], d[1], 0.0])
     return d / np.linalg.norm(d)
 
@@ -116,9 +101,12 @@ def pull_scene(path=TREE, node: str = "b1_2", tip: str | None = None, radius: fl
     data = tomllib.loads(path.read_text("utf-8"))
     base = load_scene(path)
     skel = base.skeleton
-    nodes = _subtree(skel, node)
-    tip = skel.ids[_branch_tip(skel, nodes)] if tip is None else tip
-    direction = pull_direction(skel, node, tip)
+    branch = build_topology(skel).branch
+    nodes = _subtree(skel, branch, node)
+    # by default the last node on the branch's own axis
+    tip = [k for k in nodes if branch[k] == branch[nodes[0]]][-1] if tip is None else skel.ids.index(tip)
+    direction = _pull_direction(skel, nodes, tip)
+    tip = skel.ids[tip]
     if specimen:
         data = _specimen_data(data, base, nodes)
     if quality is not None:

@@ -57,7 +57,6 @@ line and column. No other exception type escapes for any input.
 from __future__ import annotations
 
 import copy
-
 import hashlib
 import json
 import os
