@@ -24,9 +24,10 @@ specimen at ``quality = "draft"``). docs/decisions.md ("Mechanics") gives reason
   where the tree's health is lowered and "the connection loses integrity early": decaying the
   branch alone leaves the fork's connections to the healthy trunk at I 0.56-0.75, and the branch
   breaks beyond its weakened base at more than 0.22 N in the tree against 0.16-0.17 N for the
-  specimen, whose clamp is branch wood (docs/decisions.md). Decay takes months: the branch sags into its weakened connections quasi-statically rather than being
-  dropped from its rest pose, and both cases share the same settling history. Every probe starts
-  from a copy of its case's settled :class:`~wooddecay.sim.mechanics.MechState`.
+  specimen, whose clamp is branch wood (docs/decisions.md). Decay takes months: the branch sags
+  into its weakened connections quasi-statically rather than being dropped from its rest pose,
+  and both cases share the same settling history. Every probe starts from a copy of its case's
+  settled :class:`~wooddecay.sim.mechanics.MechState`.
 * **Probe** (:func:`probe`). ``seconds`` of mechanics (the scene's dt_mech, damping, gravity,
   failure on) under the constant pull F. The branch **breaks** when within that time the
   mass-weighted centroid of the loaded particles moves more than ``displacement`` from its
@@ -104,15 +105,14 @@ def pull_scene(path=TREE, node: str = "b1_2", tip: str | None = None, radius: fl
     branch = build_topology(skel).branch
     nodes = _subtree(skel, branch, node)
     # by default the last node on the branch's own axis
-    tip = [k for k in nodes if branch[k] == branch[nodes[0]]][-1] if tip is None else skel.ids.index(tip)
-    direction = _pull_direction(skel, nodes, tip)
-    tip = skel.ids[tip]
+    k_tip = [k for k in nodes if branch[k] == branch[nodes[0]]][-1] if tip is None else skel.ids.index(tip)
+    direction = _pull_direction(skel, nodes, k_tip)
     if specimen:
         data = _specimen_data(data, base, nodes)
     if quality is not None:
         data.setdefault("scene", {})["quality"] = quality
     data["load"] = data.get("load", []) + [{
-        "region": {"kind": "node", "id": tip, "radius": float(radius)},
+        "region": {"kind": "node", "id": skel.ids[k_tip], "radius": float(radius)},
         "force": [float(c) for c in direction], "days": [0.0, 1e9]}]
     return parse_scene(data, source=str(path), base_dir=path.parent)
 
@@ -182,7 +182,8 @@ class PullCase:
     base_settle_seconds: float  # wall time of the first settling, shared by both cases
 
 
-def pull_cases(scene: Scene, model=None, decay: float = DECAY, resettle: float | None = None) -> tuple[PullCase, PullCase]:
+def pull_cases(scene: Scene, model=None, decay: float = DECAY,
+               resettle: float | None = None) -> tuple[PullCase, PullCase]:
     """The healthy and the decayed case of ``scene`` (its model built if not given).
 
     Module docstring, "Cases"; ``resettle`` defaults to the scene's ``settle``."""
