@@ -48,7 +48,7 @@ def main(path: str) -> None:
     sim = wd.Simulation(model, scene)
     print(f"elements {model.n_elements} 1")
     print(f"reg_edges {model.n_edges} 1")
-    print(f"reg_colors {len(sim.mech_setup.colors[0]) - 1} 1")
+    print(f"reg_colors {len(sim.mech_setup.sweep.ptr) - 1} 1")
     sim.macro_step(scene.time.dt_bio)  # warm-up (compilation)
     best = np.inf
     for _ in range(3):

@@ -30,7 +30,8 @@ def _perturbed(name="tiny", seed=0):
 def test_rod_kernels_equal_numpy_reference():
     setup, ms = _perturbed()
     dt = 1e-3
-    kreg = mechanics.reg_stiffness(setup, ms)
+    sw = setup.sweep
+    offset, k_conn, k_bend, k_twist = sw.arrays(ms)
     results = []
     for kernels in ((rods.stretch_shear, rods.bend_twist, rods.reg_pass),
                     (rods.stretch_shear_reference, rods.bend_twist_reference, rods.reg_pass_reference)):
@@ -43,10 +44,9 @@ def test_rod_kernels_equal_numpy_reference():
         for idx in setup.joint_sets:
             bt(setup.joints, idx, q, ms.w_q, setup.joint_rest, setup.joint_length, setup.joint_kb,
                setup.joint_kt, lam["j"], dt)
-        ptr, order = setup.colors
-        for c in range(len(ptr) - 1):
-            rp(setup.edges, order[ptr[c]:ptr[c + 1]], setup.fp, x, q, ms.w_p, ms.w_q, ms.rest_offset, kreg[0],
-               setup.edge_rest, setup.edge_length, kreg[1], kreg[2], lam["c"], lam["p"], dt)
+        for c in range(len(sw.ptr) - 1):
+            rp(sw.edges, sw.ptr[c], sw.ptr[c + 1], setup.fp, x, q, ms.w_p, ms.w_q, offset, k_conn, sw.rest,
+               sw.length, k_bend, k_twist, lam["c"], lam["p"], dt)
         results.append((x, q, lam))
     (x1, q1, l1), (x2, q2, l2) = results
     assert np.abs(x1 - ms.x).max() > 1e-6  # the projections did something
@@ -59,13 +59,32 @@ def test_rod_kernels_equal_numpy_reference():
 def test_reg_colouring_has_no_shared_particle():
     scene, model = sample("log")
     setup = mechanics.prepare(model, scene)
-    ptr, order = setup.colors
+    sw = setup.sweep
+    ptr, order = sw.ptr, sw.order
     assert sorted(order.tolist()) == list(range(len(setup.edges)))
+    np.testing.assert_array_equal(sw.edges, setup.edges[order])  # the sweep's data is the edges'
+    np.testing.assert_array_equal(sw.rest, setup.edge_rest[order])
     for c in range(len(ptr) - 1):
-        e = setup.edges[order[ptr[c]:ptr[c + 1]]]
+        assert np.all(np.diff(order[ptr[c]:ptr[c + 1]]) > 0)  # each class in increasing id
+        e = sw.edges[ptr[c]:ptr[c + 1]]
         parts = np.concatenate([setup.fp[e[:, 0]], setup.fp[e[:, 0]] + 1, setup.fp[e[:, 1]], setup.fp[e[:, 1]] + 1])
         assert len(np.unique(parts)) == len(parts)
     assert len(ptr) - 1 < 80
+
+
+def test_sweep_arrays_equal_numpy_gather():
+    """RegSweep.arrays: the state's dp and stiffness (base x I_ij, 0 where failed) in colour order."""
+    setup, ms = _perturbed()
+    rng = np.random.default_rng(1)
+    ms.edge_ok[:] = rng.random(ms.edge_ok.shape) > 0.3
+    ms.rest_offset = ms.rest_offset * rng.uniform(0.9, 1.0, len(ms.rest_offset))
+    sw = setup.sweep
+    o = sw.order
+    want = (ms.rest_offset[o],) + tuple(np.where(ms.edge_ok[o, c], ms.integrity[o] * k0, 0.0)
+                                        for c, k0 in enumerate((sw.k_conn0, sw.k_pb0, sw.k_pt0)))
+    for got, w in zip(sw.arrays(ms), want):
+        np.testing.assert_array_equal(got, w)
+    assert (want[1] == 0).any() and (want[1] > 0).any()
 
 
 def _digest(ms) -> str:
@@ -192,6 +211,27 @@ def test_failure_flags_are_permanent_and_components_split():
     ms.x[half, 0] -= 0.05  # closing the gap does not heal anything
     failure.update(setup, ms)
     assert np.all(~ms.edge_ok[broken])
+
+
+def test_pair_strains_and_flags_equal_numpy_reference():
+    """failure.pair_strains against its numpy twin; the fused flagging (which skips the atan2
+    where a bound keeps an edge below its limit) flags exactly the edges whose strain beyond the
+    reference exceeds the limit, with limits set within 1e-12 of the strains on either side."""
+    setup, ms = _perturbed(seed=7)
+    args = (setup.edges, setup.fp, ms.x, ms.q, ms.rest_offset, setup.edge_length, setup.edge_rest)
+    pair = failure.pair_strains(*args)
+    np.testing.assert_allclose(pair, failure.pair_strains_reference(*args), rtol=1e-10, atol=1e-13)
+    rng = np.random.default_rng(2)
+    ref = rng.uniform(-0.01, 0.01, pair.shape)
+    limit = (pair - ref) * (1.0 + rng.choice([-1e-12, 1e-12], pair.shape))
+    limit[rng.random(pair.shape) < 0.3] += 1.0  # far from failing: the atan2 is skipped
+    ok = np.ones_like(ms.edge_ok)
+    new = failure._flag_edges(*args, ref, limit, ok)
+    over = pair - ref > limit
+    np.testing.assert_array_equal(~ok[:, 0], over[:, 0])
+    np.testing.assert_array_equal(ok[:, 1:], ~over[:, :1] & ~over[:, 1:])
+    np.testing.assert_array_equal(new, np.where(over[:, 0], 2, np.where(over[:, 1:].any(axis=1), 1, 0)))
+    assert 0 < over[:, 1].sum() < len(over)
 
 
 def test_checkpoint_resume_is_bit_exact(tmp_path):

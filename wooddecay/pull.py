@@ -249,11 +249,11 @@ def probe(case: PullCase, force: float, seconds: float = SECONDS, displacement: 
     n = int(round(seconds / setup.dt))
     d_max = detached = 0.0
     t0 = time.perf_counter()
-    reason, k, last, t_last = "", 0, failures0, None
-    for k in range(1, n + 1):
-        mechanics.substep(setup, ms, setup.dt, f)
-        if k % check_every and k != n:
-            continue
+    reason, k, last, t_last, stiff = "", 0, failures0, None, None
+    while k < n:
+        step = min(check_every, n - k)
+        stiff = mechanics.advance(setup, ms, f, step, stiff)[1]
+        k += step
         d_max = max(d_max, float(np.linalg.norm(case.weight_p @ ms.x[case.loaded_p] - x0)))
         now = float(loaded_w[~np.isin(ms.component, ms.component[anchored])].sum())
         detached = max(detached, now)

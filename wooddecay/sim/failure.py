@@ -34,7 +34,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from .quaternion import mul, rotate
+from .quaternion import conj_np, mul, mul_np, rotate
 
 
 @nb.njit(parallel=True, cache=True)
@@ -55,26 +55,44 @@ def element_strains(fp, x, q, rest_length):
     return out
 
 
+@nb.njit(inline="always", cache=True)
+def _pair_bundle(k, edges, fp, x, rest_offset, edge_length):
+    """Bundle strain of REG edge k."""
+    ai, aj = fp[edges[k, 0]], fp[edges[k, 1]]
+    dx = 0.5 * (x[aj, 0] + x[aj + 1, 0] - x[ai, 0] - x[ai + 1, 0])
+    dy = 0.5 * (x[aj, 1] + x[aj + 1, 1] - x[ai, 1] - x[ai + 1, 1])
+    dz = 0.5 * (x[aj, 2] + x[aj + 1, 2] - x[ai, 2] - x[ai + 1, 2])
+    return (math.sqrt(dx * dx + dy * dy + dz * dz) - rest_offset[k]) / edge_length[k]
+
+
+@nb.njit(inline="always", cache=True)
+def _pair_rotation(k, edges, q, edge_rest):
+    """The relative rotation conj(Omega_0) conj(q_i) q_j of REG edge k, its scalar part >= 0."""
+    i, j = edges[k, 0], edges[k, 1]
+    om = mul(q[i, 0], -q[i, 1], -q[i, 2], -q[i, 3], q[j, 0], q[j, 1], q[j, 2], q[j, 3])
+    r = mul(edge_rest[k, 0], -edge_rest[k, 1], -edge_rest[k, 2], -edge_rest[k, 3], om[0], om[1], om[2], om[3])
+    s = 1.0 if r[0] >= 0.0 else -1.0
+    return s * r[0], r[1], r[2], r[3]
+
+
+@nb.njit(inline="always", cache=True)
+def _angles(r0, r1, r2, r3):
+    """Bend and twist angle of the rotation (r0 >= 0, r1, r2, r3)."""
+    vn = math.sqrt(r1 * r1 + r2 * r2 + r3 * r3)
+    angle = 2.0 * math.atan2(vn, r0)
+    f = angle / vn if vn > 0.0 else 0.0
+    return f * math.sqrt(r1 * r1 + r2 * r2), f * abs(r3)
+
+
 @nb.njit(parallel=True, cache=True)
 def pair_strains(edges, fp, x, q, rest_offset, edge_length, edge_rest):
     """(m, 3) bundle strain, bend angle and twist angle of every REG edge."""
     m = len(edges)
     out = np.empty((m, 3))
     for k in nb.prange(m):
-        i, j = edges[k, 0], edges[k, 1]
-        ai, aj = fp[i], fp[j]
-        dx = 0.5 * (x[aj, 0] + x[aj + 1, 0] - x[ai, 0] - x[ai + 1, 0])
-        dy = 0.5 * (x[aj, 1] + x[aj + 1, 1] - x[ai, 1] - x[ai + 1, 1])
-        dz = 0.5 * (x[aj, 2] + x[aj + 1, 2] - x[ai, 2] - x[ai + 1, 2])
-        out[k, 0] = (math.sqrt(dx * dx + dy * dy + dz * dz) - rest_offset[k]) / edge_length[k]
-        om = mul(q[i, 0], -q[i, 1], -q[i, 2], -q[i, 3], q[j, 0], q[j, 1], q[j, 2], q[j, 3])
-        r = mul(edge_rest[k, 0], -edge_rest[k, 1], -edge_rest[k, 2], -edge_rest[k, 3], om[0], om[1], om[2], om[3])
-        s = 1.0 if r[0] >= 0.0 else -1.0
-        vn = math.sqrt(r[1] * r[1] + r[2] * r[2] + r[3] * r[3])
-        angle = 2.0 * math.atan2(vn, s * r[0])
-        f = angle / vn if vn > 0.0 else 0.0
-        out[k, 1] = f * math.sqrt(r[1] * r[1] + r[2] * r[2])
-        out[k, 2] = f * abs(r[3])
+        out[k, 0] = _pair_bundle(k, edges, fp, x, rest_offset, edge_length)
+        r = _pair_rotation(k, edges, q, edge_rest)
+        out[k, 1], out[k, 2] = _angles(r[0], r[1], r[2], r[3])
     return out
 
 
@@ -94,21 +112,34 @@ def _flag_elements(strain, limit, inner, element_ok):
 
 
 @nb.njit(parallel=True, cache=True)
-def _flag_edges(strain, limit, edge_ok):
-    """New failures per edge: 0 none, 1 bend / twist only, 2 connection (all flags)."""
+def _flag_edges(edges, fp, x, q, rest_offset, edge_length, edge_rest, strain_ref, limit, edge_ok):
+    """New failures per edge: 0 none, 1 bend / twist only, 2 connection (all flags). The strains
+    (:func:`pair_strains`) are measured on intact edges only, in the same pass as the test. The
+    angles 2 atan(v / r0) (v / |v|) are bounded by 2 v / r0 (atan z <= z); where that bound, with
+    a margin far above rounding, is within the limit the edge cannot fail and the atan2 is
+    skipped, so the flags are those of the exact test."""
     m = len(edge_ok)
     new = np.zeros(m, dtype=np.int8)
     for k in nb.prange(m):
         if not edge_ok[k, 0]:
             continue
-        if strain[k, 0] > limit[k, 0]:
+        if _pair_bundle(k, edges, fp, x, rest_offset, edge_length) - strain_ref[k, 0] > limit[k, 0]:
             edge_ok[k, 0] = edge_ok[k, 1] = edge_ok[k, 2] = False
             new[k] = 2
             continue
-        for c in (1, 2):
-            if edge_ok[k, c] and strain[k, c] > limit[k, c]:
-                edge_ok[k, c] = False
-                new[k] = 1
+        r0, r1, r2, r3 = _pair_rotation(k, edges, q, edge_rest)
+        if r0 > 0.0:
+            g = 2.0 * (1.0 + 1e-9) / r0
+            if (g * math.sqrt(r1 * r1 + r2 * r2) - strain_ref[k, 1] <= limit[k, 1]
+                    and g * abs(r3) - strain_ref[k, 2] <= limit[k, 2]):
+                continue
+        bend, twist = _angles(r0, r1, r2, r3)
+        if edge_ok[k, 1] and bend - strain_ref[k, 1] > limit[k, 1]:
+            edge_ok[k, 1] = False
+            new[k] = 1
+        if edge_ok[k, 2] and twist - strain_ref[k, 2] > limit[k, 2]:
+            edge_ok[k, 2] = False
+            new[k] = 1
     return new
 
 
@@ -128,13 +159,26 @@ def strains(setup, ms) -> tuple[np.ndarray, np.ndarray]:
             pair_strains(setup.edges, setup.fp, ms.x, ms.q, ms.rest_offset, setup.edge_length, setup.edge_rest))
 
 
+def pair_strains_reference(edges, fp, x, q, rest_offset, edge_length, edge_rest):
+    """Plain-numpy :func:`pair_strains`."""
+    i, j = edges[:, 0], edges[:, 1]
+    d = 0.5 * (x[fp[j]] + x[fp[j] + 1] - x[fp[i]] - x[fp[i] + 1])
+    bundle = (np.linalg.norm(d, axis=1) - rest_offset) / edge_length
+    r = mul_np(conj_np(edge_rest), mul_np(conj_np(q[i]), q[j]))
+    r = r * np.where(r[:, :1] >= 0.0, 1.0, -1.0)
+    vn = np.linalg.norm(r[:, 1:], axis=1)
+    f = np.where(vn > 0.0, 2.0 * np.arctan2(vn, r[:, 0]) / np.where(vn > 0.0, vn, 1.0), 0.0)
+    return np.stack([bundle, f * np.linalg.norm(r[:, 1:3], axis=1), f * np.abs(r[:, 3])], axis=1)
+
+
 def update(setup, ms) -> int:
     """Flag the constraints whose strain beyond the settled reference (``ms.strain_ref_*``,
     :func:`mechanics.settle`) exceeds their limit; recompute components if anything separated.
     Returns the number of new failures (elements plus edges)."""
-    elem, pair = strains(setup, ms)
+    elem = element_strains(setup.fp, ms.x, ms.q, ms.rest_length)
     new_e = _flag_elements(elem - ms.strain_ref_elem, ms.limit_elem, setup.inner, ms.element_ok)
-    new_k = _flag_edges(pair - ms.strain_ref_edge, ms.limit_edge, ms.edge_ok)
+    new_k = _flag_edges(setup.edges, setup.fp, ms.x, ms.q, ms.rest_offset, setup.edge_length, setup.edge_rest,
+                        ms.strain_ref_edge, ms.limit_edge, ms.edge_ok)
     count = int(new_e.sum()) + int(np.count_nonzero(new_k))
     if new_e.any() or (new_k == 2).any():
         ms.component = components(setup, ms)

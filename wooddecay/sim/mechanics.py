@@ -37,6 +37,47 @@ CONTACT_MARGIN = 2.0
 
 
 @dataclass(frozen=True, eq=False)
+class RegSweep:
+    """Stage 2's static per-edge data in colour order (:func:`rods.color_edges`): colour c is
+    the block ``ptr[c]:ptr[c + 1]``, its edges in increasing id, and ``order`` maps a position
+    to its REG edge id. A colour class then reads its edges' data as one contiguous block
+    instead of one cache line per edge (docs/decisions.md, "Stage 2 in colour order")."""
+
+    ptr: np.ndarray  # (colours + 1,)
+    order: np.ndarray  # (m,) edge id at each position
+    edges: np.ndarray  # (m, 2)
+    rest: np.ndarray  # (m, 4) rest Darboux
+    length: np.ndarray  # (m,) lever of the pair bend-twist
+    k_conn0: np.ndarray  # (m,) connection stiffness at I = 1
+    k_pb0: np.ndarray  # (m,)
+    k_pt0: np.ndarray  # (m,)
+
+    @classmethod
+    def of(cls, ptr: np.ndarray, order: np.ndarray, edges, rest, length, k_conn0, k_pb0, k_pt0) -> "RegSweep":
+        return cls(ptr, order, *(np.ascontiguousarray(a[order]) for a in (edges, rest, length, k_conn0, k_pb0, k_pt0)))
+
+    def arrays(self, ms: "MechState") -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """dp, connection, pair bend and pair twist stiffness (base times I_ij, zero where
+        failed) of the current state, in colour order."""
+        out = tuple(np.empty(len(self.order)) for _ in range(4))
+        _sweep_arrays(self.order, ms.edge_ok, ms.integrity, ms.rest_offset, self.k_conn0, self.k_pb0, self.k_pt0,
+                      *out)
+        return out
+
+
+@nb.njit(parallel=True, cache=True)
+def _sweep_arrays(order, edge_ok, integrity, rest_offset, k_conn0, k_pb0, k_pt0, offset, k_conn, k_bend, k_twist):
+    """:meth:`RegSweep.arrays`, one gather (numpy fancy indexing of the (m, 3) flags took 17 ms
+    per substep on the tree)."""
+    for t in nb.prange(len(order)):
+        k = order[t]
+        offset[t] = rest_offset[k]
+        k_conn[t] = integrity[k] * k_conn0[t] if edge_ok[k, 0] else 0.0
+        k_bend[t] = integrity[k] * k_pb0[t] if edge_ok[k, 1] else 0.0
+        k_twist[t] = integrity[k] * k_pt0[t] if edge_ok[k, 2] else 0.0
+
+
+@dataclass(frozen=True, eq=False)
 class MechSetup:
     """Static data of the rod system, derived once from (model, scene)."""
 
@@ -63,10 +104,7 @@ class MechSetup:
     edge_rest: np.ndarray  # (m, 4) rest Darboux
     offset0: np.ndarray  # (m,) dp_0
     edge_length: np.ndarray  # (m,) max(dp_0, r_s): the lever of the pair bend-twist
-    k_conn0: np.ndarray  # (m,) connection stiffness at I = 1
-    k_pb0: np.ndarray  # (m,) pair bend stiffness at I = 1
-    k_pt0: np.ndarray  # (m,) pair twist stiffness at I = 1
-    colors: tuple  # (ptr, order) of the REG colouring (rods.color_edges)
+    sweep: RegSweep  # Stage 2 data in colour order
     gravity: np.ndarray
     damping: float
     dt: float
@@ -222,9 +260,9 @@ def prepare(model, scene) -> MechSetup:
         anchored_e=model.anchored.copy(), x_rest=model.particles.astype(np.float64),
         inner=_inner(model.element_offsets, n), edges=ij, edge_rest=model.reg_rest_darboux.copy(),
         offset0=model.reg_rest_offset.copy(), edge_length=edge_length,
-        k_conn0=Gm * 2.0 * r_s * lm / edge_length,
-        k_pb0=Em * np.pi * r_s**4 / 4.0, k_pt0=Gm * np.pi * r_s**4 / 2.0,
-        colors=rods.color_edges(ij, fp, P),
+        sweep=RegSweep.of(*rods.color_edges(ij, fp, P), ij, model.reg_rest_darboux, edge_length,
+                          k_conn0=Gm * 2.0 * r_s * lm / edge_length, k_pb0=Em * np.pi * r_s**4 / 4.0,
+                          k_pt0=Gm * np.pi * r_s**4 / 2.0),
         gravity=np.asarray(mech.gravity, dtype=np.float64), damping=float(mech.damping),
         dt=float(mech.dt_mech), iterations=int(mech.iterations), colliders=_colliders(scene),
         radius_p=_particle_radius(fp, r, P), torque=np.zeros((n, 3)), k_col=float(mech.k_col),
@@ -319,16 +357,9 @@ def _velocities(x, v, q, omega, x_old, q_old, w_p, w_q, dt):
             omega[e, 2] = 2.0 * sgn * d[3] / dt
 
 
-def reg_stiffness(setup: MechSetup, ms: MechState) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Connection and pair bend / twist stiffness: base times I_ij, zero where failed."""
-    ok = ms.edge_ok
-    I = ms.integrity
-    return (np.where(ok[:, 0], I * setup.k_conn0, 0.0), np.where(ok[:, 1], I * setup.k_pb0, 0.0),
-            np.where(ok[:, 2], I * setup.k_pt0, 0.0))
-
-
 def _multipliers(setup: MechSetup) -> dict[str, np.ndarray]:
-    """XPBD multipliers of one substep: stretch, shear, joints, REG connection, REG bend-twist."""
+    """XPBD multipliers of one substep: stretch, shear, joints, REG connection and REG
+    bend-twist (these two in colour order, :class:`RegSweep`)."""
     n, m = setup.n_elements, len(setup.edges)
     return {"s": np.zeros(n), "sh": np.zeros((n, 2)), "j": np.zeros((len(setup.joints), 3)),
             "c": np.zeros(m), "p": np.zeros((m, 3))}
@@ -350,19 +381,26 @@ def _project(setup: MechSetup, ms: MechState, kjoint, kreg, lam: dict, dt: float
     for idx in setup.joint_sets:
         rods.bend_twist(setup.joints, idx, q, ms.w_q, setup.joint_rest, setup.joint_length, kb, kt,
                         lam["j"], dt)
-    ptr, order = setup.colors
-    for c in range(len(ptr) - 1):
-        rods.reg_pass(setup.edges, order[ptr[c]:ptr[c + 1]], fp, x, q, ms.w_p, ms.w_q, ms.rest_offset,
-                      kreg[0], setup.edge_rest, setup.edge_length, kreg[1], kreg[2], lam["c"], lam["p"],
-                      dt)
+    sw = setup.sweep
+    offset, k_conn, k_bend, k_twist = kreg
+    for c in range(len(sw.ptr) - 1):
+        rods.reg_pass(sw.edges, sw.ptr[c], sw.ptr[c + 1], fp, x, q, ms.w_p, ms.w_q, offset, k_conn, sw.rest,
+                      sw.length, k_bend, k_twist, lam["c"], lam["p"], dt)
 
 
-def substep(setup: MechSetup, ms: MechState, dt: float, force: np.ndarray) -> int:
-    """One XPBD substep (module docstring); returns the number of new failures."""
+def stiffness(setup: MechSetup, ms: MechState) -> tuple:
+    """The REG (:meth:`RegSweep.arrays`) and strand joint stiffness of the current state; they
+    change only with the failure flags, I_ij and dp."""
+    return setup.sweep.arrays(ms), _joint_stiffness(setup, ms)
+
+
+def substep(setup: MechSetup, ms: MechState, dt: float, force: np.ndarray, stiff: tuple | None = None) -> int:
+    """One XPBD substep (module docstring); returns the number of new failures. ``stiff``:
+    :func:`stiffness` of this state, if the caller holds it."""
     x_old, q_old = np.empty_like(ms.x), np.empty_like(ms.q)
     _predict(ms.x, ms.v, ms.q, ms.omega, ms.w_p, ms.w_q, ms.mass_p, force, setup.gravity, setup.torque,
              np.exp(-setup.damping * dt), dt, x_old, q_old)
-    kreg, kjoint = reg_stiffness(setup, ms), _joint_stiffness(setup, ms)
+    kreg, kjoint = stiff or stiffness(setup, ms)
     lam = _multipliers(setup)
     normal_force = np.zeros(setup.n_particles)
     refresh_pairs(setup, ms)
@@ -411,16 +449,31 @@ def settle(setup: MechSetup, ms: MechState, seconds: float, damping: float) -> N
     ms.limit_elem, ms.limit_edge = np.full_like(limits[0], np.inf), np.full_like(limits[1], np.inf)
     damped = replace(setup, damping=float(damping))
     force = np.zeros((setup.n_particles, 3))
+    stiff = stiffness(setup, ms)  # nothing fails while settling
     for _ in range(int(round(seconds / setup.dt))):
-        substep(damped, ms, setup.dt, force)
+        substep(damped, ms, setup.dt, force, stiff)
     ms.limit_elem, ms.limit_edge = limits
     ms.strain_ref_elem, ms.strain_ref_edge = failure.strains(setup, ms)
     ms.v[:] = 0.0
     ms.omega[:] = 0.0
 
 
+def advance(setup: MechSetup, ms: MechState, force: np.ndarray, n_sub: int, stiff: tuple | None = None
+            ) -> tuple[int, tuple | None]:
+    """``n_sub`` substeps of ``setup.dt`` under ``force``, gathering the :func:`stiffness` only
+    when the flags change. Returns (new failures, the stiffness to pass to the next call)."""
+    new = 0
+    for _ in range(n_sub):
+        stiff = stiffness(setup, ms) if stiff is None else stiff
+        count = substep(setup, ms, setup.dt, force, stiff)
+        new += count
+        if count:  # flags changed
+            stiff = None
+    return new, stiff
+
+
 def macro_step(setup: MechSetup, ms: MechState, t_days: float, n_sub: int) -> int:
     """Algorithm 1 lines 4-8: ``n_sub`` substeps of ``setup.dt``; returns new failures."""
     force = external_forces(setup, t_days)
     ms.pairs_x = None  # rebuild the contact list from this state (resumable bit-exactly)
-    return sum(substep(setup, ms, setup.dt, force) for _ in range(n_sub))
+    return advance(setup, ms, force, n_sub)[0]

@@ -140,12 +140,12 @@ def bend_twist(pairs, idx, q, w_q, rest, length, k_bend, k_twist, lam, dt):
 
 
 @nb.njit(parallel=True, cache=True)
-def reg_pass(edges, idx, fp, x, q, w_p, w_q, rest_offset, k_conn, rest, length, k_bend, k_twist,
+def reg_pass(edges, lo, hi, fp, x, q, w_p, w_q, rest_offset, k_conn, rest, length, k_bend, k_twist,
              lam_c, lam_bt, dt):
-    """Stage 2 on the REG edges ``edges[idx]`` (one colour class: no shared particle): the
-    connection constraint of Eq. 2 on element centres, then the pair's bend-twist coupling."""
-    for t in nb.prange(len(idx)):
-        k = idx[t]
+    """Stage 2 on the REG edges ``lo:hi`` (one colour class: no shared particle): the
+    connection constraint of Eq. 2 on element centres, then the pair's bend-twist coupling. The
+    per-edge arrays are in colour order (:func:`color_edges`), so a class is one contiguous block."""
+    for k in nb.prange(lo, hi):
         i, j = edges[k, 0], edges[k, 1]
         ai, aj = fp[i], fp[j]
         bi, bj = ai + 1, aj + 1
@@ -266,8 +266,9 @@ def bend_twist_reference(pairs, idx, q, w_q, rest, length, k_bend, k_twist, lam,
     q[i] = normalize_np(qi - (wi * f)[:, None] * mul_np(qj, u))
 
 
-def reg_pass_reference(edges, idx, fp, x, q, w_p, w_q, rest_offset, k_conn, rest, length, k_bend, k_twist,
+def reg_pass_reference(edges, lo, hi, fp, x, q, w_p, w_q, rest_offset, k_conn, rest, length, k_bend, k_twist,
                        lam_c, lam_bt, dt):
+    idx = np.arange(lo, hi)
     i, j = edges[idx, 0], edges[idx, 1]
     ai, aj = fp[i], fp[j]
     bi, bj = ai + 1, aj + 1
