@@ -94,14 +94,32 @@ def _digest(ms) -> str:
     return h.hexdigest()
 
 
-def _run_tiny(substeps=30):
+def _failing_tiny():
     setup, ms = _perturbed(seed=3)
     ms.limit_elem[:] = 2e-3  # some failures happen
     ms.limit_edge[:] = 2e-3
+    return setup, ms
+
+
+def _run_tiny(substeps=30):
+    setup, ms = _failing_tiny()
     f = np.zeros((setup.n_particles, 3))
     for _ in range(substeps):
         mechanics.substep(setup, ms, 1e-3, f)
     return ms
+
+
+def test_advance_equals_substeps_that_gather_the_stiffness():
+    """mechanics.advance keeps the gathered stiffness until a substep has failures; the state is
+    bit for bit that of substeps which gather it every time."""
+    setup, ms = _failing_tiny()
+    a, b = ms.copy(), ms.copy()
+    f = np.zeros((setup.n_particles, 3))
+    new, _ = mechanics.advance(setup, a, f, 30)
+    for _ in range(30):
+        mechanics.substep(setup, b, setup.dt, f)
+    assert new > 0 and a.failures == b.failures
+    assert _digest(a) == _digest(b)
 
 
 def test_same_result_with_one_or_two_threads():
