@@ -448,10 +448,7 @@ def settle(setup: MechSetup, ms: MechState, seconds: float, damping: float) -> N
     limits = ms.limit_elem, ms.limit_edge
     ms.limit_elem, ms.limit_edge = np.full_like(limits[0], np.inf), np.full_like(limits[1], np.inf)
     damped = replace(setup, damping=float(damping))
-    force = np.zeros((setup.n_particles, 3))
-    stiff = stiffness(setup, ms)  # nothing fails while settling
-    for _ in range(int(round(seconds / setup.dt))):
-        substep(damped, ms, setup.dt, force, stiff)
+    advance(damped, ms, np.zeros((setup.n_particles, 3)), int(round(seconds / setup.dt)))
     ms.limit_elem, ms.limit_edge = limits
     ms.strain_ref_elem, ms.strain_ref_edge = failure.strains(setup, ms)
     ms.v[:] = 0.0
