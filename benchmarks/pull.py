@@ -16,7 +16,10 @@ Prints ``name value unit`` lines:
     pull_margin_<case>_held_quiet          loaded seconds at the end of the lo probe without a failure
     pull_margin_<case>_break_time          break time of the hi probe / loaded time
     settle_seconds, probe_seconds, seconds             wall time
-Usage: python benchmarks/pull.py [--specimen-only] [--rel 0.2] [--widen 1.25]
+Usage: python benchmarks/pull.py [--specimen-only] [--rel 0.2] [--widen 1.25] [--decay 0.5]
+                                 [--region all|branch]
+``--decay`` is H_c = H_l of the decayed case; ``--region branch`` lowers it in the tree only in
+the branch and its junction (:func:`wooddecay.pull.branch_elements`) instead of all the wood.
 The whole tree costs about 0.035 s per mechanics substep on two idle cores, 0.07-0.09 s while
 it fails (three settles of 0.2 s and probes of up to 0.3 s at dt_mech 1e-4 s): about 25 minutes.
 """
@@ -58,10 +61,13 @@ def main() -> None:
     ap.add_argument("--specimen-only", action="store_true", help="only the branch cut out of the tree")
     ap.add_argument("--rel", type=float, default=0.2, help="bracket precision in the tree (hi / lo <= 1 + rel)")
     ap.add_argument("--widen", type=float, default=1.25, help="widen the specimen's brackets by this factor")
+    ap.add_argument("--decay", type=float, default=pull.DECAY, help="H_c = H_l of the decayed case")
+    ap.add_argument("--region", choices=("all", "branch"), default="all",
+                    help="decay all the wood of the tree, or only the branch and its junction")
     args = ap.parse_args()
     t0 = time.perf_counter()
     spec_scene = pull.specimen_scene(quality=None)  # the tree's own resolution
-    spec = pull.study(spec_scene, rel=0.1, log=_log("specimen_"))
+    spec = pull.study(spec_scene, rel=0.1, decay=args.decay, log=_log("specimen_"))
     print(f"specimen_elements {spec.n_elements} 1")
     _report("specimen_", spec)
     print(f"specimen_seconds {time.perf_counter() - t0:.1f} s", flush=True)
@@ -71,10 +77,13 @@ def main() -> None:
     scene = pull.pull_scene()
     model = wd.build_model(scene)
     w = args.widen
+    region = pull.branch_elements(model, scene) if args.region == "branch" else None
     st = pull.study(scene, model, healthy=(spec.healthy.lo / w, spec.healthy.hi * w),
-                    decayed=(spec.decayed.lo / w, spec.decayed.hi * w), rel=args.rel, log=_log(""))
+                    decayed=(spec.decayed.lo / w, spec.decayed.hi * w), rel=args.rel, decay=args.decay,
+                    region=region, log=_log(""))
     print(f"elements {st.n_elements} 1")
     print(f"loaded_elements {st.loaded_elements} 1")
+    print(f"decayed_elements {model.n_elements if region is None else int(region.sum())} 1")
     _report("pull_", st)
     print(f"settle_seconds {st.settle_seconds:.1f} s")
     print(f"probe_seconds {sum(p.wall for th in (st.healthy, st.decayed) for p in th.probes):.1f} s")

@@ -24,10 +24,12 @@ specimen at ``quality = "draft"``). docs/decisions.md ("Mechanics") gives reason
   where the tree's health is lowered and "the connection loses integrity early": decaying the
   branch alone leaves the fork's connections to the healthy trunk at I 0.56-0.75, and the branch
   breaks beyond its weakened base at more than 0.22 N in the tree against 0.16-0.17 N for the
-  specimen, whose clamp is branch wood (docs/decisions.md). Decay takes months: the branch sags
-  into its weakened connections quasi-statically rather than being dropped from its rest pose,
-  and both cases share the same settling history. Every probe starts from a copy of its case's
-  settled :class:`~wooddecay.sim.mechanics.MechState`.
+  specimen, whose clamp is branch wood (docs/decisions.md). The study's ``region`` can limit
+  the decay to the branch with its junction (:func:`branch_elements`: the branch, its side
+  branches and the wood within 1.5 fork radii of the fork, so the fork's connections decay too).
+  Decay takes months: the branch sags into its weakened connections quasi-statically rather
+  than being dropped from its rest pose, and both cases share the same settling history. Every
+  probe starts from a copy of its case's settled :class:`~wooddecay.sim.mechanics.MechState`.
 * **Probe** (:func:`probe`). ``seconds`` of mechanics (the scene's dt_mech, damping, gravity,
   failure on) under the constant pull F. The branch **breaks** when within that time the
   mass-weighted centroid of the loaded particles moves more than ``displacement`` from its
@@ -182,11 +184,25 @@ class PullCase:
     base_settle_seconds: float  # wall time of the first settling, shared by both cases
 
 
-def pull_cases(scene: Scene, model=None, decay: float = DECAY,
-               resettle: float | None = None) -> tuple[PullCase, PullCase]:
+def branch_elements(model, scene: Scene, node: str = "b1_2", junction: float = 1.5) -> np.ndarray:
+    """(n,) bool: the elements of the branch through ``node`` and its side branches, and those
+    of the wood within ``junction`` times the fork node's radius of the fork (the connection of
+    the branch to its parent)."""
+    skel = scene.skeleton
+    branch = build_topology(skel).branch
+    nodes = _subtree(skel, branch, node)
+    fork = skel.parent[nodes[0]]
+    r = junction * skel.profiles[fork].equivalent_radius
+    near = np.linalg.norm(model.centers - skel.positions[fork], axis=1) <= r
+    return near | np.isin(model.branch, branch[nodes])
+
+
+def pull_cases(scene: Scene, model=None, decay: float = DECAY, resettle: float | None = None,
+               decayed: np.ndarray | None = None) -> tuple[PullCase, PullCase]:
     """The healthy and the decayed case of ``scene`` (its model built if not given).
 
-    Module docstring, "Cases"; ``resettle`` defaults to the scene's ``settle``."""
+    Module docstring, "Cases"; ``resettle`` defaults to the scene's ``settle``; ``decayed``
+    (elements, bool) limits the decay to those elements (default: all)."""
     model = build_model(scene) if model is None else model
     sim = Simulation(model, scene, settle=False)
     setup = sim.mech_setup
@@ -213,8 +229,9 @@ def pull_cases(scene: Scene, model=None, decay: float = DECAY,
 
     healthy = case("healthy")
     sim.state.mech = base
-    sim.state.H_c[:] = decay
-    sim.state.H_l[:] = decay
+    where = slice(None) if decayed is None else decayed
+    sim.state.H_c[where] = decay
+    sim.state.H_l[where] = decay
     sim.couple()  # Eq. 21 and the limits from the new fields
     return healthy, case("decayed")
 
@@ -345,11 +362,12 @@ class PullStudy:
 
 def study(scene: Scene, model=None, healthy=(2.0, 4.0), decayed=(0.1, 0.3), rel: float = 0.1,
           seconds: float = SECONDS, displacement: float = DISPLACEMENT, decay: float = DECAY,
-          log=None) -> PullStudy:
+          region: np.ndarray | None = None, log=None) -> PullStudy:
     """Settle both cases of ``scene`` and bisect their thresholds from the guesses ``healthy``
-    and ``decayed`` (brackets in N; widened automatically when wrong)."""
+    and ``decayed`` (brackets in N; widened automatically when wrong); ``region`` (elements,
+    bool) limits the decay (default: all the wood; :func:`branch_elements`)."""
     model = build_model(scene) if model is None else model
-    h, d = pull_cases(scene, model, decay=decay)
+    h, d = pull_cases(scene, model, decay=decay, decayed=region)
     th = threshold(h, *healthy, seconds, displacement, rel=rel, log=log)
     td = threshold(d, *decayed, seconds, displacement, rel=rel, log=log)
     return PullStudy(healthy=th, decayed=td, n_elements=model.n_elements, loaded_elements=int(h.loaded_e.sum()),
