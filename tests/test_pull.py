@@ -10,10 +10,12 @@ and docs/decisions.md. About 30 s.
 """
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 import wooddecay as wd
 from wooddecay import pull
+from wooddecay.strands.topology import build_topology
 
 
 @pytest.fixture(scope="module")
@@ -42,20 +44,16 @@ def test_decayed_branch_breaks_under_a_tenth_of_the_load(draft_study):
 def test_branch_elements_are_the_subtree_and_its_junction():
     """The branch-local decay region of the whole-tree study: every element of the branch through
     b1_2 and its side branches, the trunk wood within 1.5 fork radii of the fork, nothing else."""
-    import numpy as np
-
-    from wooddecay.strands.topology import build_topology
-
     scene = pull.pull_scene(quality="draft")
     model = wd.build_model(scene)
     skel = scene.skeleton
     topo_branch = build_topology(skel).branch
     sub = {int(topo_branch[skel.ids.index(k)]) for k in ("b1_1", "b1_4", "b1_0_2", "b1_1_2")}
-    fork = skel.positions[skel.ids.index("t4")]
-    near = np.linalg.norm(model.centers - fork, axis=1) <= 1.5 * skel.profiles[skel.ids.index("t4")].equivalent_radius
+    t4 = skel.ids.index("t4")
+    near = np.linalg.norm(model.centers - skel.positions[t4], axis=1) <= 1.5 * skel.profiles[t4].equivalent_radius
     region = pull.branch_elements(model, scene)
     in_sub = np.isin(model.branch, sorted(sub))
     assert len(sub) == 3 and in_sub.any() and (near & ~in_sub).any()
     assert np.array_equal(region, in_sub | near)
     # the other side branches keep their health (only junction wood of the trunk is added)
-    assert set(np.unique(model.branch[region])) == sub | {int(topo_branch[skel.ids.index("t4")])}
+    assert set(np.unique(model.branch[region])) == sub | {int(topo_branch[t4])}

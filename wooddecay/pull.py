@@ -198,10 +198,10 @@ def branch_elements(model, scene: Scene, node: str = "b1_2", junction: float = 1
 
 
 def pull_cases(scene: Scene, model=None, decay: float = DECAY, resettle: float | None = None,
-               decayed: np.ndarray | None = None) -> tuple[PullCase, PullCase]:
+               region: np.ndarray | None = None) -> tuple[PullCase, PullCase]:
     """The healthy and the decayed case of ``scene`` (its model built if not given).
 
-    Module docstring, "Cases"; ``resettle`` defaults to the scene's ``settle``; ``decayed``
+    Module docstring, "Cases"; ``resettle`` defaults to the scene's ``settle``; ``region``
     (elements, bool) limits the decay to those elements (default: all)."""
     model = build_model(scene) if model is None else model
     sim = Simulation(model, scene, settle=False)
@@ -229,7 +229,7 @@ def pull_cases(scene: Scene, model=None, decay: float = DECAY, resettle: float |
 
     healthy = case("healthy")
     sim.state.mech = base
-    where = slice(None) if decayed is None else decayed
+    where = slice(None) if region is None else region
     sim.state.H_c[where] = decay
     sim.state.H_l[where] = decay
     sim.couple()  # Eq. 21 and the limits from the new fields
@@ -367,7 +367,7 @@ def study(scene: Scene, model=None, healthy=(2.0, 4.0), decayed=(0.1, 0.3), rel:
     and ``decayed`` (brackets in N; widened automatically when wrong); ``region`` (elements,
     bool) limits the decay (default: all the wood; :func:`branch_elements`)."""
     model = build_model(scene) if model is None else model
-    h, d = pull_cases(scene, model, decay=decay, decayed=region)
+    h, d = pull_cases(scene, model, decay=decay, region=region)
     th = threshold(h, *healthy, seconds, displacement, rel=rel, log=log)
     td = threshold(d, *decayed, seconds, displacement, rel=rel, log=log)
     return PullStudy(healthy=th, decayed=td, n_elements=model.n_elements, loaded_elements=int(h.loaded_e.sum()),

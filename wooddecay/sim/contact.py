@@ -596,9 +596,9 @@ def _pair_multipliers(x, x_prev, w_p, first_particle, radius, pairs, phi_rest, k
     (e, dlambda, s, t), e the correction per unit w_k g_k of j's particles (i's: -e): dlambda n_ij
     less the friction step (dlambda 0, e 0 if inactive). The relative correction W dlambda is
     capped at max_push, or with the start-of-substep positions ``x_prev`` (P, 3) (not (0, 3)) at
-    :func:`_allowed`; friction
-    (mu > 0, needs x_prev) takes back min(1, mu W dlambda / max(|d_t|, eps dt)) of the relative
-    tangential displacement d_t of the contact points in this substep."""
+    :func:`_allowed`; friction (mu > 0, needs x_prev) takes back min(1, mu W dlambda /
+    max(|d_t|, eps dt)) of the relative tangential displacement d_t of the contact points in
+    this substep."""
     dt2 = dt * dt
     for q in nb.prange(len(pairs)):
         i, j = pairs[q, 0], pairs[q, 1]
