@@ -15,11 +15,13 @@ Prints ``name value unit`` lines:
     pull_margin_<case>_held_displacement   largest displacement of the lo probe / break displacement
     pull_margin_<case>_held_quiet          loaded seconds at the end of the lo probe without a failure
     pull_margin_<case>_break_time          break time of the hi probe / loaded time
+    settled_<case>              mechanics seconds the case settled (to pull.SETTLE_TOL)
     settle_seconds, probe_seconds, seconds             wall time
 Usage: python benchmarks/pull.py [--specimen-only] [--rel 0.2] [--widen 1.25] [--decay 0.5]
-                                 [--region all|branch]
+                                 [--region all|branch] [--brackets H_LO H_HI D_LO D_HI]
 ``--decay`` is H_c = H_l of the decayed case; ``--region branch`` lowers it in the tree only in
-the branch and its junction (:func:`wooddecay.pull.branch_elements`) instead of all the wood.
+the branch and its junction (:func:`wooddecay.pull.branch_elements`) instead of all the wood;
+``--brackets`` starts the tree's bisections there and skips the specimen.
 The whole tree costs about 0.035 s per mechanics substep on two idle cores, 0.07-0.09 s while
 it fails (three settles of 0.2 s and probes of up to 0.3 s at dt_mech 1e-4 s): about 25 minutes.
 """
@@ -64,27 +66,34 @@ def main() -> None:
     ap.add_argument("--decay", type=float, default=pull.DECAY, help="H_c = H_l of the decayed case")
     ap.add_argument("--region", choices=("all", "branch"), default="all",
                     help="decay all the wood of the tree, or only the branch and its junction")
+    ap.add_argument("--brackets", type=float, nargs=4, metavar=("H_LO", "H_HI", "D_LO", "D_HI"),
+                    help="start the tree's bisections from these brackets (N) and skip the specimen")
     args = ap.parse_args()
     t0 = time.perf_counter()
-    spec_scene = pull.specimen_scene(quality=None)  # the tree's own resolution
-    spec = pull.study(spec_scene, rel=0.1, decay=args.decay, log=_log("specimen_"))
-    print(f"specimen_elements {spec.n_elements} 1")
-    _report("specimen_", spec)
-    print(f"specimen_seconds {time.perf_counter() - t0:.1f} s", flush=True)
-    if args.specimen_only:
-        return
+    if args.brackets is None:
+        spec_scene = pull.specimen_scene(quality=None)  # the tree's own resolution
+        spec = pull.study(spec_scene, rel=0.1, decay=args.decay, log=_log("specimen_"))
+        print(f"specimen_elements {spec.n_elements} 1")
+        _report("specimen_", spec)
+        print(f"specimen_seconds {time.perf_counter() - t0:.1f} s", flush=True)
+        if args.specimen_only:
+            return
+        w = args.widen
+        brackets = (spec.healthy.lo / w, spec.healthy.hi * w, spec.decayed.lo / w, spec.decayed.hi * w)
+    else:
+        brackets = args.brackets
     t1 = time.perf_counter()
     scene = pull.pull_scene()
     model = wd.build_model(scene)
-    w = args.widen
     region = pull.branch_elements(model, scene) if args.region == "branch" else None
-    st = pull.study(scene, model, healthy=(spec.healthy.lo / w, spec.healthy.hi * w),
-                    decayed=(spec.decayed.lo / w, spec.decayed.hi * w), rel=args.rel, decay=args.decay,
+    st = pull.study(scene, model, healthy=brackets[:2], decayed=brackets[2:], rel=args.rel, decay=args.decay,
                     region=region, log=_log(""))
     print(f"elements {st.n_elements} 1")
     print(f"loaded_elements {st.loaded_elements} 1")
     print(f"decayed_elements {model.n_elements if region is None else int(region.sum())} 1")
     _report("pull_", st)
+    print(f"settled_healthy {st.settled[0]:.2f} s")
+    print(f"settled_decayed {st.settled[1]:.2f} s")
     print(f"settle_seconds {st.settle_seconds:.1f} s")
     print(f"probe_seconds {sum(p.wall for th in (st.healthy, st.decayed) for p in th.probes):.1f} s")
     print(f"seconds {time.perf_counter() - t1:.1f} s (tree) {time.perf_counter() - t0:.1f} s (all)")

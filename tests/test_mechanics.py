@@ -314,3 +314,51 @@ def test_settled_wood_at_rest_does_not_break():
     pair = failure.strains(st, ms)[1] - ms.strain_ref_edge
     assert np.max(pair / ms.limit_edge) < 0.2
     assert sim.history[-1]["mechanics"]["max_speed"] < 0.05
+
+
+def test_drift_is_the_largest_strain_change_over_the_limits():
+    """failure.drift: |change| / limit over the constraints that can still fail (intact inner
+    elements, intact edge flags, positive finite limits)."""
+    from types import SimpleNamespace
+    setup = SimpleNamespace(inner=np.array([False, True, True, True]))
+    ms = SimpleNamespace(element_ok=np.array([True, True, False, True]),
+                         edge_ok=np.array([[True, True, False], [True, False, True]]))
+    e0, k0 = np.zeros((4, 2)), np.zeros((2, 3))
+    e1 = np.array([[9.0, 9.0], [0.1, -0.3], [9.0, 9.0], [0.0, 0.05]])  # element 0 not inner, 2 failed
+    k1 = np.array([[0.2, -0.1, 9.0], [0.5, 9.0, 0.01]])  # flags (0, 2) and (1, 1) failed
+    le = np.array([[1.0, 1.0], [1.0, 1.0], [1.0, 1.0], [np.inf, 0.01]])
+    lk = np.array([[0.1, 1.0, 1.0], [0.0, 1.0, 0.1]])  # a zero limit fails at any strain
+    assert failure.drift(setup, ms, (e0, k0), (e1, k1), le, lk) == pytest.approx(5.0)  # element 3 shear
+    le[3, 1] = 1.0
+    assert failure.drift(setup, ms, (e0, k0), (e1, k1), le, lk) == pytest.approx(2.0)  # edge 0 bundle
+    lk[0, 0] = 1.0
+    assert failure.drift(setup, ms, (e0, k0), (e1, k1), le, lk) == pytest.approx(0.3)  # element 1 shear
+
+
+def test_settle_with_tol_stops_at_the_first_quiet_chunk():
+    """mechanics.settle(tol=...) goes on in chunks until the strain drift of a chunk is within
+    tol of the limits: the last chunk is within it, the one before is not, and the state is that
+    of a plain settle of the same length (positions and rotations; strains depend on nothing
+    else), with the reference strains of that state."""
+    scene, model = sample("tiny")
+    sim = wd.Simulation(model, scene, settle=False)
+    st, ms0 = sim.mech_setup, sim.state.mech
+    tol, damping = 0.05, scene.mechanics.settle_damping
+    ms = ms0.copy()
+    done = mechanics.settle(st, ms, 0.0, damping, tol=tol)
+    chunk = mechanics.SETTLE_CHUNK
+    assert done >= 2 * chunk - 1e-12
+
+    def plain(seconds):
+        m = ms0.copy()
+        mechanics.settle(st, m, seconds, damping)
+        return m
+
+    last, before, earlier = plain(done), plain(done - chunk), plain(done - 2 * chunk)
+    np.testing.assert_array_equal(last.x, ms.x)
+    np.testing.assert_array_equal(last.q, ms.q)
+    np.testing.assert_array_equal(ms.strain_ref_edge, last.strain_ref_edge)
+    limits = ms.limit_elem, ms.limit_edge
+    strains = [failure.strains(st, m) for m in (earlier, before, last)]
+    assert failure.drift(st, ms, strains[1], strains[2], *limits) <= tol
+    assert failure.drift(st, ms, strains[0], strains[1], *limits) > tol

@@ -159,6 +159,22 @@ def strains(setup, ms) -> tuple[np.ndarray, np.ndarray]:
             pair_strains(setup.edges, setup.fp, ms.x, ms.q, ms.rest_offset, setup.edge_length, setup.edge_rest))
 
 
+def drift(setup, ms, before: tuple, after: tuple, limit_elem: np.ndarray, limit_edge: np.ndarray) -> float:
+    """Largest |strain change| / limit from ``before`` to ``after`` ((element, pair) strains as
+    :func:`strains` returns them) over the constraints that can still fail: intact inner elements
+    and the intact flags of REG edges, with a positive finite limit (a zero limit fails at any
+    strain, an infinite one never)."""
+    ok_e = ms.element_ok & setup.inner
+    ratio_e = _ratio(np.abs(after[0] - before[0]), limit_elem, ok_e[:, None])
+    ratio_k = _ratio(np.abs(after[1] - before[1]), limit_edge, ms.edge_ok)
+    return max(ratio_e, ratio_k)
+
+
+def _ratio(change: np.ndarray, limit: np.ndarray, ok: np.ndarray) -> float:
+    use = ok & (limit > 0.0) & np.isfinite(limit)
+    return float(np.max(change[use] / limit[use], initial=0.0))
+
+
 def pair_strains_reference(edges, fp, x, q, rest_offset, edge_length, edge_rest):
     """Plain-numpy :func:`pair_strains`."""
     i, j = edges[:, 0], edges[:, 1]
