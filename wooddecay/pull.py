@@ -21,9 +21,9 @@ specimen at ``quality = "draft"``). docs/decisions.md ("Mechanics") gives reason
   case settles again for ``resettle`` seconds (default: the scene's ``settle``), on to the same
   tolerance, and takes its own reference strains (a decayed branch, softer, is overdamped at
   ``settle_damping`` and still sagging after 0.2 s; that sag alone, with no load, pushed its
-  weakened connections past their limits): *healthy* as it is, *decayed* after H_c = H_l = ``decay`` in every
-  element and the coupling (Eq. 21: I_ij = (1 - theta_ij k_c (1 - H_c)) (1 - k_l (1 - H_l)),
-  which scales the pairs' stiffness and strain limits). The whole wood decays, as in Fig. 17,
+  weakened connections past their limits): *healthy* as it is, *decayed* after H_c = H_l =
+  ``decay`` in every element and the coupling (Eq. 21: I_ij = (1 - theta_ij k_c (1 - H_c))
+  (1 - k_l (1 - H_l)), which scales the pairs' stiffness and strain limits). The whole wood decays, as in Fig. 17,
   where the tree's health is lowered and "the connection loses integrity early": decaying the
   branch alone leaves the fork's connections to the healthy trunk at I 0.56-0.75, and the branch
   breaks beyond its weakened base at more than 0.22 N in the tree against 0.16-0.17 N for the
