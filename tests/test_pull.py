@@ -42,6 +42,24 @@ def test_decayed_branch_breaks_under_a_tenth_of_the_load(draft_study):
     assert draft_study.ratio_min >= 10.0, (draft_study.healthy, draft_study.decayed)
 
 
+@pytest.mark.slow
+def test_decayed_case_is_settled_until_it_stops_sagging():
+    """The decayed specimen, softer, is still sagging after the scene's 0.2 s of settling; that
+    sag counts against its weakened limits and broke it at 0.3 N. Settled to pull.SETTLE_TOL
+    (0.6 s) it holds 0.3 N without a failure and stands still without load."""
+    scene = pull.specimen_scene(quality="draft")
+    model = wd.build_model(scene)
+    settled = pull.pull_cases(scene, model)[1]
+    fixed = pull.pull_cases(scene, model, tol=None)[1]
+    assert settled.settled_seconds > fixed.settled_seconds == scene.mechanics.settle
+    still, sagging = pull.probe(settled, 0.0), pull.probe(fixed, 0.0)
+    assert still.failures == 0 and still.max_displacement < 1e-5
+    assert sagging.max_displacement > 20 * still.max_displacement
+    held, broke = pull.probe(settled, 0.3), pull.probe(fixed, 0.3)
+    assert not held.broke and held.failures == 0
+    assert broke.broke, broke
+
+
 def test_branch_elements_are_the_subtree_and_its_junction():
     """The branch-local decay region of the whole-tree study: every element of the branch through
     b1_2 and its side branches, the trunk wood within 1.5 fork radii of the fork, nothing else."""

@@ -206,11 +206,12 @@ def branch_elements(model, scene: Scene, node: str = "b1_2", junction: float = 1
 
 
 def pull_cases(scene: Scene, model=None, decay: float = DECAY, resettle: float | None = None,
-               region: np.ndarray | None = None) -> tuple[PullCase, PullCase]:
+               region: np.ndarray | None = None, tol: float | None = SETTLE_TOL) -> tuple[PullCase, PullCase]:
     """The healthy and the decayed case of ``scene`` (its model built if not given).
 
     Module docstring, "Cases"; ``resettle`` defaults to the scene's ``settle``; ``region``
-    (elements, bool) limits the decay to those elements (default: all)."""
+    (elements, bool) limits the decay to those elements (default: all); ``tol`` is the settling
+    tolerance (None: fixed times only)."""
     model = build_model(scene) if model is None else model
     sim = Simulation(model, scene, settle=False)
     setup = sim.mech_setup
@@ -224,13 +225,13 @@ def pull_cases(scene: Scene, model=None, decay: float = DECAY, resettle: float |
     damping = scene.mechanics.settle_damping
     resettle = scene.mechanics.settle if resettle is None else resettle
     t0 = time.perf_counter()
-    mechanics.settle(setup, sim.state.mech, scene.mechanics.settle, damping, tol=SETTLE_TOL)
+    mechanics.settle(setup, sim.state.mech, scene.mechanics.settle, damping, tol=tol)
     first = time.perf_counter() - t0
     base = sim.state.mech.copy()
 
     def case(name):
         t0 = time.perf_counter()
-        settled = mechanics.settle(setup, sim.state.mech, resettle, damping, tol=SETTLE_TOL)
+        settled = mechanics.settle(setup, sim.state.mech, resettle, damping, tol=tol)
         return PullCase(name=name, setup=setup, settled=sim.state.mech.copy(), unit_force=unit, loaded_p=loaded_p,
                         weight_p=mag[loaded_p] / mag[loaded_p].sum(), loaded_e=loaded_e,
                         settle_seconds=time.perf_counter() - t0, base_settle_seconds=first,
