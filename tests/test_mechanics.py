@@ -3,6 +3,7 @@ buckling), stability, coupling (Eqs. 16-19, 21), failure and checkpoints."""
 from __future__ import annotations
 
 import hashlib
+from types import SimpleNamespace
 
 import numba
 import numpy as np
@@ -319,7 +320,6 @@ def test_settled_wood_at_rest_does_not_break():
 def test_drift_is_the_largest_strain_change_over_the_limits():
     """failure.drift: |change| / limit over the constraints that can still fail (intact inner
     elements, intact edge flags, positive finite limits)."""
-    from types import SimpleNamespace
     setup = SimpleNamespace(inner=np.array([False, True, True, True]))
     ms = SimpleNamespace(element_ok=np.array([True, True, False, True]),
                          edge_ok=np.array([[True, True, False], [True, False, True]]))

@@ -23,11 +23,11 @@ specimen at ``quality = "draft"``). docs/decisions.md ("Mechanics") gives reason
   ``settle_damping`` and still sagging after 0.2 s; that sag alone, with no load, pushed its
   weakened connections past their limits): *healthy* as it is, *decayed* after H_c = H_l =
   ``decay`` in every element and the coupling (Eq. 21: I_ij = (1 - theta_ij k_c (1 - H_c))
-  (1 - k_l (1 - H_l)), which scales the pairs' stiffness and strain limits). The whole wood decays, as in Fig. 17,
-  where the tree's health is lowered and "the connection loses integrity early": decaying the
-  branch alone leaves the fork's connections to the healthy trunk at I 0.56-0.75, and the branch
-  breaks beyond its weakened base at more than 0.22 N in the tree against 0.16-0.17 N for the
-  specimen, whose clamp is branch wood (docs/decisions.md). The study's ``region`` can limit
+  (1 - k_l (1 - H_l)), which scales the pairs' stiffness and strain limits). The whole wood
+  decays, as in Fig. 17, where the tree's health is lowered and "the connection loses
+  integrity early": decaying the branch alone leaves the fork's connections to the healthy
+  trunk at I 0.56-0.75, and the branch breaks beyond its weakened base at more than 0.22 N in
+  the tree against 0.16-0.17 N for the specimen, whose clamp is branch wood (docs/decisions.md). The study's ``region`` can limit
   the decay to the branch with its junction (:func:`branch_elements`: the branch, its side
   branches and the wood within 1.5 fork radii of the fork, so the fork's connections decay too).
   Decay takes months: the branch sags into its weakened connections quasi-statically rather
@@ -206,7 +206,8 @@ def branch_elements(model, scene: Scene, node: str = "b1_2", junction: float = 1
 
 
 def pull_cases(scene: Scene, model=None, decay: float = DECAY, resettle: float | None = None,
-               region: np.ndarray | None = None, tol: float | None = SETTLE_TOL) -> tuple[PullCase, PullCase]:
+               region: np.ndarray | None = None, tol: float | None = SETTLE_TOL
+               ) -> tuple[PullCase, PullCase]:
     """The healthy and the decayed case of ``scene`` (its model built if not given).
 
     Module docstring, "Cases"; ``resettle`` defaults to the scene's ``settle``; ``region``
