@@ -27,9 +27,10 @@ specimen at ``quality = "draft"``). docs/decisions.md ("Mechanics") gives reason
   decays, as in Fig. 17, where the tree's health is lowered and "the connection loses
   integrity early": decaying the branch alone leaves the fork's connections to the healthy
   trunk at I 0.56-0.75, and the branch breaks beyond its weakened base at more than 0.22 N in
-  the tree against 0.16-0.17 N for the specimen, whose clamp is branch wood (docs/decisions.md). The study's ``region`` can limit
-  the decay to the branch with its junction (:func:`branch_elements`: the branch, its side
-  branches and the wood within 1.5 fork radii of the fork, so the fork's connections decay too).
+  the tree against 0.16-0.17 N for the specimen, whose clamp is branch wood (docs/decisions.md).
+  The study's ``region`` can limit the decay to the branch with its junction
+  (:func:`branch_elements`: the branch, its side branches and the wood within 1.5 fork radii of
+  the fork, so the fork's connections decay too).
   Decay takes months: the branch sags into its weakened connections quasi-statically rather
   than being dropped from its rest pose, and both cases share the same settling history. Every
   probe starts from a copy of its case's settled :class:`~wooddecay.sim.mechanics.MechState`.
