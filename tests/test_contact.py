@@ -330,8 +330,9 @@ def test_particle_resting_on_ground_settles_at_eq4_penetration():
 def _slide(normal, v0, steps, mu=0.5, k_col=1e6, m=0.01, r=0.005, dt=1e-3):
     """A particle on the plane through the origin with unit ``normal``, run through the
     substep of :func:`wooddecay.sim.mechanics.substep`: gravity, prediction, collider projection
-    with the depenetration cap and friction from the start-of-substep positions, velocities,
-    restitution 0. Starts at rest penetration with velocity ``v0``; returns the velocity history."""
+    with the depenetration cap, then friction against its push from the start-of-substep
+    positions (:func:`contact.particle_friction`), velocities, restitution 0. Starts at rest
+    penetration with velocity ``v0``; returns the velocity history."""
     n = np.asarray(normal, dtype=np.float64)
     ground = C.collider_row(C.PLANE, 0, 0, 0, *n)[None]
     x = (r - np.sqrt(m * G * n[2] / k_col)) * n[None, :]
@@ -343,7 +344,9 @@ def _slide(normal, v0, steps, mu=0.5, k_col=1e6, m=0.01, r=0.005, dt=1e-3):
         x_old = x.copy()
         x += v * dt
         hit = np.zeros((1, 1), dtype=bool)
-        C.project_colliders(x, w, rad, ground, k_col, dt, np.zeros(1), 0.1 * dt, x_old, hit, mu, 1e-6)
+        x_start = x.copy()
+        C.project_colliders(x, w, rad, ground, k_col, dt, np.zeros(1), 0.1 * dt, x_old, hit)
+        C.particle_friction(x, x_start, x_old, mu, 1e-6 * dt)
         v = (x - x_old) / dt
         C.collider_velocities(v, x, w, ground, hit)
         out.append(v[0].copy())
@@ -493,3 +496,126 @@ def test_depenetration_cap_bounds_the_relative_push():
     gap0 = gap()
     C.project_contacts(x, w, fp, r, np.array([[0, 1]]), 1e8, DT, f, 1e-3)
     assert gap() - gap0 == pytest.approx(1e-3, rel=1e-9)
+
+
+# ----------------------------------------------------------------------------- friction after the normal steps
+
+
+def test_particle_friction_matches_reference():
+    rng = np.random.default_rng(11)
+    x_prev = rng.random((3000, 3))
+    x_start = x_prev + rng.normal(0.0, 1e-3, x_prev.shape)
+    x = x_start + rng.normal(0.0, 1e-4, x_prev.shape) * (rng.random((3000, 1)) < 0.6)  # 40% not pushed
+    out = []
+    for fn in (C.particle_friction, C.particle_friction_reference):
+        xk = x.copy()
+        fn(xk, x_start, x_prev, 0.7, 1e-7)
+        out.append(xk)
+    assert np.allclose(out[0], out[1], rtol=0, atol=1e-15)
+    pushed = np.any(x != x_start, axis=1)
+    assert np.array_equal(out[0][~pushed], x[~pushed])  # friction needs a normal push
+    assert np.abs(out[0][pushed] - x[pushed]).max() > 1e-5
+    # the displacement along the push is kept, the tangential part shrinks
+    n = (x - x_start)[pushed]
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    d0, d1 = (x - x_prev)[pushed], (out[0] - x_prev)[pushed]
+    assert np.allclose(np.sum(d0 * n, axis=1), np.sum(d1 * n, axis=1), atol=1e-15)
+    t0 = np.linalg.norm(d0 - np.sum(d0 * n, axis=1)[:, None] * n, axis=1)
+    t1 = np.linalg.norm(d1 - np.sum(d1 * n, axis=1)[:, None] * n, axis=1)
+    assert np.all(t1 <= t0 + 1e-15)
+
+
+def test_capsule_across_two_pinned_ones_holds_on_a_slope_inside_the_cone():
+    """A free capsule lying across two pinned ones, each of its particles in both pair contacts
+    (mu 0.5, cone 26.6 degrees). It settles under the normal part g cos(a) of gravity, then the
+    tangential part g sin(a) along the pinned axes is added: friction after the normal steps
+    holds it at 20 degrees (friction inside each pair, measured before the other pair's push,
+    let such a piece creep) and lets it slide with g (sin - mu cos) at 35 degrees."""
+    m, k_col, r, dt, mu = 0.01, 1e6, 0.01, 1e-4, 0.5
+    for angle in (20.0, 35.0):
+        a = np.radians(angle)
+        # start at the resting depth: each particle averages its two pairs' corrections (module
+        # docstring), so each pair holds 2 m g cos(a) there
+        z = 2 * r - np.sqrt(2 * m * G * np.cos(a) / k_col)
+        x = _rows([-0.3, -1, 0], [-0.3, 1, 0], [0.3, -1, 0], [0.3, 1, 0], [-0.5, 0, z], [0.5, 0, z])
+        fp, radius = np.array([0, 2, 4]), np.full(3, r)
+        pairs = np.array([[0, 2], [1, 2]])
+        w = np.array([0, 0, 0, 0, 1 / m, 1 / m], dtype=np.float64)
+        v = np.zeros_like(x)
+        vy = []
+        for step in range(4000):
+            g = G * np.array([0.0, np.sin(a) if step >= 2000 else 0.0, -np.cos(a)])
+            v[4:] += g * dt
+            x_old = x.copy()
+            x += v * dt
+            hit, x_start = np.zeros(2, dtype=bool), x.copy()
+            C.project_contacts(x, w, fp, radius, pairs, k_col, dt, np.zeros(6), 0.1 * dt, x_old, hit)
+            C.particle_friction(x, x_start, x_old, mu, 1e-6 * dt)
+            v = (x - x_old) / dt
+            C.contact_velocities(v, x, w, fp, radius, pairs, hit)
+            vy.append(v[4:, 1].mean())
+        if np.tan(a) < mu:
+            assert np.abs(vy[2000:]).max() < 1e-9
+        else:
+            accel = (vy[-1] - vy[-1001]) / (1000 * dt)
+            assert accel == pytest.approx(G * (np.sin(a) - mu * np.cos(a)), rel=0.01)
+
+
+# ----------------------------------------------------------------------------- separation overlap
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_contacts_with_protected_overlap_match_reference(seed):
+    x, w, fp, r, pairs = _contact_setup(seed)
+    x_prev, x = _moved(x, seed)
+    prot = np.random.default_rng(seed).uniform(0.0, 0.02, len(pairs)) * (np.arange(len(pairs)) % 3 == 0)
+    out = []
+    for fn in (C.project_contacts, C.project_contacts_reference):
+        xk, f, pk = x.copy(), np.zeros(len(x)), prot.copy()
+        fn(xk, w, fp, r, pairs, 1e8, DT, f, 1e-3, x_prev, None, 0.0, 0.0, None, pk)
+        out.append((xk, f, pk))
+    (x1, f1, p1), (x2, f2, p2) = out
+    assert np.allclose(x1, x2, rtol=0, atol=1e-12) and np.allclose(f1, f2, rtol=1e-10, atol=1e-9)
+    assert np.array_equal(p1, p2) and np.all(p1 <= prot) and np.any(p1 < prot)
+
+
+def test_protected_overlap_parts_at_max_push_and_new_penetration_is_resolved():
+    # the crossing capsules of the cap test (phi = 0.04) under a stiff contact
+    x0 = _rows([-0.5, 0.1, 0], [0.3, 0.1, 0], [0, -0.2, 0.06], [0, 0.6, 0.06])
+    fp, r, w = np.array([0, 2]), np.array([0.05, 0.05]), np.ones(4)
+    s, t = 0.625, 0.375
+
+    def gap(x):
+        return (1 - t) * x[2, 2] + t * x[3, 2] - (1 - s) * x[0, 2] - s * x[1, 2]
+    # all of it protected: it parts by max_push, and the protection shrinks by as much
+    x, prot = x0.copy(), np.array([0.04])
+    C.project_contacts(x, w, fp, r, np.array([[0, 1]]), 1e8, DT, np.zeros(4), 1e-3, None, None, 0.0, 0.0, None, prot)
+    assert gap(x) - gap(x0) == pytest.approx(1e-3, rel=1e-9)
+    assert prot[0] == pytest.approx(0.039, rel=1e-12)
+    # half of it protected: the other half is resolved at once whatever max_push
+    x, prot = x0.copy(), np.array([0.02])
+    C.project_contacts(x, w, fp, r, np.array([[0, 1]]), 1e8, DT, np.zeros(4), 1e-3, None, None, 0.0, 0.0, None, prot)
+    assert gap(x) - gap(x0) == pytest.approx(0.021, rel=1e-9)
+    # no protection: the plain XPBD step (as without a cap)
+    x, x_free = x0.copy(), x0.copy()
+    C.project_contacts(x, w, fp, r, np.array([[0, 1]]), 1e8, DT, np.zeros(4), 1e-3, None, None, 0.0, 0.0, None,
+                       np.zeros(1))
+    C.project_contacts(x_free, w, fp, r, np.array([[0, 1]]), 1e8, DT, np.zeros(4))
+    assert np.array_equal(x, x_free)
+
+
+def test_record_separations_keeps_the_first_overlap_of_newly_separated_pairs():
+    from types import SimpleNamespace
+
+    from wooddecay.sim import failure
+    # three parallel capsules of radius 0.01, 0.015 apart along y: (0, 1) and (1, 2) overlap
+    # by 0.005, (0, 2) are apart
+    x = _rows([0, 0, 0], [1, 0, 0], [0, 0.015, 0], [1, 0.015, 0], [0, 0.03, 0], [1, 0.03, 0])
+    setup = SimpleNamespace(fp=np.array([0, 2, 4]), radius=np.full(3, 0.01), n_elements=3)
+    ms = SimpleNamespace(x=x, component=np.array([0, 1, 1]), sep_keys=np.zeros(0, np.int64), sep_overlap=np.zeros(0))
+    assert failure.record_separations(setup, ms, np.zeros(3, np.int64)) == 1  # (0, 1) only: (1, 2) stay together
+    assert ms.sep_keys.tolist() == [0 * 3 + 1] and ms.sep_overlap == pytest.approx([0.005])
+    ms.x = x + [0, 0.001, 0] * np.array([[0], [0], [1], [1], [1], [1]])  # now 0.004
+    ms.component = np.array([0, 1, 2])
+    assert failure.record_separations(setup, ms, np.array([0, 1, 1])) == 1  # (1, 2); (0, 1) is kept as first seen
+    assert ms.sep_keys.tolist() == [1, 5] and ms.sep_overlap == pytest.approx([0.005, 0.005])

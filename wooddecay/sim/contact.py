@@ -29,25 +29,34 @@ phi = particle_radius - sd (sd the signed distance to the solid) and W = w_p, on
 the other.
 
 Friction (Eqs. 5-7), on positions. Eq. 7 scales the velocity by 1 - min(1, mu_f |dF| dt /
-(m max(|v|, eps))). Multiplied by dt it acts on the displacement of the substep: a contact whose
-normal correction this projection is w dlambda takes back
+(m max(|v|, eps))). Multiplied by dt it acts on the displacement of the substep. The substep
+(:func:`wooddecay.sim.mechanics.substep`) applies it per particle after all normal steps of a
+projection, colliders and pairs (:func:`particle_friction`): a particle that they moved by push
+takes back
 
-    d_t <- d_t - min(1, mu_f w dlambda / max(|d_t|, eps dt)) d_t
+    d_t <- d_t - min(1, mu_f |push| / max(|d_t|, eps dt)) d_t
 
-of the tangential part d_t of the displacement since the start of the substep (for a pair: of
-the relative displacement of its two contact points, shared like the normal step). The normal
-correction w dlambda stands for |dF| dt^2 / m, the normal force of the contact itself rather than
-the particle-capsule force of Eqs. 5-6: once Eq. 3 is resolved a particle of i lies at r_i + r_j
-from the axis of j, so phi_ikj = max(r_j - dist(p_ik, j), 0) of Eq. 5 vanishes and resting
-contacts would slide freely. Applied inside the projection, friction is static below the cone
-(a particle on an incline with tan(angle) < mu_f stays) and kinetic above it (it slides with
-g (sin - mu_f cos)); both are tested.
+of the part d_t of its displacement since the start of the substep normal to push. |push| stands
+for |dF| dt^2 / m, the normal force of the particle's contacts rather than the particle-capsule
+force of Eqs. 5-6: once Eq. 3 is resolved a particle of i lies at r_i + r_j from the axis of j,
+so phi_ikj = max(r_j - dist(p_ik, j), 0) of Eq. 5 vanishes and resting contacts would slide
+freely. Friction is static below the cone (a particle on an incline with tan(angle) < mu_f stays,
+and so does a capsule lying across two others) and kinetic above it (it slides with
+g (sin - mu_f cos)); both are tested. Applied after the normal steps it sees the tangential part
+of every push: applied inside each contact's own step (the kernels' ``mu`` option, kept for
+comparison), it acted before the other contacts' pushes of the same Jacobi projection, and a
+capsule across two others on a 20 degree slope crept at 0.1 mm/s (docs/decisions.md).
 
-Depenetration and restitution. A pair's (or a particle's) correction may remove all the
-penetration made in this substep and at most ``max_push`` (v_depenetration dt) of the penetration
-it started the substep with (:func:`_allowed`): capsules that overlap when their connection breaks
-part gently, while an approaching or loaded contact is held at once. After the velocity update,
-every contact touched in the substep loses its separating normal velocity
+Depenetration and restitution. A particle's collider correction may remove all the penetration
+made in this substep and at most ``max_push`` (v_depenetration dt) of the penetration it started
+the substep with (:func:`_allowed`). A pair's correction is bounded only within its protected
+overlap (``protect`` of :func:`project_contacts`): the overlap beyond phi_rest it had when its
+elements fell into different components (shrinkage or a deformation had brought them closer than
+at rest), which shrinks by max_push per projection whatever loads the pair, so capsules that
+overlap when their connection breaks part gently, while a new or loaded penetration is resolved at
+once (a cap on every pair's correction also bounded the force a resting pair carries, to
+v_depenetration / (W dt), about 1 N: heavy pieces sank into each other). After the velocity
+update, every contact touched in the substep loses its separating normal velocity
 (:func:`contact_velocities`, :func:`collider_velocities`; restitution 0): the position step that
 resolves a penetration would otherwise turn it into an outward velocity (a bounce that grows
 with k_col).
@@ -590,13 +599,15 @@ def _moved(x, x_prev, a, b, s, t, k):
 
 
 @nb.njit(parallel=True, cache=True)
-def _pair_multipliers(x, x_prev, w_p, first_particle, radius, pairs, phi_rest, k_col, dt, max_push, mu, eps, pc,
-                      phi):
+def _pair_multipliers(x, x_prev, w_p, first_particle, radius, pairs, phi_rest, protect, k_col, dt, max_push, mu, eps,
+                      pc, phi):
     """Per pair: penetration phi (Eq. 3) beyond the pair's rest overlap ``phi_rest`` and ``pc`` =
     (e, dlambda, s, t), e the correction per unit w_k g_k of j's particles (i's: -e): dlambda n_ij
     less the friction step (dlambda 0, e 0 if inactive). The relative correction W dlambda is
-    capped at max_push, or with the start-of-substep positions ``x_prev`` (P, 3) (not (0, 3)) at
-    :func:`_allowed`; friction (mu > 0, needs x_prev) takes back min(1, mu W dlambda /
+    capped at max_push, or with ``protect`` (k,) (not (0,)) at phi - protect after lowering the
+    pair's protected overlap to max(min(protect, phi) - max_push, 0) (written back), or with
+    the start-of-substep positions ``x_prev`` (P, 3) (not (0, 3)) at :func:`_allowed` of the
+    overlap there; friction (mu > 0, needs x_prev) takes back min(1, mu W dlambda /
     max(|d_t|, eps dt)) of the relative tangential displacement d_t of the contact points in
     this substep."""
     dt2 = dt * dt
@@ -610,7 +621,10 @@ def _pair_multipliers(x, x_prev, w_p, first_particle, radius, pairs, phi_rest, k
         phi[q] = ph
         dl = _dlambda(ph, W, k_col, dt2) if ph > 0.0 and W > 0.0 else 0.0  # W = 0: both pinned
         cap = max_push
-        if len(x_prev) > 0 and ph > 0.0:
+        if len(protect) > 0:
+            protect[q] = max(min(protect[q], ph) - max_push, 0.0)
+            cap = max(ph - protect[q], 0.0)
+        elif len(x_prev) > 0 and ph > 0.0:
             ph_prev = capsule_contact(x_prev, a, a + 1, radius[i], b, b + 1, radius[j])[5] - phi_rest[q]
             cap = _allowed(ph, ph_prev, max_push)
         if W * dl > cap:  # depenetration cap
@@ -695,7 +709,7 @@ def pair_overlaps(x, first_particle, radius, pairs) -> np.ndarray:
 
 def project_contacts(x, w_p, first_particle, radius, pairs, k_col, dt, force,
                      max_push: float = np.inf, x_prev=None, touched=None, mu: float = 0.0,
-                     eps: float = 0.0, phi_rest=None) -> tuple[int, float]:
+                     eps: float = 0.0, phi_rest=None, protect=None) -> tuple[int, float]:
     """One Jacobi XPBD projection of the capsule contacts of ``pairs`` (k, 2) (element pairs i, j
     as from :func:`candidate_pairs`; Eqs. 3-4, module docstring).
 
@@ -711,12 +725,17 @@ def project_contacts(x, w_p, first_particle, radius, pairs, k_col, dt, force,
     bool, if given, is or-ed with the pairs that had phi > 0 (for :func:`contact_velocities`).
     ``phi_rest`` (k,), if given, is each pair's overlap in the rest state (:func:`pair_overlaps`
     of the rest positions, module docstring "Rest overlap"); phi counts only beyond it.
-    Returns (number of pairs with phi > 0, largest phi), measured on the positions before the
+    ``protect`` (k,), if given, replaces the ``x_prev`` cap: each pair's protected overlap beyond
+    phi_rest (the overlap it had when its elements separated, module docstring "Depenetration"),
+    first lowered in place to max(min(protect, phi) - max_push, 0), so that it shrinks by
+    ``max_push`` per projection whatever loads the pair; the correction may remove all the
+    penetration beyond it. Returns (number of pairs with phi > 0, largest phi), measured on the positions before the
     projection; k_col <= 0 means no contact: nothing changes and (0, 0.0) is returned."""
     if k_col <= 0.0 or len(pairs) == 0:
         return 0, 0.0
     pc, phi = np.empty((len(pairs), 6)), np.empty(len(pairs))
-    _pair_multipliers(x, _rows(x_prev), w_p, first_particle, radius, pairs, _rest(phi_rest, len(pairs)),
+    prot = np.zeros(0) if protect is None else protect
+    _pair_multipliers(x, _rows(x_prev), w_p, first_particle, radius, pairs, _rest(phi_rest, len(pairs)), prot,
                       float(k_col), float(dt), float(max_push), float(mu), float(eps), pc, phi)
     if touched is not None:
         touched |= phi > 0.0
@@ -768,7 +787,7 @@ def _points_reference(y, parts, g):
 
 def project_contacts_reference(x, w_p, first_particle, radius, pairs, k_col, dt, force,
                                max_push: float = np.inf, x_prev=None, touched=None, mu: float = 0.0,
-                               eps: float = 0.0, phi_rest=None) -> tuple[int, float]:
+                               eps: float = 0.0, phi_rest=None, protect=None) -> tuple[int, float]:
     """numpy version of :func:`project_contacts`."""
     if k_col <= 0.0 or len(pairs) == 0:
         return 0, 0.0
@@ -778,11 +797,15 @@ def project_contacts_reference(x, w_p, first_particle, radius, pairs, k_col, dt,
     if touched is not None:
         touched |= phi > 0.0
     act = phi > 0.0
+    if protect is not None:
+        protect[:] = np.maximum(np.minimum(protect, phi) - max_push, 0.0)
     parts, g, w, W, n, ph = parts[act], g[act], w[act], W[act], n[act], phi[act]
     dt2 = dt * dt
     dl = np.where(W > 0.0, k_col * ph * ph * dt2 / (1.0 + W * k_col * ph * dt2), 0.0)  # W = 0: both pinned
     cap = np.full(len(dl), float(max_push))
-    if x_prev is not None:
+    if protect is not None:
+        cap = np.maximum(ph - protect[act], 0.0)
+    elif x_prev is not None:
         prev = (_pair_geometry_reference(x_prev, w_p, first_particle, radius, pairs)[5] - rest)[act]
         cap = np.maximum(ph - np.maximum(prev - max_push, 0.0), 0.0)
     over = W * dl > cap
@@ -845,6 +868,44 @@ def contact_velocities_reference(v, x, w_p, first_particle, radius, pairs, touch
     sep = touched & (vn > 0.0) & (W > 0.0)
     _jacobi_reference(v, parts[sep], g[sep], w[sep], (-vn[sep] / W[sep])[:, None] * n[sep])
     return int(sep.sum())
+
+
+# ----------------------------------------------------------------------------- friction after the normal steps
+
+
+@nb.njit(parallel=True, cache=True)
+def _particle_friction(x, x_start, x_prev, mu, floor):
+    for p in nb.prange(len(x)):
+        px, py, pz = x[p, 0] - x_start[p, 0], x[p, 1] - x_start[p, 1], x[p, 2] - x_start[p, 2]
+        push = np.sqrt(px * px + py * py + pz * pz)
+        if push <= 0.0:
+            continue
+        fx, fy, fz = _friction_step(x[p, 0] - x_prev[p, 0], x[p, 1] - x_prev[p, 1], x[p, 2] - x_prev[p, 2],
+                                    px / push, py / push, pz / push, push, mu, floor)
+        x[p, 0] -= fx
+        x[p, 1] -= fy
+        x[p, 2] -= fz
+
+
+def particle_friction(x, x_start, x_prev, mu: float, floor: float) -> None:
+    """Friction of Eq. 7 on positions, after all normal contact steps of a projection (module
+    docstring "Friction"): every particle that the normal steps moved, by push = x - ``x_start``
+    (colliders and capsule pairs together), takes back min(1, mu |push| / max(|d_t|, ``floor``))
+    of the part d_t of its displacement since ``x_prev`` (the start of the substep) normal to
+    push. Changes ``x`` (P, 3) in place; per particle, so race-free and deterministic."""
+    if mu > 0.0 and len(x):
+        _particle_friction(x, x_start, x_prev, float(mu), float(floor))
+
+
+def particle_friction_reference(x, x_start, x_prev, mu: float, floor: float) -> None:
+    """numpy version of :func:`particle_friction`."""
+    if not (mu > 0.0 and len(x)):
+        return
+    push = x - x_start
+    mag = np.sqrt(_dot(push, push))
+    on = mag > 0.0
+    n = push[on] / mag[on, None]
+    x[on] -= _friction_reference(x[on] - x_prev[on], n, mag[on], mu, floor)
 
 
 # ----------------------------------------------------------------------------- colliders

@@ -30,7 +30,7 @@ from . import mechanics as mech
 from .diagnostics import diagnostics
 from .state import FIELDS, SimState, initial_state, inoculate
 
-CHECKPOINT_VERSION = 1
+CHECKPOINT_VERSION = 2  # 2: separation overlaps (mech_sep_keys, mech_sep_overlap)
 
 
 @dataclass(frozen=True, eq=False)

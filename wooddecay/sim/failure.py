@@ -22,7 +22,8 @@ Strains are measured after every substep, as the change since the settled refere
 Flags never come back. After a substep with a new element or connection failure the connected
 components (strand links of unbroken elements plus intact REG connections) are recomputed;
 labels are numbered in order of each component's smallest element id, so they are
-deterministic. The edge kernels write only their own edge's entries (race-free); elements are
+deterministic, and the capsule pairs that overlapped when they separated are recorded
+(:func:`record_separations`). The edge kernels write only their own edge's entries (race-free); elements are
 flagged in one serial pass in element order (the neighbour rule reads the flags it writes).
 """
 from __future__ import annotations
@@ -143,6 +144,27 @@ def _flag_edges(edges, fp, x, q, rest_offset, edge_length, edge_rest, strain_ref
     return new
 
 
+def record_separations(setup, ms, before: np.ndarray) -> int:
+    """Remember the overlap of every capsule pair whose elements were in one component
+    (``before``) and are now in different ones (``ms.component``), in ``ms.sep_keys`` (keys
+    i n + j, i < j, sorted) and ``ms.sep_overlap``: contact pushes such an overlap out at most
+    at v_depenetration (:func:`mechanics.refresh_pairs`, docs/decisions.md "Separation
+    overlap"). Components only split, so a pair is recorded once. Returns the number of pairs
+    added."""
+    from . import contact
+    pairs = contact.candidate_pairs(ms.x, setup.fp, setup.radius, ms.component, 0.0)
+    pairs = pairs[before[pairs[:, 0]] == before[pairs[:, 1]]]
+    keys = pairs[:, 0] * setup.n_elements + pairs[:, 1]
+    new = ~np.isin(keys, ms.sep_keys)
+    if not new.any():
+        return 0
+    keys = np.concatenate([ms.sep_keys, keys[new]])
+    vals = np.concatenate([ms.sep_overlap, contact.pair_overlaps(ms.x, setup.fp, setup.radius, pairs[new])])
+    order = np.argsort(keys, kind="stable")
+    ms.sep_keys, ms.sep_overlap = keys[order], vals[order]
+    return int(new.sum())
+
+
 def components(setup, ms) -> np.ndarray:
     """Connected-component label per element (module docstring)."""
     n = setup.n_elements
@@ -197,7 +219,9 @@ def update(setup, ms) -> int:
                         ms.strain_ref_edge, ms.limit_edge, ms.edge_ok)
     count = int(new_e.sum()) + int(np.count_nonzero(new_k))
     if new_e.any() or (new_k == 2).any():
+        before = ms.component
         ms.component = components(setup, ms)
+        record_separations(setup, ms, before)
         ms.pairs_x = None  # new pieces: rebuild the contact list (mechanics.refresh_pairs)
     ms.failures += count
     return count

@@ -9,7 +9,8 @@ One substep of length dt (``substep``):
    bend-twist of even then odd joints: a red-black order along each chain), Stage 2 on the REG
    one colour class at a time (connection of Eq. 2 scaled by I_ij, pair bend-twist by the rest
    Darboux vector), colliders and capsule contact (:mod:`wooddecay.sim.contact`, Eqs. 3-4, with
-   the particle friction of Eq. 7 applied to the displacements of the substep);
+   the particle friction of Eq. 7 applied to the displacements of the substep after all normal
+   contact steps);
 3. velocities from the positions; contacts touched in this substep keep no separating normal
    velocity (restitution 0);
 4. failure against the limits L(M) and recomputed components (:mod:`wooddecay.sim.failure`).
@@ -152,6 +153,14 @@ class MechState:
     pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))  # contact list
     pairs_x: np.ndarray | None = None  # positions when ``pairs`` was built
     pairs_rest: np.ndarray = field(default_factory=lambda: np.zeros(0))  # rest overlap per pair
+    pairs_protect: np.ndarray = field(default_factory=lambda: np.zeros(0))  # protected overlap per pair
+    pairs_sep: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # row in sep_*, or -1
+    #: element pairs i < j (keys i n + j, sorted) that overlapped when they fell into different
+    #: components (:func:`failure.record_separations`), and their overlap beyond which contact
+    #: resolves penetration at once: the overlap then, lowered by v_depenetration dt per substep
+    #: (docs/decisions.md, "Separation overlap"; checkpointed)
+    sep_keys: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    sep_overlap: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def copy(self) -> "MechState":
         return MechState(**{f.name: (getattr(self, f.name).copy() if isinstance(getattr(self, f.name), np.ndarray)
@@ -160,7 +169,8 @@ class MechState:
     def arrays(self) -> dict[str, np.ndarray]:
         """The arrays a checkpoint needs (the contact list is rebuilt from them)."""
         return {f.name: getattr(self, f.name) for f in fields(self)
-                if isinstance(getattr(self, f.name), np.ndarray) and f.name not in ("pairs", "pairs_x", "pairs_rest")}
+                if isinstance(getattr(self, f.name), np.ndarray)
+                and f.name not in ("pairs", "pairs_x", "pairs_rest", "pairs_protect", "pairs_sep")}
 
 
 def per_element(scene, tissue: np.ndarray, name: str) -> np.ndarray:
@@ -406,17 +416,24 @@ def substep(setup: MechSetup, ms: MechState, dt: float, force: np.ndarray, stiff
     lam = _multipliers(setup)
     normal_force = np.zeros(setup.n_particles)
     refresh_pairs(setup, ms)
-    # contact (docs/decisions.md "Contact"): depenetration capped at v_depenetration beyond the
-    # approach of this substep (ms.v holds the predicted velocities), restitution 0 afterwards
+    # contact (docs/decisions.md "Contact"): the normal steps of colliders and pairs, then friction
+    # against the push they gave each particle. A collider's depenetration is capped at
+    # v_depenetration beyond the approach of this substep; a pair's only within the overlap it had
+    # when it separated, shrinking at v_depenetration. Restitution 0 afterwards.
     push = setup.v_depenetration * dt
     hit_c = np.zeros((setup.n_particles, len(setup.colliders)), dtype=bool)
     hit_p = np.zeros(len(ms.pairs), dtype=bool)
+    x_start = np.empty_like(ms.x)
     for _ in range(setup.iterations):
         _project(setup, ms, kjoint, kreg, lam, dt)
+        x_start[:] = ms.x
         contact.project_colliders(ms.x, ms.w_p, setup.radius_p, setup.colliders, setup.k_col, dt, normal_force,
-                                  push, x_old, hit_c, setup.mu_f, setup.epsilon)
+                                  push, x_old, hit_c)
         contact.project_contacts(ms.x, ms.w_p, setup.fp, setup.radius, ms.pairs, setup.k_col, dt, normal_force,
-                                 push, x_old, hit_p, setup.mu_f, setup.epsilon, ms.pairs_rest)
+                                 push, x_old, hit_p, phi_rest=ms.pairs_rest, protect=ms.pairs_protect)
+        contact.particle_friction(ms.x, x_start, x_old, setup.mu_f, setup.epsilon * dt)
+    keep = ms.pairs_sep >= 0  # the protected overlaps only shrink; they outlive the contact list
+    ms.sep_overlap[ms.pairs_sep[keep]] = ms.pairs_rest[keep] + ms.pairs_protect[keep]
     _velocities(ms.x, ms.v, ms.q, ms.omega, x_old, q_old, ms.w_p, ms.w_q, dt)
     contact.collider_velocities(ms.v, ms.x, ms.w_p, setup.colliders, hit_c)
     contact.contact_velocities(ms.v, ms.x, ms.w_p, setup.fp, setup.radius, ms.pairs, hit_p)
@@ -431,13 +448,24 @@ def refresh_pairs(setup: MechSetup, ms: MechState) -> None:
     no part: a broken element's segment joins the end of one piece to the start of the next
     (its second particle is the next element's first), so it is no longer wood and its capsule
     would drag through both pieces. ``pairs_rest`` holds each pair's overlap at the rest
-    positions, which contact does not push out (:mod:`~wooddecay.sim.contact`, "Rest overlap")."""
+    positions, which contact does not push out (:mod:`~wooddecay.sim.contact`, "Rest overlap"), and
+    ``pairs_protect`` the overlap beyond it that the pair had when its elements separated
+    (``sep_keys``, ``sep_overlap``), which contact pushes out at most at v_depenetration."""
     margin = CONTACT_MARGIN * float(setup.radius.max(initial=0.0))
     if ms.pairs_x is not None and np.max(np.abs(ms.x - ms.pairs_x), initial=0.0) < 0.5 * margin:
         return
     pairs = contact.candidate_pairs(ms.x, setup.fp, setup.radius, ms.component, margin)
     ms.pairs = np.ascontiguousarray(pairs[ms.element_ok[pairs[:, 0]] & ms.element_ok[pairs[:, 1]]])
     ms.pairs_rest = contact.pair_overlaps(setup.x_rest, setup.fp, setup.radius, ms.pairs)
+    ms.pairs_sep = np.full(len(ms.pairs), -1, dtype=np.int64)
+    if len(ms.sep_keys) and len(ms.pairs):
+        keys = ms.pairs[:, 0] * setup.n_elements + ms.pairs[:, 1]
+        at = np.minimum(np.searchsorted(ms.sep_keys, keys), len(ms.sep_keys) - 1)
+        found = ms.sep_keys[at] == keys
+        ms.pairs_sep[found] = at[found]
+    found = ms.pairs_sep >= 0
+    ms.pairs_protect = np.zeros(len(ms.pairs))
+    ms.pairs_protect[found] = np.maximum(ms.sep_overlap[ms.pairs_sep[found]] - ms.pairs_rest[found], 0.0)
     ms.pairs_x = ms.x.copy()
 
 
