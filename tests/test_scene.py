@@ -68,7 +68,7 @@ def test_table3_symbols_present():
         P.get_param(key)
     assert P.get_param("fungi.alpha_w0").unit == "1/day"
     # SI units need a stiffer contact than Table 3's 30 N/m^2 (docs/decisions.md); the doc says so
-    assert P.get_param("mechanics.k_col").default == 1e6 and "30" in P.get_param("mechanics.k_col").doc
+    assert P.get_param("mechanics.k_col").default == 1e7 and "30" in P.get_param("mechanics.k_col").doc
 
 
 # ------------------------------------------------------------------------------- valid scene
