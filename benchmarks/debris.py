@@ -1,18 +1,16 @@
-"""Debris: fragments of the tiny log fall onto the ground and (should) settle (woodstock §5.4,
-Fig. 12; issue: mechanics, "Debris").
+"""Debris: fragments of the tiny log fall onto the ground and settle (woodstock §5.4, Fig. 12;
+issue: mechanics, "Debris"; :mod:`wooddecay.debris`).
 
-The log settles on the ground (``wd.Simulation``), then falls apart into its BSP blocks the way
-advanced brown rot leaves it (Fig. 12): every theta = 1 REG connection and every element whose
-strand successor lies in another BSP leaf lose all strength and fail through
-:func:`wooddecay.sim.failure.update` (so the failure rules apply: an element next to a cut or at
-a strand end does not fail). The pieces are lifted by ``DROP`` and fall under gravity with the
-scene's contact, friction and damping. Prints ``name value unit`` lines every 0.1 s of
-mechanics and at the end:
-    pieces, max_speed (largest particle speed), p99_speed,
-    max_penetration_over_r_s (largest capsule overlap between intact elements of different
-    pieces beyond their overlap in the intact wood, over r_s), max_raw_overlap_over_r_s (the
-    same without subtracting it), z_min (lowest particle), broken_connections, seconds (wall).
-The issue's target: afterwards max_speed < 1e-3 m/s and max_penetration_over_r_s < 0.1.
+    python benchmarks/debris.py [scene] [seconds] [k_col]
+
+The settled log falls apart into its BSP blocks, is dropped from 5 cm and falls for ``seconds``
+(default 8) with the scene's contact, friction, damping and sleeping; ``k_col`` overrides the
+scene's contact stiffness (to see how robust the result is). Prints a line every 0.1 s, then
+``name value unit`` lines: pieces, settled_at (first time from which every piece stays asleep),
+the largest window_speed of the last 0.5 s before settled_at, and at the end max_speed,
+p99_speed, window_speed, max_penetration_over_r_s (beyond the rest overlap; the largest over the
+whole run after settled_at), max_raw_overlap_over_r_s, z_min, broken_connections, seconds
+(wall). The issue's target: afterwards max_speed < 1e-3 m/s and max_penetration_over_r_s < 0.1.
 """
 from __future__ import annotations
 
@@ -22,67 +20,46 @@ import time
 import numpy as np
 
 import wooddecay as wd
-from wooddecay.sim import contact, failure
-from wooddecay.sim import mechanics as mech
+from wooddecay import debris
 
 SCENE = "samples/tiny.toml"
 DROP = 0.05  # m
-SECONDS = 3.0  # of mechanics after the drop
+SECONDS = 8.0  # of mechanics after the drop
 
 
-def fragment(sim) -> None:
-    """Fail the BSP-boundary connections and strand links of ``sim`` (module docstring)."""
-    model, st, ms = sim.model, sim.mech_setup, sim.state.mech
-    leaf = model.bsp_leaf
-    boundary = np.zeros(model.n_elements, dtype=bool)
-    boundary[:-1] = leaf[:-1] != leaf[1:]
-    ms.limit_edge[model.reg_theta.astype(bool)] = -np.inf
-    ms.limit_elem[boundary] = -np.inf
-    failure.update(st, ms)
-
-
-def penetration(st, ms) -> tuple[float, float]:
-    """Largest overlap of two intact capsules of different pieces beyond the overlap they had in
-    the intact wood (:mod:`wooddecay.sim.contact`, "Rest overlap"), and the largest raw one."""
-    pairs = contact.candidate_pairs(ms.x, st.fp, st.radius, ms.component, 0.0)
-    pairs = pairs[ms.element_ok[pairs[:, 0]] & ms.element_ok[pairs[:, 1]]]
-    phi = contact.capsule_contact_reference(*_ends(ms.x, st, pairs))[3]
-    rest = contact.capsule_contact_reference(*_ends(st.x_rest, st, pairs))[3]
-    return float(np.max(phi - rest, initial=0.0)), float(phi.max(initial=0.0))
-
-
-def _ends(x, st, pairs):
-    a, b = st.fp[pairs[:, 0]], st.fp[pairs[:, 1]]
-    return x[a], x[a + 1], st.radius[pairs[:, 0]], x[b], x[b + 1], st.radius[pairs[:, 1]]
-
-
-def main(path: str = SCENE, seconds: float = SECONDS) -> None:
-    scene = wd.load_scene(path)
+def main(path: str = SCENE, seconds: float = SECONDS, k_col: float | None = None) -> None:
+    overrides = {} if k_col is None else {"mechanics.k_col": k_col}
+    scene = wd.load_scene(path, overrides=overrides)
     sim = wd.Simulation(wd.build_model(scene), scene)
-    st, ms = sim.mech_setup, sim.state.mech
-    fragment(sim)
-    r_s = scene.strands.r_s
-    print(f"pieces {ms.component.max() + 1} -")
-    ms.x[:, 2] += DROP
-    t0, t_end = time.perf_counter(), ms.t_seconds + seconds
-    per = int(round(0.1 / st.dt))
-    while ms.t_seconds < t_end - 1e-9:
-        mech.macro_step(st, ms, 0.0, per)
-        speed = np.sqrt(np.sum(ms.v**2, axis=1))
-        pen, raw = penetration(st, ms)
-        print(f"t {ms.t_seconds:.2f} s: max_speed {speed.max():.3e} m/s, p99_speed {np.percentile(speed, 99):.2e} m/s, "
-              f"max_penetration_over_r_s {pen / r_s:.3f} (raw {raw / r_s:.3f}), z_min {ms.x[:, 2].min():.4f} m, "
-              f"pieces {ms.component.max() + 1}", flush=True)
-    speed = np.sqrt(np.sum(ms.v**2, axis=1))
-    print(f"max_speed {speed.max():.3e} m/s")
-    print(f"p99_speed {np.percentile(speed, 99):.3e} m/s")
-    pen, raw = penetration(st, ms)
-    print(f"max_penetration_over_r_s {pen / r_s:.3f} -")
-    print(f"max_raw_overlap_over_r_s {raw / r_s:.3f} -")
-    print(f"z_min {ms.x[:, 2].min():.4f} m")
+    debris.fragment(sim)
+    print(f"pieces {sim.state.mech.component.max() + 1} -")
+    t0 = time.perf_counter()
+    records = []
+    for r in debris.drop(sim, DROP, seconds):
+        records.append(r)
+        print(f"t {r.t:.2f} s: max_speed {r.max_speed:.3e} m/s, p99_speed {r.p99_speed:.2e} m/s, window_speed "
+              f"{r.window_speed:.2e} m/s, max_penetration_over_r_s {r.penetration:.3f} (raw {r.raw_overlap:.3f}), "
+              f"z_min {r.z_min:.4f} m, pieces {r.pieces}, asleep {r.asleep}", flush=True)
+    awake = [k for k, r in enumerate(records) if r.asleep < r.pieces]
+    settled = awake[-1] + 1 if awake else 0
+    last = records[-1]
+    if settled < len(records):
+        print(f"settled_at {records[settled].t:.1f} s")
+        before = records[max(settled - 5, 0):settled]
+        print(f"window_speed_before_settled {max((r.window_speed for r in before), default=0.0):.3e} m/s")
+        print(f"max_penetration_after_settled_over_r_s {max(r.penetration for r in records[settled:]):.3f} -")
+    else:
+        print("settled_at never -")
+    ms = sim.state.mech
+    print(f"max_speed {last.max_speed:.3e} m/s")
+    print(f"p99_speed {last.p99_speed:.3e} m/s")
+    print(f"window_speed {last.window_speed:.3e} m/s")
+    print(f"max_penetration_over_r_s {last.penetration:.3f} -")
+    print(f"max_raw_overlap_over_r_s {last.raw_overlap:.3f} -")
+    print(f"z_min {last.z_min:.4f} m")
     print(f"broken_connections {np.count_nonzero(~ms.edge_ok[:, 0])} -")
     print(f"seconds {time.perf_counter() - t0:.1f} s")
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:2], *map(float, sys.argv[2:3]))
+    main(*sys.argv[1:2], *map(float, sys.argv[2:4]))

@@ -194,6 +194,8 @@ _SCHEMA: dict[str, list[tuple]] = {
         ("gravity", [0.0, 0.0, -9.81], "m/s^2", "", "Gravity vector (world frame, Z up); any finite components (woodstock §5.4).", "vec3"),
         ("inertia_scale", 100.0, "", "[1, 1e6]", "Rotary inertia of a rod element over its physical m (r^2/4 + l^2/12). Euler-Bernoulli strands neglect rotary inertia; a larger one lets XPBD's stretch-shear projection move the particles rather than the orientation, which converges bending many times faster (docs/decisions.md)."),
         ("damping", 2.0, "1/s", "[0, 1000]", "Viscous velocity damping c: v <- v exp(-c dt) each substep, so pieces come to rest (woodstock §5.4)."),
+        ("sleep_speed", 5e-4, "m/s", "[0, 1]", "A piece whose particles all moved slower than this over sleep_time is taken out of the solve until a failure, new masses, a load or an impact wakes it (sim/sleep.py): an iterative contact solver otherwise keeps a resting pile jittering at ~1e-3 m/s. 0: never sleep (docs/decisions.md)."),
+        ("sleep_time", 0.2, "s", "(0, 100]", "Window over which sleep_speed is measured (sim/sleep.py)."),
         ("ground", True, "", "", "Ground plane collider at z = ground_height (woodstock §5.1 colliders)."),
         ("ground_height", 0.0, "m", "any", "Height of the ground plane."),
     ],

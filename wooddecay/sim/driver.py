@@ -30,7 +30,7 @@ from . import mechanics as mech
 from .diagnostics import diagnostics
 from .state import FIELDS, SimState, initial_state, inoculate
 
-CHECKPOINT_VERSION = 2  # 2: separation overlaps (mech_sep_keys, mech_sep_overlap)
+CHECKPOINT_VERSION = 3  # 2: separation overlaps (mech_sep_keys, mech_sep_overlap); 3: sleeping pieces
 
 
 @dataclass(frozen=True, eq=False)

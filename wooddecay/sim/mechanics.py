@@ -29,7 +29,7 @@ import numba as nb
 import numpy as np
 
 from ..strands.rings import TISSUES
-from . import contact, failure, rods
+from . import contact, failure, rods, sleep
 from .quaternion import conj_np, mul, mul_np, rotate
 
 #: contact candidate pairs are searched with this margin (in r_s) and rebuilt once a particle
@@ -120,6 +120,8 @@ class MechSetup:
     loads: tuple  # of (day0, day1, (P, 3) particle forces)
     radius_p: np.ndarray = None  # (P,) particle radius (collider clearance)
     torque: np.ndarray = None  # (n, 3) world torques per element (zero; set by validation studies)
+    sleep_speed: float = 0.0  # :mod:`~wooddecay.sim.sleep` (0: never)
+    sleep_time: float = 0.2
 
     @property
     def n_elements(self) -> int:
@@ -138,6 +140,7 @@ class MechState:
     w_p: np.ndarray  # (P,) inverse masses
     mass_p: np.ndarray  # (P,)
     w_q: np.ndarray  # (n,) inverse quaternion inertia 1 / (4 I_rot)
+    mass_e: np.ndarray  # (n,) element masses
     rest_length: np.ndarray  # (n,) l_r (Eq. 17)
     rest_offset: np.ndarray  # (m,) dp (Eq. 16)
     integrity: np.ndarray  # (m,) I_ij (Eq. 21)
@@ -148,6 +151,9 @@ class MechState:
     component: np.ndarray  # (n,) int64 connected-component label
     strain_ref_elem: np.ndarray  # (n, 2) settled stretch, shear strain (failure measures from it)
     strain_ref_edge: np.ndarray  # (m, 3) settled bundle, bend, twist strain
+    asleep: np.ndarray  # (n,) bool: the element's piece sleeps (:mod:`~wooddecay.sim.sleep`)
+    sleep_x: np.ndarray  # (P, 3) positions at the start of the sleep window
+    sleep_t: np.ndarray  # (1,) seconds at the start of the sleep window
     t_seconds: float = 0.0
     failures: int = 0  # failure events so far (elements + edge flags)
     pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))  # contact list
@@ -279,6 +285,7 @@ def prepare(model, scene) -> MechSetup:
         dt=float(mech.dt_mech), iterations=int(mech.iterations), colliders=_colliders(scene),
         radius_p=_particle_radius(fp, r, P), torque=np.zeros((n, 3)), k_col=float(mech.k_col),
         v_depenetration=float(mech.v_depenetration), mu_f=float(mech.mu_f), epsilon=float(mech.epsilon), loads=tuple(loads),
+        sleep_speed=float(mech.sleep_speed), sleep_time=float(mech.sleep_time),
     )
 
 
@@ -291,12 +298,13 @@ def initial_state(model, setup: MechSetup) -> MechState:
     n, m, P = setup.n_elements, len(setup.edges), setup.n_particles
     ms = MechState(
         x=model.particles.astype(np.float64).copy(), v=np.zeros((P, 3)), q=model.rest_quat.copy(),
-        omega=np.zeros((n, 3)), w_p=np.zeros(P), mass_p=np.zeros(P), w_q=np.zeros(n),
+        omega=np.zeros((n, 3)), w_p=np.zeros(P), mass_p=np.zeros(P), w_q=np.zeros(n), mass_e=np.zeros(n),
         rest_length=setup.rest_length0.copy(), rest_offset=setup.offset0.copy(), integrity=np.ones(m),
         limit_elem=np.full((n, 2), np.inf), limit_edge=np.full((m, 3), np.inf),
         element_ok=np.ones(n, dtype=bool), edge_ok=np.ones((m, 3), dtype=bool),
         component=np.zeros(n, dtype=np.int64), strain_ref_elem=np.zeros((n, 2)),
-        strain_ref_edge=np.zeros((m, 3)),
+        strain_ref_edge=np.zeros((m, 3)), asleep=np.zeros(n, dtype=bool), sleep_x=np.zeros((P, 3)),
+        sleep_t=np.zeros(1),
     )
     set_masses(setup, ms, np.zeros(n))
     ms.component = failure.components(setup, ms)
@@ -305,14 +313,14 @@ def initial_state(model, setup: MechSetup) -> MechState:
 
 def set_masses(setup: MechSetup, ms: MechState, M: np.ndarray) -> None:
     """Element mass rho_dry (1 + M) pi r^2 l (SPEC §2), half to each particle; inverse masses
-    and quaternion weights 1 / (4 I_rot) (zero where anchored)."""
-    m_e = setup.dry_mass * (1.0 + M)
+    and quaternion weights 1 / (4 I_rot) (zero where anchored). New masses wake every sleeping
+    piece (:func:`sleep.wake_all`)."""
+    ms.mass_e = setup.dry_mass * (1.0 + M)
     mass_p = np.zeros(setup.n_particles)
-    np.add.at(mass_p, setup.fp, 0.5 * m_e)
-    np.add.at(mass_p, setup.fp + 1, 0.5 * m_e)
+    np.add.at(mass_p, setup.fp, 0.5 * ms.mass_e)
+    np.add.at(mass_p, setup.fp + 1, 0.5 * ms.mass_e)
     ms.mass_p = mass_p
-    ms.w_p = np.where(setup.anchored_p | (mass_p <= 0), 0.0, 1.0 / np.maximum(mass_p, 1e-300))
-    ms.w_q = np.where(setup.anchored_e, 0.0, 1.0 / (4.0 * m_e * setup.inertia_factor))
+    sleep.wake_all(setup, ms)
 
 
 def external_forces(setup: MechSetup, t_days: float) -> np.ndarray:
@@ -502,6 +510,7 @@ def settle(setup: MechSetup, ms: MechState, seconds: float, damping: float, tol:
     ms.strain_ref_elem, ms.strain_ref_edge = now
     ms.v[:] = 0.0
     ms.omega[:] = 0.0
+    sleep.wake_all(setup, ms)  # the settled state starts the first sleep window
     return done
 
 
@@ -520,7 +529,22 @@ def advance(setup: MechSetup, ms: MechState, force: np.ndarray, n_sub: int, stif
 
 
 def macro_step(setup: MechSetup, ms: MechState, t_days: float, n_sub: int) -> int:
-    """Algorithm 1 lines 4-8: ``n_sub`` substeps of ``setup.dt``; returns new failures."""
+    """Algorithm 1 lines 4-8: ``n_sub`` substeps of ``setup.dt``; returns new failures. With
+    ``setup.sleep_speed`` > 0 pieces that stopped moving sleep (:mod:`~wooddecay.sim.sleep`):
+    the substeps stop at every end of a sleep window to update who sleeps, and a failure wakes
+    everything."""
     force = external_forces(setup, t_days)
     ms.pairs_x = None  # rebuild the contact list from this state (resumable bit-exactly)
-    return advance(setup, ms, force, n_sub)[0]
+    if setup.sleep_speed <= 0.0:
+        return advance(setup, ms, force, n_sub)[0]
+    sleep.wake_loaded(setup, ms, force)
+    new, stiff = 0, None
+    while n_sub > 0:
+        k = min(n_sub, max(sleep.substeps_left(setup, ms), 1))
+        count, stiff = advance(setup, ms, force, k, stiff)
+        new, n_sub = new + count, n_sub - k
+        if count:
+            sleep.wake_all(setup, ms)
+        elif sleep.substeps_left(setup, ms) == 0:
+            sleep.update(setup, ms)
+    return new

@@ -1,0 +1,109 @@
+"""Sleeping pieces: a piece that has stopped moving is taken out of the solve until something
+disturbs it (the deactivation of Box2D, Bullet and PhysX; woodstock §5.4 debris piles).
+
+Why (docs/decisions.md, "Debris settles by sleeping"): an iterative penalty-contact solver never
+holds a pile exactly still. With one Jacobi contact iteration per substep, every resting contact
+is corrected a little differently in each substep, so a pile whose pieces have all stopped still
+jitters by ~1e-7 m per substep, about 1e-3 m/s in the velocities x - x_old / dt. The jitter also
+ratchets what rests on it: a single element lying on a quiet pile crept down it at 2 mm/s for six
+seconds, and stopped within 0.4 s once the pile under it was held still.
+
+Rule, evaluated at the end of every window of ``sleep_time`` seconds of :func:`macro_step`
+(:func:`update`):
+
+* a piece (connected component) whose every particle moved less than ``sleep_speed`` times the
+  window since the window began is *quiet*; a quiet piece falls asleep unless it touches (a capsule
+  pair overlapping beyond its rest overlap) an awake piece that moved faster than
+  ``WAKE_FACTOR`` sleep_speed: an impact;
+* a sleeping piece that such a *loud* piece touches wakes up;
+* a sleeping piece has zero inverse mass and inertia, so the solver holds it like an anchored
+  element: it does not move, and the pieces on it rest on a still support; its velocities are
+  zero.
+
+Everything wakes (:func:`wake_all`, which restarts the window) when a constraint fails, when the
+masses change (:func:`wooddecay.sim.mechanics.set_masses`: the coupling does it after every
+biology step, so in a coupled bake nothing sleeps) and when an external force acts on a sleeping
+particle. ``sleep_speed`` 0 switches sleeping off. Per piece and per particle in numpy, so
+deterministic; the state (``asleep``, ``sleep_x``, ``sleep_t``) is checkpointed.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+#: an awake piece faster than this many times sleep_speed wakes the sleeping pieces it touches
+WAKE_FACTOR = 10.0
+
+
+def weights(setup, ms) -> tuple[np.ndarray, np.ndarray]:
+    """Awake inverse particle masses and quaternion weights 1 / (4 I_rot) from ``ms.mass_p`` and
+    ``ms.mass_e`` (zero where anchored or massless)."""
+    w_p = np.where(setup.anchored_p | (ms.mass_p <= 0), 0.0, 1.0 / np.maximum(ms.mass_p, 1e-300))
+    w_q = np.where(setup.anchored_e, 0.0, 1.0 / (4.0 * ms.mass_e * setup.inertia_factor))
+    return w_p, w_q
+
+
+def wake_all(setup, ms) -> None:
+    """Wake every piece and start a new window at the current state."""
+    ms.asleep[:] = False
+    ms.w_p, ms.w_q = weights(setup, ms)
+    _restart(ms)
+
+
+def substeps_left(setup, ms) -> int:
+    """Substeps until the current window ends (0: it has ended)."""
+    return max(int(round((ms.sleep_t[0] + setup.sleep_time - ms.t_seconds) / setup.dt)), 0)
+
+
+def wake_loaded(setup, ms, force: np.ndarray) -> None:
+    """Wake everything if ``force`` (P, 3) acts on a sleeping particle."""
+    if ms.asleep.any() and np.any(force[ms.w_p == 0.0] != 0.0):
+        wake_all(setup, ms)
+
+
+def update(setup, ms) -> int:
+    """End of a window (module docstring): put quiet pieces to sleep, wake the sleeping pieces a
+    loud one touches, start the next window. Returns the number of sleeping pieces."""
+    n_comp = int(ms.component.max(initial=-1)) + 1
+    elapsed = ms.t_seconds - ms.sleep_t[0]
+    moved = np.sqrt(np.sum((ms.x - ms.sleep_x) ** 2, axis=1))
+    speed = np.zeros(n_comp)  # the fastest particle of each piece over the window
+    np.maximum.at(speed, ms.component, np.maximum(moved[setup.fp], moved[setup.fp + 1]) / elapsed)
+    loud = speed > WAKE_FACTOR * setup.sleep_speed
+    hit = np.zeros(n_comp, dtype=bool)  # touched by a loud piece
+    a, b = _touching(setup, ms)
+    np.logical_or.at(hit, a, loud[b])
+    np.logical_or.at(hit, b, loud[a])
+    asleep = (speed < setup.sleep_speed) & ~hit
+    ms.asleep = asleep[ms.component]
+    _hold(setup, ms)
+    _restart(ms)
+    return int(asleep.sum())
+
+
+def _touching(setup, ms) -> tuple[np.ndarray, np.ndarray]:
+    """Components of the two sides of every contact pair that overlaps beyond its rest overlap."""
+    from .contact import pair_overlaps
+
+    pairs = ms.pairs
+    if len(pairs) == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    on = pair_overlaps(ms.x, setup.fp, setup.radius, pairs) > ms.pairs_rest
+    return ms.component[pairs[on, 0]], ms.component[pairs[on, 1]]
+
+
+def _hold(setup, ms) -> None:
+    """Weights and velocities of the current ``asleep`` flags: a particle sleeps when every
+    element it belongs to sleeps."""
+    w_p, w_q = weights(setup, ms)
+    awake_p = np.zeros(setup.n_particles, dtype=bool)
+    awake_p[setup.fp[~ms.asleep]] = True
+    awake_p[setup.fp[~ms.asleep] + 1] = True
+    ms.w_p = np.where(awake_p, w_p, 0.0)
+    ms.w_q = np.where(ms.asleep, 0.0, w_q)
+    ms.v[~awake_p] = 0.0
+    ms.omega[ms.asleep] = 0.0
+
+
+def _restart(ms) -> None:
+    ms.sleep_x = ms.x.copy()
+    ms.sleep_t = np.array([ms.t_seconds])
