@@ -387,13 +387,13 @@ def _moved(x, seed):
 
 
 @pytest.mark.parametrize("seed", [0, 1])
-def test_contacts_with_cap_and_friction_match_reference(seed):
+def test_contacts_with_cap_match_reference(seed):
     x, w, fp, r, pairs = _contact_setup(seed)
     x_prev, x = _moved(x, seed)
     out = []
     for fn in (C.project_contacts, C.project_contacts_reference):
         xk, f, hit = x.copy(), np.zeros(len(x)), np.zeros(len(pairs), dtype=bool)
-        fn(xk, w, fp, r, pairs, 1e6, DT, f, 1e-3, x_prev, hit, 0.6, 1e-6)
+        fn(xk, w, fp, r, pairs, 1e6, DT, f, 1e-3, x_prev, hit)
         v = (xk - x_prev) / DT
         (C.contact_velocities if fn is C.project_contacts else C.contact_velocities_reference)(
             v, xk, w, fp, r, pairs, hit)
@@ -402,12 +402,9 @@ def test_contacts_with_cap_and_friction_match_reference(seed):
     assert h1.sum() > 100 and np.array_equal(h1, h2)
     assert np.allclose(x1, x2, rtol=0, atol=1e-12) and np.allclose(f1, f2, rtol=1e-10, atol=1e-9)
     assert np.allclose(v1, v2, rtol=0, atol=1e-9)
-    xf = x.copy()
-    C.project_contacts(xf, w, fp, r, pairs, 1e6, DT, np.zeros(len(x)), 1e-3, x_prev, None, 0.0, 1e-6)
-    assert np.abs(xf - x1).max() > 1e-5  # friction changed the result
 
 
-def test_colliders_with_cap_and_friction_match_reference():
+def test_colliders_with_cap_match_reference():
     rng = np.random.default_rng(7)
     x = rng.random((4000, 3))
     w = rng.uniform(0.5, 2.0, len(x))
@@ -418,7 +415,7 @@ def test_colliders_with_cap_and_friction_match_reference():
     for proj, vel in ((C.project_colliders, C.collider_velocities),
                       (C.project_colliders_reference, C.collider_velocities_reference)):
         xk, f, hit = x.copy(), np.zeros(len(x)), np.zeros((len(x), 4), dtype=bool)
-        proj(xk, w, prad, _colliders(), 1e6, DT, f, 1e-3, x_prev, hit, 0.6, 1e-6)
+        proj(xk, w, prad, _colliders(), 1e6, DT, f, 1e-3, x_prev, hit)
         v = (xk - x_prev) / DT
         changed = vel(v, xk, w, _colliders(), hit)
         out.append((xk, f, hit, v, changed))
@@ -460,7 +457,8 @@ def test_bit_identical_for_one_and_two_threads():
             C.project_colliders(xk, w, prad, _colliders(), 40.0, DT, f)
             xk2, f2, hit = x.copy(), np.zeros(len(x)), np.zeros(len(pairs), dtype=bool)
             x_prev = xk2 + 1e-3
-            C.project_contacts(xk2, w, fp, r, pairs, 1e6, DT, f2, 1e-3, x_prev, hit, 0.7, 1e-6)
+            C.project_contacts(xk2, w, fp, r, pairs, 1e6, DT, f2, 1e-3, x_prev, hit)
+            C.particle_friction(xk2, xk, x_prev, 0.7, 1e-6 * DT)
             v = (xk2 - x_prev) / DT
             C.contact_velocities(v, xk2, w, fp, r, pairs, hit)
             runs.append((pairs, xk, f, xk2, f2, v))
@@ -572,7 +570,7 @@ def test_contacts_with_protected_overlap_match_reference(seed):
     out = []
     for fn in (C.project_contacts, C.project_contacts_reference):
         xk, f, pk = x.copy(), np.zeros(len(x)), prot.copy()
-        fn(xk, w, fp, r, pairs, 1e8, DT, f, 1e-3, x_prev, None, 0.0, 0.0, None, pk)
+        fn(xk, w, fp, r, pairs, 1e8, DT, f, 1e-3, x_prev, protect=pk)
         out.append((xk, f, pk))
     (x1, f1, p1), (x2, f2, p2) = out
     assert np.allclose(x1, x2, rtol=0, atol=1e-12) and np.allclose(f1, f2, rtol=1e-10, atol=1e-9)
@@ -589,17 +587,17 @@ def test_protected_overlap_parts_at_max_push_and_new_penetration_is_resolved():
         return (1 - t) * x[2, 2] + t * x[3, 2] - (1 - s) * x[0, 2] - s * x[1, 2]
     # all of it protected: it parts by max_push, and the protection shrinks by as much
     x, prot = x0.copy(), np.array([0.04])
-    C.project_contacts(x, w, fp, r, np.array([[0, 1]]), 1e8, DT, np.zeros(4), 1e-3, None, None, 0.0, 0.0, None, prot)
+    C.project_contacts(x, w, fp, r, np.array([[0, 1]]), 1e8, DT, np.zeros(4), 1e-3, protect=prot)
     assert gap(x) - gap(x0) == pytest.approx(1e-3, rel=1e-9)
     assert prot[0] == pytest.approx(0.039, rel=1e-12)
     # half of it protected: the other half is resolved at once whatever max_push
     x, prot = x0.copy(), np.array([0.02])
-    C.project_contacts(x, w, fp, r, np.array([[0, 1]]), 1e8, DT, np.zeros(4), 1e-3, None, None, 0.0, 0.0, None, prot)
+    C.project_contacts(x, w, fp, r, np.array([[0, 1]]), 1e8, DT, np.zeros(4), 1e-3, protect=prot)
     assert gap(x) - gap(x0) == pytest.approx(0.021, rel=1e-9)
     # no protection: the plain XPBD step (as without a cap)
     x, x_free = x0.copy(), x0.copy()
-    C.project_contacts(x, w, fp, r, np.array([[0, 1]]), 1e8, DT, np.zeros(4), 1e-3, None, None, 0.0, 0.0, None,
-                       np.zeros(1))
+    C.project_contacts(x, w, fp, r, np.array([[0, 1]]), 1e8, DT, np.zeros(4), 1e-3,
+                       protect=np.zeros(1))
     C.project_contacts(x_free, w, fp, r, np.array([[0, 1]]), 1e8, DT, np.zeros(4))
     assert np.array_equal(x, x_free)
 

@@ -43,9 +43,9 @@ so phi_ikj = max(r_j - dist(p_ik, j), 0) of Eq. 5 vanishes and resting contacts 
 freely. Friction is static below the cone (a particle on an incline with tan(angle) < mu_f stays,
 and so does a capsule lying across two others) and kinetic above it (it slides with
 g (sin - mu_f cos)); both are tested. Applied after the normal steps it sees the tangential part
-of every push: applied inside each contact's own step (the kernels' ``mu`` option, kept for
-comparison), it acted before the other contacts' pushes of the same Jacobi projection, and a
-capsule across two others on a 20 degree slope crept at 0.1 mm/s (docs/decisions.md).
+of every push: applied inside each contact's own step (until the seventh debris session), it
+acted before the other contacts' pushes of the same Jacobi projection, and a capsule across two
+others on a 20 degree slope crept at 0.1 mm/s (docs/decisions.md).
 
 Depenetration and restitution. A particle's collider correction may remove all the penetration
 made in this substep and at most ``max_push`` (v_depenetration dt) of the penetration it started
@@ -590,26 +590,16 @@ def _friction_step(dx, dy, dz, nx, ny, nz, normal, mu, floor):
     return c * tx, c * ty, c * tz
 
 
-@nb.njit(cache=True, inline="always")
-def _moved(x, x_prev, a, b, s, t, k):
-    """Coordinate k of the displacement since x_prev of the point at t on segment b, b + 1
-    relative to the point at s on segment a, a + 1."""
-    return ((1.0 - t) * (x[b, k] - x_prev[b, k]) + t * (x[b + 1, k] - x_prev[b + 1, k])
-            - (1.0 - s) * (x[a, k] - x_prev[a, k]) - s * (x[a + 1, k] - x_prev[a + 1, k]))
-
-
 @nb.njit(parallel=True, cache=True)
-def _pair_multipliers(x, x_prev, w_p, first_particle, radius, pairs, phi_rest, protect, k_col, dt, max_push, mu, eps,
-                      pc, phi):
+def _pair_multipliers(x, x_prev, w_p, first_particle, radius, pairs, phi_rest, protect, k_col, dt, max_push, pc,
+                      phi):
     """Per pair: penetration phi (Eq. 3) beyond the pair's rest overlap ``phi_rest`` and ``pc`` =
     (e, dlambda, s, t), e the correction per unit w_k g_k of j's particles (i's: -e): dlambda n_ij
-    less the friction step (dlambda 0, e 0 if inactive). The relative correction W dlambda is
+    (dlambda 0, e 0 if inactive). The relative correction W dlambda is
     capped at max_push, or with ``protect`` (k,) (not (0,)) at phi - protect after lowering the
     pair's protected overlap to max(min(protect, phi) - max_push, 0) (written back), or with
     the start-of-substep positions ``x_prev`` (P, 3) (not (0, 3)) at :func:`_allowed` of the
-    overlap there; friction (mu > 0, needs x_prev) takes back min(1, mu W dlambda /
-    max(|d_t|, eps dt)) of the relative tangential displacement d_t of the contact points in
-    this substep."""
+    overlap there."""
     dt2 = dt * dt
     for q in nb.prange(len(pairs)):
         i, j = pairs[q, 0], pairs[q, 1]
@@ -629,12 +619,7 @@ def _pair_multipliers(x, x_prev, w_p, first_particle, radius, pairs, phi_rest, p
             cap = _allowed(ph, ph_prev, max_push)
         if W * dl > cap:  # depenetration cap
             dl = cap / W
-        ex, ey, ez = dl * nx, dl * ny, dl * nz
-        if mu > 0.0 and dl > 0.0 and len(x_prev) > 0:
-            fx, fy, fz = _friction_step(_moved(x, x_prev, a, b, s, t, 0), _moved(x, x_prev, a, b, s, t, 1),
-                                        _moved(x, x_prev, a, b, s, t, 2), nx, ny, nz, W * dl, mu, eps * dt)
-            ex, ey, ez = ex - fx / W, ey - fy / W, ez - fz / W
-        pc[q, 0], pc[q, 1], pc[q, 2] = ex, ey, ez
+        pc[q, 0], pc[q, 1], pc[q, 2] = dl * nx, dl * ny, dl * nz
         pc[q, 3], pc[q, 4], pc[q, 5] = dl, s, t
 
 
@@ -708,8 +693,8 @@ def pair_overlaps(x, first_particle, radius, pairs) -> np.ndarray:
 
 
 def project_contacts(x, w_p, first_particle, radius, pairs, k_col, dt, force,
-                     max_push: float = np.inf, x_prev=None, touched=None, mu: float = 0.0,
-                     eps: float = 0.0, phi_rest=None, protect=None) -> tuple[int, float]:
+                     max_push: float = np.inf, x_prev=None, touched=None, phi_rest=None,
+                     protect=None) -> tuple[int, float]:
     """One Jacobi XPBD projection of the capsule contacts of ``pairs`` (k, 2) (element pairs i, j
     as from :func:`candidate_pairs`; Eqs. 3-4, module docstring).
 
@@ -719,9 +704,8 @@ def project_contacts(x, w_p, first_particle, radius, pairs, k_col, dt, force,
     their connection breaks, up to 1.5 r_s at rest spacing, part gently instead of exploding). With
     the positions ``x_prev`` (P, 3) at the start of the substep it bounds only the overlap the
     pair already had there, phi_prev: the correction may remove all the penetration made in this
-    substep and max_push of phi_prev, so an approaching or loaded pair is still held at once; and
-    with ``mu`` > 0 friction (Eq. 7 on positions, module docstring) takes back part of the
-    relative tangential displacement of the contact points since ``x_prev``. ``touched`` (k,)
+    substep and max_push of phi_prev, so an approaching or loaded pair is still held at once.
+    Friction is not part of it (:func:`particle_friction`, after all normal steps). ``touched`` (k,)
     bool, if given, is or-ed with the pairs that had phi > 0 (for :func:`contact_velocities`).
     ``phi_rest`` (k,), if given, is each pair's overlap in the rest state (:func:`pair_overlaps`
     of the rest positions, module docstring "Rest overlap"); phi counts only beyond it.
@@ -736,7 +720,7 @@ def project_contacts(x, w_p, first_particle, radius, pairs, k_col, dt, force,
     pc, phi = np.empty((len(pairs), 6)), np.empty(len(pairs))
     prot = np.zeros(0) if protect is None else protect
     _pair_multipliers(x, _rows(x_prev), w_p, first_particle, radius, pairs, _rest(phi_rest, len(pairs)), prot,
-                      float(k_col), float(dt), float(max_push), float(mu), float(eps), pc, phi)
+                      float(k_col), float(dt), float(max_push), pc, phi)
     if touched is not None:
         touched |= phi > 0.0
     active = np.flatnonzero(phi > 0.0)
@@ -786,8 +770,8 @@ def _points_reference(y, parts, g):
 
 
 def project_contacts_reference(x, w_p, first_particle, radius, pairs, k_col, dt, force,
-                               max_push: float = np.inf, x_prev=None, touched=None, mu: float = 0.0,
-                               eps: float = 0.0, phi_rest=None, protect=None) -> tuple[int, float]:
+                               max_push: float = np.inf, x_prev=None, touched=None, phi_rest=None,
+                               protect=None) -> tuple[int, float]:
     """numpy version of :func:`project_contacts`."""
     if k_col <= 0.0 or len(pairs) == 0:
         return 0, 0.0
@@ -810,13 +794,7 @@ def project_contacts_reference(x, w_p, first_particle, radius, pairs, k_col, dt,
         cap = np.maximum(ph - np.maximum(prev - max_push, 0.0), 0.0)
     over = W * dl > cap
     dl[over] = cap[over] / W[over]
-    e = dl[:, None] * n
-    W = np.where(W > 0.0, W, 1.0)  # dl = 0 there
-    if mu > 0.0 and x_prev is not None:
-        fr = _friction_reference(_points_reference(x - x_prev, parts, g), n, W * dl, mu, eps * dt)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            e = e - np.where((dl > 0.0)[:, None], fr / W[:, None], 0.0)
-    _jacobi_reference(x, parts, g, w, e, dl, force, dt)
+    _jacobi_reference(x, parts, g, w, dl[:, None] * n, dl, force, dt)
     return int(act.sum()), float(phi.max())
 
 
@@ -966,12 +944,11 @@ def collider_distance(colliders, c, px, py, pz):
 
 
 @nb.njit(parallel=True, cache=True)
-def _colliders_kernel(x, x_prev, w_p, particle_radius, colliders, k_col, dt, max_push, mu, eps, force, n_active,
-                      pen, touched):
+def _colliders_kernel(x, x_prev, w_p, particle_radius, colliders, k_col, dt, max_push, force, n_active, pen,
+                      touched):
     """Per particle, collider after collider: the XPBD step of phi = particle_radius - sd, its
     correction capped at max_push, or at :func:`_allowed` with the start-of-substep positions
-    ``x_prev`` ((0, 3): none), then friction (mu > 0, needs x_prev) on the tangential
-    displacement since x_prev; ``touched`` (P, k) (or (0, k)) set where phi > 0."""
+    ``x_prev`` ((0, 3): none); ``touched`` (P, k) (or (0, k)) set where phi > 0."""
     dt2 = dt * dt
     for p in nb.prange(len(x)):
         na = 0
@@ -996,12 +973,6 @@ def _colliders_kernel(x, x_prev, w_p, particle_radius, colliders, k_col, dt, max
             x[p, 1] += w_p[p] * dl * ny
             x[p, 2] += w_p[p] * dl * nz
             force[p] += dl / dt2
-            if mu > 0.0 and dl > 0.0 and len(x_prev) > 0:
-                fx, fy, fz = _friction_step(x[p, 0] - x_prev[p, 0], x[p, 1] - x_prev[p, 1], x[p, 2] - x_prev[p, 2],
-                                            nx, ny, nz, w_p[p] * dl, mu, eps * dt)
-                x[p, 0] -= fx
-                x[p, 1] -= fy
-                x[p, 2] -= fz
         n_active[p] = na
         pen[p] = mp
 
@@ -1040,15 +1011,14 @@ def _check_colliders(colliders):
 
 
 def project_colliders(x, w_p, particle_radius, colliders, k_col, dt, force, max_push: float = np.inf,
-                      x_prev=None, touched=None, mu: float = 0.0, eps: float = 0.0) -> tuple[int, float]:
+                      x_prev=None, touched=None) -> tuple[int, float]:
     """Keep each particle outside every collider at clearance ``particle_radius`` (P,): per
     particle, one collider after the other, phi = particle_radius - sd and the secant-compliance
     XPBD step along the collider normal with W = w_p (module docstring). Moves ``x`` in place,
     adds the normal force dlambda / dt^2 to ``force``. ``max_push`` caps each correction; with the
     start-of-substep positions ``x_prev`` (P, 3) it caps only the removal of the penetration the
-    particle had there (as in :func:`project_contacts`), and ``mu`` > 0 adds friction, Eq. 7 on
-    the tangential displacement d_t since ``x_prev``: d_t shrinks by min(1, mu w dlambda /
-    max(|d_t|, eps dt)) (module docstring); ``touched`` (P, k) bool, if given, is set where phi > 0 (for
+    particle had there (as in :func:`project_contacts`); friction follows all normal steps
+    (:func:`particle_friction`). ``touched`` (P, k) bool, if given, is set where phi > 0 (for
     :func:`collider_velocities`). Returns (number of particle-collider contacts with phi > 0,
     largest phi); k_col <= 0 or no colliders: nothing, (0, 0.0)."""
     if k_col <= 0.0 or len(colliders) == 0 or len(x) == 0:
@@ -1057,7 +1027,7 @@ def project_colliders(x, w_p, particle_radius, colliders, k_col, dt, force, max_
     n_active, pen = np.empty(len(x), dtype=np.int64), np.empty(len(x))
     hit = np.zeros((0, len(colliders)), dtype=np.bool_) if touched is None else touched
     _colliders_kernel(x, _rows(x_prev), w_p, particle_radius, colliders, float(k_col), float(dt), float(max_push),
-                      float(mu), float(eps), force, n_active, pen, hit)
+                      force, n_active, pen, hit)
     return int(n_active.sum()), float(pen.max())
 
 
@@ -1131,7 +1101,7 @@ def collider_distance_reference(row, p):
 
 
 def project_colliders_reference(x, w_p, particle_radius, colliders, k_col, dt, force, max_push: float = np.inf,
-                                x_prev=None, touched=None, mu: float = 0.0, eps: float = 0.0) -> tuple[int, float]:
+                                x_prev=None, touched=None) -> tuple[int, float]:
     """numpy version of :func:`project_colliders`."""
     if k_col <= 0.0 or len(colliders) == 0 or len(x) == 0:
         return 0, 0.0
@@ -1158,7 +1128,4 @@ def project_colliders_reference(x, w_p, particle_radius, colliders, k_col, dt, f
         dl[over] = cap[over] / w[over]
         x[act] += (w * dl)[:, None] * n
         force[act] += dl / dt2
-        if mu > 0.0 and x_prev is not None:
-            fr = _friction_reference(x[act] - x_prev[act], n, w * dl, mu, eps * dt)
-            x[act] -= np.where((dl > 0.0)[:, None], fr, 0.0)
     return n_active, pen
