@@ -35,6 +35,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from . import contact
 from .quaternion import conj_np, mul, mul_np, rotate
 
 
@@ -151,7 +152,6 @@ def record_separations(setup, ms, before: np.ndarray) -> int:
     at v_depenetration (:func:`mechanics.refresh_pairs`, docs/decisions.md "Separation
     overlap"). Components only split, so a pair is recorded once. Returns the number of pairs
     added."""
-    from . import contact
     pairs = contact.candidate_pairs(ms.x, setup.fp, setup.radius, ms.component, 0.0)
     pairs = pairs[before[pairs[:, 0]] == before[pairs[:, 1]]]
     keys = pairs[:, 0] * setup.n_elements + pairs[:, 1]

@@ -30,6 +30,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .contact import pair_overlaps
+
 #: an awake piece faster than this many times sleep_speed wakes the sleeping pieces it touches
 WAKE_FACTOR = 10.0
 
@@ -82,8 +84,6 @@ def update(setup, ms) -> int:
 
 def _touching(setup, ms) -> tuple[np.ndarray, np.ndarray]:
     """Components of the two sides of every contact pair that overlaps beyond its rest overlap."""
-    from .contact import pair_overlaps
-
     pairs = ms.pairs
     if len(pairs) == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
