@@ -393,7 +393,7 @@ def test_contacts_with_cap_match_reference(seed):
     out = []
     for fn in (C.project_contacts, C.project_contacts_reference):
         xk, f, hit = x.copy(), np.zeros(len(x)), np.zeros(len(pairs), dtype=bool)
-        fn(xk, w, fp, r, pairs, 1e6, DT, f, 1e-3, x_prev, hit)
+        fn(xk, w, fp, r, pairs, 1e6, DT, f, 1e-3, hit)
         v = (xk - x_prev) / DT
         (C.contact_velocities if fn is C.project_contacts else C.contact_velocities_reference)(
             v, xk, w, fp, r, pairs, hit)
@@ -457,7 +457,7 @@ def test_bit_identical_for_one_and_two_threads():
             C.project_colliders(xk, w, prad, _colliders(), 40.0, DT, f)
             xk2, f2, hit = x.copy(), np.zeros(len(x)), np.zeros(len(pairs), dtype=bool)
             x_prev = xk2 + 1e-3
-            C.project_contacts(xk2, w, fp, r, pairs, 1e6, DT, f2, 1e-3, x_prev, hit)
+            C.project_contacts(xk2, w, fp, r, pairs, 1e6, DT, f2, 1e-3, hit)
             C.particle_friction(xk2, xk, x_prev, 0.7, 1e-6 * DT)
             v = (xk2 - x_prev) / DT
             C.contact_velocities(v, xk2, w, fp, r, pairs, hit)
@@ -547,7 +547,8 @@ def test_capsule_across_two_pinned_ones_holds_on_a_slope_inside_the_cone():
             x_old = x.copy()
             x += v * dt
             hit, x_start = np.zeros(2, dtype=bool), x.copy()
-            C.project_contacts(x, w, fp, radius, pairs, k_col, dt, np.zeros(6), 0.1 * dt, x_old, hit)
+            C.project_contacts(x, w, fp, radius, pairs, k_col, dt, np.zeros(6), 0.1 * dt, hit,
+                               protect=np.zeros(2))
             C.particle_friction(x, x_start, x_old, mu, 1e-6 * dt)
             v = (x - x_old) / dt
             C.contact_velocities(v, x, w, fp, radius, pairs, hit)
@@ -565,12 +566,12 @@ def test_capsule_across_two_pinned_ones_holds_on_a_slope_inside_the_cone():
 @pytest.mark.parametrize("seed", [0, 1])
 def test_contacts_with_protected_overlap_match_reference(seed):
     x, w, fp, r, pairs = _contact_setup(seed)
-    x_prev, x = _moved(x, seed)
+    x = _moved(x, seed)[1]
     prot = np.random.default_rng(seed).uniform(0.0, 0.02, len(pairs)) * (np.arange(len(pairs)) % 3 == 0)
     out = []
     for fn in (C.project_contacts, C.project_contacts_reference):
         xk, f, pk = x.copy(), np.zeros(len(x)), prot.copy()
-        fn(xk, w, fp, r, pairs, 1e8, DT, f, 1e-3, x_prev, protect=pk)
+        fn(xk, w, fp, r, pairs, 1e8, DT, f, 1e-3, protect=pk)
         out.append((xk, f, pk))
     (x1, f1, p1), (x2, f2, p2) = out
     assert np.allclose(x1, x2, rtol=0, atol=1e-12) and np.allclose(f1, f2, rtol=1e-10, atol=1e-9)

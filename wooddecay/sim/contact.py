@@ -591,15 +591,12 @@ def _friction_step(dx, dy, dz, nx, ny, nz, normal, mu, floor):
 
 
 @nb.njit(parallel=True, cache=True)
-def _pair_multipliers(x, x_prev, w_p, first_particle, radius, pairs, phi_rest, protect, k_col, dt, max_push, pc,
-                      phi):
+def _pair_multipliers(x, w_p, first_particle, radius, pairs, phi_rest, protect, k_col, dt, max_push, pc, phi):
     """Per pair: penetration phi (Eq. 3) beyond the pair's rest overlap ``phi_rest`` and ``pc`` =
     (e, dlambda, s, t), e the correction per unit w_k g_k of j's particles (i's: -e): dlambda n_ij
-    (dlambda 0, e 0 if inactive). The relative correction W dlambda is
-    capped at max_push, or with ``protect`` (k,) (not (0,)) at phi - protect after lowering the
-    pair's protected overlap to max(min(protect, phi) - max_push, 0) (written back), or with
-    the start-of-substep positions ``x_prev`` (P, 3) (not (0, 3)) at :func:`_allowed` of the
-    overlap there."""
+    (dlambda 0, e 0 if inactive). The relative correction W dlambda is capped at max_push, or
+    with ``protect`` (k,) (not (0,)) at phi - protect after lowering the pair's protected overlap
+    to max(min(protect, phi) - max_push, 0) (written back)."""
     dt2 = dt * dt
     for q in nb.prange(len(pairs)):
         i, j = pairs[q, 0], pairs[q, 1]
@@ -614,9 +611,6 @@ def _pair_multipliers(x, x_prev, w_p, first_particle, radius, pairs, phi_rest, p
         if len(protect) > 0:
             protect[q] = max(min(protect[q], ph) - max_push, 0.0)
             cap = max(ph - protect[q], 0.0)
-        elif len(x_prev) > 0 and ph > 0.0:
-            ph_prev = capsule_contact(x_prev, a, a + 1, radius[i], b, b + 1, radius[j])[5] - phi_rest[q]
-            cap = _allowed(ph, ph_prev, max_push)
         if W * dl > cap:  # depenetration cap
             dl = cap / W
         pc[q, 0], pc[q, 1], pc[q, 2] = dl * nx, dl * ny, dl * nz
@@ -693,23 +687,19 @@ def pair_overlaps(x, first_particle, radius, pairs) -> np.ndarray:
 
 
 def project_contacts(x, w_p, first_particle, radius, pairs, k_col, dt, force,
-                     max_push: float = np.inf, x_prev=None, touched=None, phi_rest=None,
-                     protect=None) -> tuple[int, float]:
+                     max_push: float = np.inf, touched=None, phi_rest=None, protect=None) -> tuple[int, float]:
     """One Jacobi XPBD projection of the capsule contacts of ``pairs`` (k, 2) (element pairs i, j
     as from :func:`candidate_pairs`; Eqs. 3-4, module docstring).
 
     Moves ``x`` (P, 3) in place (particles with w_p = 0 never move) and adds to ``force`` (P,) the
     normal force magnitude g_k dlambda / dt^2 each particle receives. ``max_push`` caps a pair's
     relative correction per projection (a depenetration speed times dt: capsules that overlap when
-    their connection breaks, up to 1.5 r_s at rest spacing, part gently instead of exploding). With
-    the positions ``x_prev`` (P, 3) at the start of the substep it bounds only the overlap the
-    pair already had there, phi_prev: the correction may remove all the penetration made in this
-    substep and max_push of phi_prev, so an approaching or loaded pair is still held at once.
+    their connection breaks, up to 1.5 r_s at rest spacing, part gently instead of exploding).
     Friction is not part of it (:func:`particle_friction`, after all normal steps). ``touched`` (k,)
     bool, if given, is or-ed with the pairs that had phi > 0 (for :func:`contact_velocities`).
     ``phi_rest`` (k,), if given, is each pair's overlap in the rest state (:func:`pair_overlaps`
     of the rest positions, module docstring "Rest overlap"); phi counts only beyond it.
-    ``protect`` (k,), if given, replaces the ``x_prev`` cap: each pair's protected overlap beyond
+    ``protect`` (k,), if given, replaces that cap: each pair's protected overlap beyond
     phi_rest (the overlap it had when its elements separated, module docstring "Depenetration"),
     first lowered in place to max(min(protect, phi) - max_push, 0), so that it shrinks by
     ``max_push`` per projection whatever loads the pair; the correction may remove all the
@@ -719,8 +709,8 @@ def project_contacts(x, w_p, first_particle, radius, pairs, k_col, dt, force,
         return 0, 0.0
     pc, phi = np.empty((len(pairs), 6)), np.empty(len(pairs))
     prot = np.zeros(0) if protect is None else protect
-    _pair_multipliers(x, _rows(x_prev), w_p, first_particle, radius, pairs, _rest(phi_rest, len(pairs)), prot,
-                      float(k_col), float(dt), float(max_push), pc, phi)
+    _pair_multipliers(x, w_p, first_particle, radius, pairs, _rest(phi_rest, len(pairs)), prot, float(k_col),
+                      float(dt), float(max_push), pc, phi)
     if touched is not None:
         touched |= phi > 0.0
     active = np.flatnonzero(phi > 0.0)
@@ -770,7 +760,7 @@ def _points_reference(y, parts, g):
 
 
 def project_contacts_reference(x, w_p, first_particle, radius, pairs, k_col, dt, force,
-                               max_push: float = np.inf, x_prev=None, touched=None, phi_rest=None,
+                               max_push: float = np.inf, touched=None, phi_rest=None,
                                protect=None) -> tuple[int, float]:
     """numpy version of :func:`project_contacts`."""
     if k_col <= 0.0 or len(pairs) == 0:
@@ -789,9 +779,6 @@ def project_contacts_reference(x, w_p, first_particle, radius, pairs, k_col, dt,
     cap = np.full(len(dl), float(max_push))
     if protect is not None:
         cap = np.maximum(ph - protect[act], 0.0)
-    elif x_prev is not None:
-        prev = (_pair_geometry_reference(x_prev, w_p, first_particle, radius, pairs)[5] - rest)[act]
-        cap = np.maximum(ph - np.maximum(prev - max_push, 0.0), 0.0)
     over = W * dl > cap
     dl[over] = cap[over] / W[over]
     _jacobi_reference(x, parts, g, w, dl[:, None] * n, dl, force, dt)
@@ -1017,7 +1004,7 @@ def project_colliders(x, w_p, particle_radius, colliders, k_col, dt, force, max_
     XPBD step along the collider normal with W = w_p (module docstring). Moves ``x`` in place,
     adds the normal force dlambda / dt^2 to ``force``. ``max_push`` caps each correction; with the
     start-of-substep positions ``x_prev`` (P, 3) it caps only the removal of the penetration the
-    particle had there (as in :func:`project_contacts`); friction follows all normal steps
+    particle had there; friction follows all normal steps
     (:func:`particle_friction`). ``touched`` (P, k) bool, if given, is set where phi > 0 (for
     :func:`collider_velocities`). Returns (number of particle-collider contacts with phi > 0,
     largest phi); k_col <= 0 or no colliders: nothing, (0, 0.0)."""

@@ -438,7 +438,7 @@ def substep(setup: MechSetup, ms: MechState, dt: float, force: np.ndarray, stiff
         contact.project_colliders(ms.x, ms.w_p, setup.radius_p, setup.colliders, setup.k_col, dt, normal_force,
                                   push, x_old, hit_c)
         contact.project_contacts(ms.x, ms.w_p, setup.fp, setup.radius, ms.pairs, setup.k_col, dt, normal_force,
-                                 push, x_old, hit_p, phi_rest=ms.pairs_rest, protect=ms.pairs_protect)
+                                 push, hit_p, phi_rest=ms.pairs_rest, protect=ms.pairs_protect)
         contact.particle_friction(ms.x, x_start, x_old, setup.mu_f, setup.epsilon * dt)
     keep = ms.pairs_sep >= 0  # the protected overlaps only shrink; they outlive the contact list
     ms.sep_overlap[ms.pairs_sep[keep]] = ms.pairs_rest[keep] + ms.pairs_protect[keep]
