@@ -12,7 +12,7 @@ import pytest
 import wooddecay as wd
 from wooddecay import mech_validation as mv
 from wooddecay.sim import coupling, failure, mechanics, rods
-from wooddecay.sim.quaternion import normalize_np
+from wooddecay.quaternion import normalize_np
 
 from .conftest import sample
 

@@ -14,7 +14,7 @@ from click.testing import CliRunner
 from wooddecay.cli import main
 from wooddecay.meshlets import checks, skin
 from wooddecay.meshlets.sweep import BARK, CAP, SIDE, build_meshlets
-from wooddecay.sim.quaternion import mul_np
+from wooddecay.quaternion import mul_np
 from wooddecay.strands.profiles import signed_distance
 
 from .conftest import SAMPLES, sample

@@ -20,7 +20,8 @@ from .strands.profiles import signed_distance
 from .strands.reg import build_reg, csr_adjacency, transport_graph
 from .strands.rings import TISSUES, age_of, classify_tissue, profile_years, radial_coordinate, year_noise
 from .strands.strands import build_strands
-from .strands.topology import build_topology
+from .strands.skeleton import Skeleton
+from .strands.topology import Topology, build_topology
 from .strands.weakpoints import weak_point_field
 
 #: random streams, one per build stage (index into the seed sequence)
@@ -85,9 +86,16 @@ class WoodModel:
     cp_uv: np.ndarray
     cp_s: np.ndarray
     particle_s: np.ndarray  # (n_p,) distance to the root of each particle (linear in arc between cps)
+    # the skeleton graph and its topology (branches, node frames, s), and the strand radius r_s
+    skeleton: Skeleton
+    topology: Topology
+    r_s: float
     # bookkeeping
-    n_branches: int
     build_seconds: dict = field(default_factory=dict)
+
+    @property
+    def n_branches(self) -> int:
+        return self.topology.n_branches
 
     @property
     def n_elements(self) -> int:
@@ -240,7 +248,7 @@ def build_model(scene) -> WoodModel:
         transport_kind=t_kind, transport_indptr=t_indptr, transport_indices=t_indices,
         transport_edge_of=t_edge_of,
         cp_offsets=strands.offsets, cp_node=strands.node, cp_uv=cp_uv, cp_s=cp_s, particle_s=particle_s,
-        n_branches=topo.n_branches, build_seconds=sec,
+        skeleton=skel, topology=topo, r_s=float(st.r_s), build_seconds=sec,
     )
     for v in vars(model).values():  # the model is static: solvers change a SimState, never it
         if isinstance(v, np.ndarray):

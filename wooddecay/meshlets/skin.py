@@ -24,7 +24,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from ..sim.quaternion import rotate, rotate_np
+from ..quaternion import rotate, rotate_np
 
 #: link kinds of a (vertex, candidate) pair, besides a REG edge index >= 0
 ALWAYS, BY_COMPONENT = -1, -2

@@ -49,7 +49,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from ..strands.topology import build_topology
-from ..sim.quaternion import conj_np, rotate_np
+from ..quaternion import conj_np, rotate_np
 from .alpha import offset_contour
 from .kinetic import FLIP, REPAIR, SECTION, _perturbation, sweep
 

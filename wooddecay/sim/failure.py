@@ -36,7 +36,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from . import contact
-from .quaternion import conj_np, mul, mul_np, rotate
+from ..quaternion import conj_np, mul, mul_np, rotate
 
 
 @nb.njit(parallel=True, cache=True)
