@@ -33,6 +33,31 @@ def stage_rng(seed: int, stage: str) -> np.random.Generator:
     return np.random.default_rng([int(seed), _STREAMS[stage]])
 
 
+@dataclass(frozen=True)
+class SceneInfo:
+    """What outputs record of the scene a model was built from (USD customLayerData, glTF
+    extras, checkpoints): its name, seed and the hash of the resolved scene."""
+
+    name: str
+    seed: int
+    hash: str
+
+
+@dataclass(frozen=True)
+class TimeSpec:
+    """The schedule of a simulation (Algorithm 1): ``days`` simulated in macro steps of at most
+    ``dt_bio`` days, each with ``N_mech`` mechanics substeps; ``frames`` output frames played at
+    ``fps``; ``settle`` seconds of settling with damping ``settle_damping`` before the first step."""
+
+    days: float
+    dt_bio: float
+    frames: int
+    fps: float
+    N_mech: int
+    settle: float
+    settle_damping: float
+
+
 @dataclass(frozen=True, eq=False)
 class WoodModel:
     """Structure of arrays; element arrays have length ``n_elements``, edge arrays ``n_edges``.
@@ -90,6 +115,9 @@ class WoodModel:
     skeleton: Skeleton
     topology: Topology
     r_s: float
+    # the scene's identity and schedule
+    info: SceneInfo
+    time: TimeSpec
     # bookkeeping
     build_seconds: dict = field(default_factory=dict)
 
@@ -248,7 +276,12 @@ def build_model(scene) -> WoodModel:
         transport_kind=t_kind, transport_indptr=t_indptr, transport_indices=t_indices,
         transport_edge_of=t_edge_of,
         cp_offsets=strands.offsets, cp_node=strands.node, cp_uv=cp_uv, cp_s=cp_s, particle_s=particle_s,
-        skeleton=skel, topology=topo, r_s=float(st.r_s), build_seconds=sec,
+        skeleton=skel, topology=topo, r_s=float(st.r_s),
+        info=SceneInfo(name=str(scene.name), seed=int(scene.seed), hash=scene.hash),
+        time=TimeSpec(days=float(scene.time.days), dt_bio=float(scene.time.dt_bio), frames=int(scene.time.frames),
+                      fps=float(scene.time.fps), N_mech=int(scene.mechanics.N_mech),
+                      settle=float(scene.mechanics.settle), settle_damping=float(scene.mechanics.settle_damping)),
+        build_seconds=sec,
     )
     for v in vars(model).values():  # the model is static: solvers change a SimState, never it
         if isinstance(v, np.ndarray):
