@@ -30,7 +30,7 @@ SECONDS = 8.0  # of mechanics after the drop
 def main(path: str = SCENE, seconds: float = SECONDS, k_col: float | None = None) -> None:
     overrides = {} if k_col is None else {"mechanics.k_col": k_col}
     scene = wd.load_scene(path, overrides=overrides)
-    sim = wd.Simulation(wd.build_model(scene), scene)
+    sim = wd.Simulation(wd.build_model(scene))
     debris.fragment(sim)
     print(f"pieces {sim.state.mech.component.max() + 1} -")
     t0 = time.perf_counter()

@@ -45,10 +45,10 @@ def _instrument(totals: dict) -> None:
 def main(path: str) -> None:
     scene = wd.load_scene(path)
     model = wd.build_model(scene)
-    sim = wd.Simulation(model, scene)
+    sim = wd.Simulation(model)
     print(f"elements {model.n_elements} 1")
     print(f"reg_edges {model.n_edges} 1")
-    print(f"reg_colors {len(sim.mech_setup.sweep.ptr) - 1} 1")
+    print(f"reg_colors {len(sim.model.mech.sweep.ptr) - 1} 1")
     sim.macro_step(scene.time.dt_bio)  # warm-up (compilation)
     best = np.inf
     for _ in range(3):

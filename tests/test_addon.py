@@ -276,7 +276,7 @@ def bake(tmp_path_factory):
     out = tmp_path_factory.mktemp("tiny_bake")
     scene = wd.load_scene(ROOT / "samples" / "tiny.toml", overrides={"time.days": 4, "time.frames": 3})
     model = wd.build_model(scene)
-    frames = list(wd.Simulation(model, scene).run())
+    frames = list(wd.Simulation(model).run())
     mesh = wd.build_meshlets(model, scene)
     usd = export_usd(out / "tiny.usdc", model, mesh, frames, scene)
     glb = export_gltf(out / "tiny.glb", model, mesh, frames[-1], scene)
@@ -298,7 +298,7 @@ def rot_usd(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("rot_bake")
     scene = wd.load_scene(ROOT / "samples" / "tiny.toml", overrides={"time.days": 1000, "time.frames": 2})
     model = wd.build_model(scene)
-    frames = list(wd.Simulation(model, scene, mechanics=False).run())
+    frames = list(wd.Simulation(model, mechanics=False).run())
     mesh = wd.build_meshlets(model, scene)
     return Path(export_usd(out / "rot.usdc", model, mesh, frames, scene))
 

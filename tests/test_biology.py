@@ -36,7 +36,7 @@ ACTIVE = {
 
 
 def _random_state(model, scene, rng) -> SimState:
-    s = initial_state(model, scene)
+    s = initial_state(model)
     for f in ("R_w", "R_b", "H_c", "H_l", "C"):
         setattr(s, f, rng.uniform(0, 1, model.n_elements))
     s.M = rng.uniform(scene.moisture.M_2, scene.moisture.M_1, model.n_elements)
@@ -47,25 +47,24 @@ def _random_state(model, scene, rng) -> SimState:
 def test_numba_step_equals_numpy_reference(name):
     scene = wd.load_scene(SAMPLES / f"{name}.toml", overrides=ACTIVE)
     model = wd.build_model(scene)
-    setup = B.prepare(model, scene)
     a = _random_state(model, scene, np.random.default_rng(0))
     b = a.copy()
     for _ in range(5):
-        B.step(a, setup, 0.5)
-        B.step_reference(b, setup, 0.5)
+        B.step(model, a, 0.5)
+        B.step_reference(model, b, 0.5)
     for f in FIELDS:
         np.testing.assert_allclose(getattr(a, f), getattr(b, f), rtol=0, atol=1e-12, err_msg=f)
     assert a.clamp_count == b.clamp_count == 0
 
 
-def test_serial_and_parallel_kernels_identical(log_model, log_scene, monkeypatch):
+def test_serial_and_parallel_kernels_identical(monkeypatch):
     scene = wd.load_scene(SAMPLES / "log.toml", overrides=ACTIVE)
-    setup = B.prepare(log_model, scene)
-    a = _random_state(log_model, scene, np.random.default_rng(1))
+    model = wd.build_model(scene)
+    a = _random_state(model, scene, np.random.default_rng(1))
     b = a.copy()
-    B.step(a, setup, 0.5)
+    B.step(model, a, 0.5)
     monkeypatch.setattr(B, "PARALLEL_MIN_ELEMENTS", 0)
-    B.step(b, setup, 0.5)
+    B.step(model, b, 0.5)
     for f in FIELDS:
         np.testing.assert_array_equal(getattr(a, f), getattr(b, f))
 
@@ -75,7 +74,7 @@ import hashlib, sys, numpy as np, wooddecay as wd
 from wooddecay.sim import biology as B
 B.PARALLEL_MIN_ELEMENTS = 0
 scene = wd.load_scene(sys.argv[1], overrides={"fungi.alpha_b0": 0.1, "fungi.D_b": 3e-5})
-sim = wd.Simulation(wd.build_model(scene), scene, mechanics=False)
+sim = wd.Simulation(wd.build_model(scene), mechanics=False)
 sim.advance(20.0)
 h = hashlib.sha256()
 for f in ("R_w", "R_b", "H_c", "H_l", "C", "M"):
@@ -95,25 +94,25 @@ def test_biology_identical_for_1_and_2_threads():
     assert out[0] == out[1]
 
 
-def test_operator_symmetric_nonnegative(log_model, log_scene):
-    op = B.prepare(log_model, log_scene).op
+def test_operator_symmetric_nonnegative(log_model):
+    op = log_model.bio.op
     np.testing.assert_array_equal(op.weight, op.weight[op.reverse])
     assert op.weight.min() >= 0.0
 
 
-def test_pure_diffusion_conserves_volume_weighted_sum(log_model):
+def test_pure_diffusion_conserves_volume_weighted_sum():
     scene = wd.load_scene(SAMPLES / "log.toml", overrides={
         "fungi.alpha_w0": 0.0, "fungi.beta_w": 0.0, "fungi.D_w": 1e-4, "moisture.k_in0": 0.0, "moisture.k_out0": 0.0,
         "moisture.D_M0": 1e-4, "moisture.k_DM": 2.0})
-    setup = B.prepare(log_model, scene)
-    s = initial_state(log_model, scene)
+    model = wd.build_model(scene)
+    s = initial_state(model)
     rng = np.random.default_rng(2)
-    s.R_w = rng.uniform(0, 1, log_model.n_elements)
-    s.M = rng.uniform(0.2, 0.9, log_model.n_elements)
-    V = setup.op.volume
+    s.R_w = rng.uniform(0, 1, model.n_elements)
+    s.M = rng.uniform(0.2, 0.9, model.n_elements)
+    V = model.bio.op.volume
     before = [np.sum(V * s.R_w), np.sum(V * s.M)]
     for _ in range(20):
-        B.step(s, setup, 0.5)
+        B.step(model, s, 0.5)
     after = [np.sum(V * s.R_w), np.sum(V * s.M)]
     np.testing.assert_allclose(after, before, rtol=1e-12, atol=0)
     assert np.std(s.R_w) < 0.9 * np.std(rng.uniform(0, 1, 1000))  # it did diffuse
@@ -145,7 +144,7 @@ def test_fisher_kpp_front_speed(direction):
 def box_setup():
     scene = wd.load_scene(SAMPLES / "tiny.toml")
     model = wd.build_model(scene)
-    return model, scene, B.prepare(model, scene)
+    return model, scene, model.bio
 
 
 def _range(name):
@@ -201,26 +200,27 @@ def test_invariant_box_under_random_parameters(box_setup, case):
     # clipped uniforms put a share of the values exactly on the box faces (extremes)
     state = SimState(*(np.clip(rng.uniform(-0.2, 1.2, n), 0, 1) for _ in range(5)),
                      M=np.clip(rng.uniform(M_2 - 0.2, M_1 + 0.2, n), *envelope))
+    with_s2 = replace(model, bio=s2)
     for _ in range(2):
-        B.step(state, s2, dt)
+        B.step(with_s2, state, dt)
     assert all(np.all(np.isfinite(getattr(state, f))) for f in FIELDS)
     # the box holds by itself: the clamp (which would hide a violation) never had to act
     assert state.clamp_count == 0
 
 
-def test_step_past_stability_bound_leaves_the_box(box_setup):
-    model, scene, setup = box_setup
+def test_step_past_stability_bound_leaves_the_box():
     rng = np.random.default_rng(4)
     fast = wd.load_scene(SAMPLES / "tiny.toml", overrides={"fungi.D_b": 5e-3, "fungi.alpha_b0": 1.0})
-    setup = B.prepare(model, fast)
-    start = initial_state(model, fast)
+    model = wd.build_model(fast)
+    setup = model.bio
+    start = initial_state(model)
     start.R_b = rng.uniform(0, 1, model.n_elements)
     unstable = start.copy()
     dt = 4.0 * setup.bound
-    B.step(unstable, setup, dt, n_sub=1)
+    B.step(model, unstable, dt, n_sub=1)
     assert unstable.clamp_count > 0  # explicit Euler overshot the box; the clamp caught it
     stable = start.copy()
-    n = B.step(stable, setup, dt)
+    n = B.step(model, stable, dt)
     assert n == B.substeps(dt, setup.bound) >= 4 and stable.clamp_count == 0
     # without the clamp, explicit diffusion past the bound diverges: the largest excursion of an
     # alternating perturbation grows every step, while substeps within the bound damp it
@@ -282,7 +282,7 @@ gamma_lw = 0.03
 
 
 def _run(scene):
-    sim = wd.Simulation(wd.build_model(scene), scene, mechanics=False)
+    sim = wd.Simulation(wd.build_model(scene), mechanics=False)
     for _ in sim.run():
         pass
     return sim
@@ -330,7 +330,7 @@ C_init = 0.0
 
 
 def test_simulation_frames_and_diagnostics(tiny_model, tiny_scene):
-    sim = wd.Simulation(tiny_model, tiny_scene, mechanics=False)
+    sim = wd.Simulation(tiny_model, mechanics=False)
     frames = list(sim.run())
     assert [f.index for f in frames] == list(range(tiny_scene.time.frames))
     np.testing.assert_allclose([f.t_days for f in frames], np.linspace(0, tiny_scene.time.days, tiny_scene.time.frames))

@@ -18,10 +18,10 @@ from .test_mechanics import _digest as mech_digest
 def _fragments(**overrides):
     scene, model = sample("tiny")
     if overrides:
-        scene = wd.load_scene(scene.path, overrides=overrides)
-    sim = wd.Simulation(model, scene)
+        model = wd.build_model(wd.load_scene(scene.path, overrides=overrides))
+    sim = wd.Simulation(model)
     debris.fragment(sim)
-    mechanics.refresh_pairs(sim.mech_setup, sim.state.mech)
+    mechanics.refresh_pairs(sim.model.mech, sim.state.mech)
     return sim
 
 
@@ -42,13 +42,13 @@ def _digest(ms) -> str:
 
 def test_quiet_pieces_sleep_and_hold_still():
     sim = _fragments()
-    st, ms = sim.mech_setup, sim.state.mech
+    st, ms = sim.model.mech, sim.state.mech
     pieces = int(ms.component.max()) + 1
     assert pieces > 5
     assert _quiet_window(st, ms) == pieces
     assert ms.asleep.all() and not ms.w_p.any() and not ms.w_q.any() and not ms.v.any()
     x = ms.x.copy()
-    mechanics.macro_step(st, ms, 0.0, 50)
+    mechanics.macro_step(sim.model, sim.state, 50)
     assert np.array_equal(ms.x, x) and not ms.v.any()
 
 
@@ -57,7 +57,7 @@ def test_a_loud_piece_wakes_the_pieces_it_touches_and_no_other():
     wakes exactly the sleeping pieces it overlaps beyond their rest overlap; a piece that moved
     a little more than sleep_speed stays awake without waking anything."""
     sim = _fragments()
-    st, ms = sim.mech_setup, sim.state.mech
+    st, ms = sim.model.mech, sim.state.mech
     _quiet_window(st, ms)
     pairs = contact.candidate_pairs(ms.x, st.fp, st.radius, ms.component, 0.0)
     pairs = pairs[ms.element_ok[pairs[:, 0]] & ms.element_ok[pairs[:, 1]]]
@@ -81,24 +81,24 @@ def test_a_loud_piece_wakes_the_pieces_it_touches_and_no_other():
 
 def test_failures_new_masses_and_loads_wake_everything():
     sim = _fragments()
-    st, ms = sim.mech_setup, sim.state.mech
+    st, ms = sim.model.mech, sim.state.mech
     _quiet_window(st, ms)
     mechanics.set_masses(st, ms, np.full(st.n_elements, 0.3))
     assert not ms.asleep.any() and ms.sleep_t[0] == ms.t_seconds and np.array_equal(ms.sleep_x, ms.x)
     w_p, w_q = sleep.weights(st, ms)
     assert np.array_equal(ms.w_p, w_p) and np.array_equal(ms.w_q, w_q) and np.count_nonzero(w_p) > 0
     _quiet_window(st, ms)
-    force = np.zeros((st.n_particles, 3))
-    sleep.wake_loaded(st, ms, force)
+    ms.force = np.zeros((st.n_particles, 3))
+    sleep.wake_loaded(st, ms)
     assert ms.asleep.all()
-    force[0, 2] = 1e-3
-    sleep.wake_loaded(st, ms, force)
+    ms.force[0, 2] = 1e-3
+    sleep.wake_loaded(st, ms)
     assert not ms.asleep.any()
     _quiet_window(st, ms)
     e = np.flatnonzero(st.inner & ms.element_ok & np.r_[False, ms.element_ok[:-2], False]
                        & np.r_[False, ms.element_ok[2:], False])[0]
     ms.limit_elem[e] = -np.inf
-    assert mechanics.macro_step(st, ms, 0.0, 1) > 0
+    assert mechanics.macro_step(sim.model, sim.state, 1) > 0
     assert not ms.asleep.any()
 
 
@@ -109,10 +109,9 @@ def test_coupled_run_is_unchanged_by_sleeping():
     with the second step and the third would be asleep), and its state does not depend on sleep_speed."""
     states = []
     for speed in (0.0, 1.0):  # 1 m/s: everything would be quiet
-        scene, model = sample("tiny")
-        scene = wd.load_scene(scene.path, overrides={"mechanics.sleep_speed": speed, "mechanics.sleep_time": 0.2,
-                                                     "mechanics.N_mech": 1000})
-        sim = wd.Simulation(model, scene)
+        scene = wd.load_scene(sample("tiny")[0].path, overrides={
+            "mechanics.sleep_speed": speed, "mechanics.sleep_time": 0.2, "mechanics.N_mech": 1000})
+        sim = wd.Simulation(wd.build_model(scene))
         for _ in range(3):
             sim.macro_step(scene.time.dt_bio)
         states.append(sim.state.mech)
@@ -128,20 +127,22 @@ def test_debris_settles_asleep_without_interpenetrating():
     overlap by more than 0.1 r_s beyond their rest overlap. Resuming from the arrays a checkpoint
     holds, while some pieces sleep and others move, continues bit for bit."""
     sim = _fragments()
-    st, ms = sim.mech_setup, sim.state.mech
+    st, ms = sim.model.mech, sim.state.mech
     records, forked = [], None
     for r in debris.drop(sim, 0.05, 8.0):
         records.append(r)
         if len(records) > 5 and all(q.asleep == q.pieces for q in records[-5:]):
             break  # asleep for 0.5 s
         if forked is None and 0 < r.asleep < r.pieces:
-            forked = mechanics.initial_state(sim.model, st)
+            forked = mechanics.initial_state(sim.model)
             for k, v in ms.arrays().items():
                 setattr(forked, k, v.copy())
             forked.t_seconds, forked.failures = ms.t_seconds, ms.failures
             twin = ms.copy()
             for s in (twin, forked):
-                mechanics.macro_step(st, s, 0.0, 3000)
+                state = sim.state.copy()
+                state.mech = s
+                mechanics.macro_step(sim.model, state, 3000)
             assert _digest(twin) == _digest(forked)
             assert 0 < np.unique(twin.component[twin.asleep]).size < r.pieces
     assert forked is not None

@@ -43,7 +43,7 @@ def _scene(tmp_path, fungus=None, **overrides):
 
 def _run(scene, days, min_broken=None):
     """Simulation run to ``days`` (or until ``min_broken`` REG connections have broken)."""
-    sim = wd.Simulation(wd.build_model(scene), scene)
+    sim = wd.Simulation(wd.build_model(scene))
     ms = sim.state.mech
     while sim.state.t_days < days - 1e-9:
         sim.macro_step(scene.time.dt_bio)
@@ -85,7 +85,7 @@ def _crack_clusters(sim):
     """Crack clusters (broken connections joined when they share an element) with, per cluster,
     its opening: the sum over its connections between two intact elements of
     |c_j - c_i| - dp (a connection of a cut strand end measures the strand, not the crack)."""
-    st, ms = sim.mech_setup, sim.state.mech
+    st, ms = sim.model.mech, sim.state.mech
     b = _broken(sim)
     e = st.edges[b]
     n = st.n_elements
@@ -110,7 +110,7 @@ def test_balanced_shrinkage_opens_a_few_dominant_radial_cracks(tmp_path):
     label, opening = _crack_clusters(sim)
     effective = opening.sum() ** 2 / np.sum(opening**2)
     wood = sim.model.wood_coords
-    i, j = sim.mech_setup.edges[_broken(sim)].T
+    i, j = sim.model.mech.edges[_broken(sim)].T
     z = np.exp(1j * wood[i, 1]) + np.exp(1j * wood[j, 1])
     r = 0.5 * (wood[i, 0] + wood[j, 0])
     widest = np.argsort(opening)[::-1][:3]
@@ -128,7 +128,7 @@ def test_balanced_shrinkage_opens_a_few_dominant_radial_cracks(tmp_path):
 
 def _run_with_snapshot(scene, days, snapshot_day):
     """Simulation run to ``days``, with the broken-connection flags at ``snapshot_day``."""
-    sim = wd.Simulation(wd.build_model(scene), scene)
+    sim = wd.Simulation(wd.build_model(scene))
     sim.advance(snapshot_day)
     broken = _broken(sim).copy()
     sim.advance(days - snapshot_day)

@@ -110,7 +110,7 @@ def tiny():
     scene = wd.load_scene(ROOT / "samples" / "tiny.toml", overrides={"time.days": 4, "time.frames": 2})
     model = wd.build_model(scene)
     mesh = wd.build_meshlets(model, scene)
-    frames = list(wd.Simulation(model, scene).run())
+    frames = list(wd.Simulation(model).run())
     return scene, model, mesh, frames[-1]
 
 

@@ -3,6 +3,7 @@ buckling), stability, coupling (Eqs. 16-19, 21), failure and checkpoints."""
 from __future__ import annotations
 
 import hashlib
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numba
@@ -12,20 +13,28 @@ import pytest
 import wooddecay as wd
 from wooddecay import mech_validation as mv
 from wooddecay.sim import coupling, failure, mechanics, rods
+from wooddecay.sim.state import initial_state
 from wooddecay.quaternion import normalize_np
 
 from .conftest import sample
 
 
-def _perturbed(name="tiny", seed=0):
-    scene, model = sample(name)
-    setup = mechanics.prepare(model, scene)
-    ms = mechanics.initial_state(model, setup)
+def _perturbed_state(name="tiny", seed=0):
+    """(model, state) of a sample with the rods at rest, then jostled and partly decayed."""
+    model = sample(name)[1]
+    state = initial_state(model, rods=True)
+    setup, ms = model.mech, state.mech
     rng = np.random.default_rng(seed)
     ms.x += rng.normal(scale=1e-3, size=ms.x.shape) * (ms.w_p > 0)[:, None]
     ms.q = normalize_np(ms.q + rng.normal(scale=0.02, size=ms.q.shape) * (ms.w_q > 0)[:, None])
     ms.integrity = rng.uniform(0.2, 1.0, len(setup.edges))
-    return setup, ms
+    return model, state
+
+
+def _perturbed(name="tiny", seed=0):
+    """(model.mech, state.mech) of :func:`_perturbed_state`, for the kernels' own tests."""
+    model, state = _perturbed_state(name, seed)
+    return model.mech, state.mech
 
 
 def test_rod_kernels_equal_numpy_reference():
@@ -58,8 +67,7 @@ def test_rod_kernels_equal_numpy_reference():
 
 
 def test_reg_colouring_has_no_shared_particle():
-    scene, model = sample("log")
-    setup = mechanics.prepare(model, scene)
+    setup = sample("log")[1].mech
     sw = setup.sweep
     ptr, order = sw.ptr, sw.order
     assert sorted(order.tolist()) == list(range(len(setup.edges)))
@@ -96,31 +104,29 @@ def _digest(ms) -> str:
 
 
 def _failing_tiny():
-    setup, ms = _perturbed(seed=3)
-    ms.limit_elem[:] = 2e-3  # some failures happen
-    ms.limit_edge[:] = 2e-3
-    return setup, ms
+    model, state = _perturbed_state(seed=3)
+    state.mech.limit_elem[:] = 2e-3  # some failures happen
+    state.mech.limit_edge[:] = 2e-3
+    return model, state
 
 
 def _run_tiny(substeps=30):
-    setup, ms = _failing_tiny()
-    f = np.zeros((setup.n_particles, 3))
+    model, state = _failing_tiny()
     for _ in range(substeps):
-        mechanics.substep(setup, ms, 1e-3, f)
-    return ms
+        mechanics.substep(model, state, 1e-3)
+    return state.mech
 
 
 def test_advance_equals_substeps_that_gather_the_stiffness():
     """mechanics.advance keeps the gathered stiffness until a substep has failures; the state is
     bit for bit that of substeps which gather it every time."""
-    setup, ms = _failing_tiny()
-    a, b = ms.copy(), ms.copy()
-    f = np.zeros((setup.n_particles, 3))
-    new, _ = mechanics.advance(setup, a, f, 30)
+    model, state = _failing_tiny()
+    a, b = state.copy(), state.copy()
+    new = mechanics.advance(model, a, 30)
     for _ in range(30):
-        mechanics.substep(setup, b, setup.dt, f)
-    assert new > 0 and a.failures == b.failures
-    assert _digest(a) == _digest(b)
+        mechanics.substep(model, b, model.mech.dt)
+    assert new > 0 and a.mech.failures == b.mech.failures
+    assert _digest(a.mech) == _digest(b.mech)
 
 
 def test_same_result_with_one_or_two_threads():
@@ -166,18 +172,17 @@ def test_fixed_free_buckling_load_within_5_percent():
 @pytest.mark.parametrize("dt", [0.001, 0.005, 0.01, 0.02, 0.05])
 def test_stability_on_the_log(dt):
     """No NaN and no energy growth without input (no gravity, no ground, random velocities)."""
-    scene, model = sample("log")
-    scene = wd.load_scene(scene.path, overrides={"mechanics.gravity": [0, 0, 0], "mechanics.ground": False})
-    setup = mechanics.prepare(model, scene)
+    scene = wd.load_scene(sample("log")[0].path, overrides={"mechanics.gravity": [0, 0, 0],
+                                                            "mechanics.ground": False})
+    free = wd.build_model(scene)
     for iterations in (1, 2, 5, 10):
-        from dataclasses import replace
-        st = replace(setup, iterations=iterations)
-        ms = mechanics.initial_state(model, st)
+        model = replace(free, mech=replace(free.mech, iterations=iterations))
+        state = initial_state(model, rods=True)
+        ms = state.mech
         ms.v = np.random.default_rng(1).normal(scale=0.01, size=ms.v.shape) * (ms.w_p > 0)[:, None]
         ke0 = 0.5 * np.sum(ms.mass_p * np.sum(ms.v**2, axis=1))
-        f = np.zeros((st.n_particles, 3))
         for _ in range(10):
-            mechanics.substep(st, ms, dt, f)
+            mechanics.substep(model, state, dt)
             ke = 0.5 * np.sum(ms.mass_p * np.sum(ms.v**2, axis=1))
             assert np.isfinite(ms.x).all() and np.isfinite(ms.q).all()
             assert ke <= ke0 * 1.0001, (dt, iterations, ke, ke0)
@@ -185,17 +190,15 @@ def test_stability_on_the_log(dt):
 
 def test_coupling_equations():
     scene, model = sample("tiny")
-    cs = coupling.prepare(model, scene)
-    setup = mechanics.prepare(model, scene)
-    ms = mechanics.initial_state(model, setup)
-    from wooddecay.sim.state import initial_state
-    state = initial_state(model, scene)
+    setup = model.mech
+    state = initial_state(model, rods=True)
+    ms = state.mech
     M_0 = scene.mechanics.M_0
     state.M[:] = M_0 - 0.1
     state.H_c[:] = 0.5
     state.H_l[:] = 1.0
-    M12 = np.array([[1.0, 0.1]] * 4)
-    coupling.apply(cs, setup, ms, state, M12, model.tissue)
+    assert scene.moisture.M_1 == 1.0 and scene.moisture.M_2 == 0.1 and not scene.moisture.schedule
+    coupling.step(model, state)
     np.testing.assert_allclose(ms.rest_length, setup.rest_length0 * (1 - 0.1 * scene.mechanics.s))  # Eq. 17
     mech = scene.mechanics
     dw = model.reg_dir_weights
@@ -256,13 +259,13 @@ def test_pair_strains_and_flags_equal_numpy_reference():
 def test_checkpoint_resume_is_bit_exact(tmp_path):
     scene = wd.load_scene(sample("tiny")[0].path, overrides={"time.days": 4, "time.frames": 5,
                                                              "mechanics.N_mech": 5})
-    model = sample("tiny")[1]
-    full = list(wd.Simulation(model, scene).run())
-    sim = wd.Simulation(model, scene, checkpoint_dir=tmp_path, checkpoint_every=2)
+    model = wd.build_model(scene)
+    full = list(wd.Simulation(model).run())
+    sim = wd.Simulation(model, checkpoint_dir=tmp_path, checkpoint_every=2)
     for frame in sim.run():
         if frame.index == 2:
             break
-    resumed = wd.Simulation.resume(model, scene, tmp_path / "frame_00002.npz")
+    resumed = wd.Simulation.resume(model, tmp_path / "frame_00002.npz")
     rest = list(resumed.run())
     assert [f.index for f in rest] == [3, 4]
     for a, b in zip(full[3:], rest):
@@ -272,7 +275,7 @@ def test_checkpoint_resume_is_bit_exact(tmp_path):
             assert np.array_equal(a.mech[k], b.mech[k])
     other = wd.load_scene(sample("tiny")[0].path, overrides={"time.days": 5})
     with pytest.raises(ValueError):
-        wd.Simulation.resume(model, other, tmp_path / "frame_00002.npz")
+        wd.Simulation.resume(wd.build_model(other), tmp_path / "frame_00002.npz")
 
 
 def test_ground_holds_a_resting_log():
@@ -280,13 +283,12 @@ def test_ground_holds_a_resting_log():
     sink at most to sqrt(F / k_col) for the heaviest bottom load F = half the log's weight
     (penalty force k_col phi^2, Eq. 4)."""
     scene, model = sample("tiny")
-    sim = wd.Simulation(model, scene)
-    ms, st = sim.state.mech, sim.mech_setup
+    sim = wd.Simulation(model)
+    ms, st = sim.state.mech, sim.model.mech
     ms.limit_elem[:] = np.inf
     ms.limit_edge[:] = np.inf
-    f = np.zeros((st.n_particles, 3))
     for _ in range(200):
-        mechanics.substep(st, ms, st.dt, f)
+        mechanics.substep(model, sim.state, st.dt)
     weight = 9.81 * ms.mass_p.sum()
     assert ms.x[:, 2].min() > scene.strands.r_s - np.sqrt(0.5 * weight / st.k_col)
     assert np.abs(ms.v).max() < 0.05
@@ -297,7 +299,7 @@ def test_collider_scene_validation():
     with pytest.raises(wd.InputError, match="collider\\[0\\].kind"):
         wd.parse_scene(text + '\n[[collider]]\nkind = "cone"\n')
     s = wd.parse_scene(text + '\n[[collider]]\nkind = "sphere"\ncenter = [0, 0, 1]\nradius = 0.2\n')
-    setup = mechanics.prepare(sample("tiny")[1], s)
+    setup = wd.build_model(s).mech
     assert setup.colliders.shape[0] == 2  # the ground and the sphere
 
 
@@ -306,8 +308,8 @@ def test_settled_wood_at_rest_does_not_break():
     the failure reference: resting wood at the default moisture then holds, its strain changes
     a small fraction of L(M)."""
     scene, model = sample("tiny")
-    sim = wd.Simulation(model, scene)
-    ms, st = sim.state.mech, sim.mech_setup
+    sim = wd.Simulation(model)
+    ms, st = sim.state.mech, sim.model.mech
     assert np.abs(ms.strain_ref_edge).max() > 0.0 and not ms.v.any()
     for _ in range(4):
         sim.macro_step(scene.time.dt_bio)
@@ -341,18 +343,19 @@ def test_settle_with_tol_stops_at_the_first_quiet_chunk():
     of a plain settle of the same length (positions and rotations; strains depend on nothing
     else), with the reference strains of that state."""
     scene, model = sample("tiny")
-    sim = wd.Simulation(model, scene, settle=False)
-    st, ms0 = sim.mech_setup, sim.state.mech
+    sim = wd.Simulation(model, settle=False)
+    st, s0 = sim.model.mech, sim.state
     tol, damping = 0.05, scene.mechanics.settle_damping
-    ms = ms0.copy()
-    done = mechanics.settle(st, ms, 0.0, damping, tol=tol)
+    s = s0.copy()
+    ms = s.mech
+    done = mechanics.settle(model, s, 0.0, damping, tol=tol)
     chunk = mechanics.SETTLE_CHUNK
     assert done >= 2 * chunk - 1e-12
 
     def plain(seconds):
-        m = ms0.copy()
-        mechanics.settle(st, m, seconds, damping)
-        return m
+        m = s0.copy()
+        mechanics.settle(model, m, seconds, damping)
+        return m.mech
 
     last, before, earlier = plain(done), plain(done - chunk), plain(done - 2 * chunk)
     np.testing.assert_array_equal(last.x, ms.x)

@@ -94,14 +94,14 @@ def bake(scene, out, resume: bool = False, quality: str = "final", progress=None
     frames: list[Frame] = []
     if resume and ckpt.exists():
         try:
-            sim = Simulation.resume(model, scene, ckpt)
+            sim = Simulation.resume(model, ckpt)
         except ValueError as err:
             raise InputError(str(ckpt), "", f"{err}; bake without --resume to start over") from None
         frames = [load_frame(work / f"frame_{k:05d}.npz") for k in range(sim.last_frame + 1)]
     else:
         for stale in work.glob("*.npz"):
             stale.unlink()
-        sim = Simulation(model, scene, mechanics=mechanics)
+        sim = Simulation(model, mechanics=mechanics)
     n_frames = int(scene.time.frames)
     for fr in sim.run():
         save_frame(work / f"frame_{fr.index:05d}.npz", fr)

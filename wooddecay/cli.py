@@ -50,14 +50,14 @@ def _load(scene_path: str, set_items: tuple[str, ...]):
     return load_scene(scene_path, overrides=parse_set_option(set_items))
 
 
-def inspect_report(model, scene, bio=None) -> dict:
-    """The numbers ``wooddecay inspect`` prints (also its JSON). ``bio``: a prepared
-    :class:`wooddecay.sim.biology.BioSetup` to report the explicit-step bound and substeps."""
+def inspect_report(model) -> dict:
+    """The numbers ``wooddecay inspect`` prints (also its JSON), with the biology's explicit-step
+    bound and substeps (``model.bio``)."""
     deg = model.reg_degree
     stages = {k: round(v, 4) for k, v in model.build_seconds.items()}
     return {
-        "scene": scene.name,
-        "seed": scene.seed,
+        "scene": model.info.name,
+        "seed": model.info.seed,
         "strands": model.n_strands,
         "elements": model.n_elements,
         "particles": int(len(model.particles)),
@@ -70,16 +70,18 @@ def inspect_report(model, scene, bio=None) -> dict:
         "memory_estimate_mb": round(model.memory_estimate() / 2**20, 2),
         "build_seconds": round(sum(model.build_seconds.values()), 4),
         "build_stages": stages,
-    } | ({} if bio is None else {"biology": _bio_report(bio, scene)})
+        "biology": _bio_report(model),
+    }
 
 
-def _bio_report(bio, scene) -> dict:
+def _bio_report(model) -> dict:
     from .sim.biology import substeps
 
+    bio, dt_bio = model.bio, model.time.dt_bio
     return {
-        "dt_bio_days": scene.time.dt_bio,
+        "dt_bio_days": dt_bio,
         "stability_bound_days": float(bio.bound),
-        "substeps": substeps(scene.time.dt_bio, bio.bound),
+        "substeps": substeps(dt_bio, bio.bound),
         "transport_fit_error_p99": float(np.percentile(bio.op.fit_error, 99)),
         "transport_chain_saturated": bio.op.chain_saturated,
     }
@@ -142,14 +144,10 @@ def inspect(scene_path: str, as_json: bool, strands_usd: Path | None, with_meshl
     """Build the wood model of SCENE and report its size, tissues, build time and the biology's
     explicit-step stability bound (and its meshlets with --meshlets)."""
     from .model import build_model
-    from .sim.biology import prepare
 
     scene = _load(scene_path, set_items)
     model = build_model(scene)
-    t0 = time.perf_counter()
-    bio = prepare(model, scene)
-    model.build_seconds["biology_setup"] = time.perf_counter() - t0
-    rep = inspect_report(model, scene, bio)
+    rep = inspect_report(model)
     if strands_usd:
         from .export.strands_usd import write_strands_usd
 

@@ -1,22 +1,33 @@
-"""WoodModel: the static strand / rod-element / REG representation of a scene's wood.
+"""WoodModel: everything the stages after the scene read, built once (DESIGN "Data model").
 
-Woodstock §3 and §5 (opening), Fig. 3; SPEC §2; DESIGN "Data model". ``build_model(scene)`` runs
-skeleton -> topology -> strands -> rod elements -> rings and tissues -> REG -> BSP -> W and
-returns a frozen structure of arrays (no per-element Python objects). Every random choice draws
-from a generator seeded by (scene.seed, stage), so the same seed gives identical arrays.
+Woodstock §3 and §5 (opening), Fig. 3; SPEC §2. ``build_model(scene)`` runs skeleton -> topology
+-> strands -> rod elements -> rings and tissues -> REG -> BSP -> W, resolves the per-tissue
+parameters (:class:`~wooddecay.strands.materials.Materials`) and the inoculation and load regions,
+and builds the solvers' static data (``bio``, ``mech``, ``coupling``). It returns a frozen
+structure of arrays (no per-element Python objects): the scene stops here, and the simulation,
+meshlets and exporters read only the model. Every random choice draws from a generator seeded by
+(scene.seed, stage), so the same seed gives identical arrays.
 """
 from __future__ import annotations
 
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
 from .arrays import group_rows
+from .scene import TISSUE_KEYS
+from .sim import biology, contact, coupling, mechanics
+from .sim.biology import BioSetup
+from .sim.coupling import CouplingSetup
+from .sim.mechanics import Load, MechConfig, MechSetup
+from .sim.state import Inoculation
 from .strands import bsp as bsp_mod
 from .strands.elements import element_geometry, sample_strands
+from .strands.materials import Materials
 from .strands.profiles import signed_distance
+from .strands.regions import region_mask
 from .strands.reg import build_reg, csr_adjacency, transport_graph
 from .strands.rings import TISSUES, age_of, classify_tissue, profile_years, radial_coordinate, year_noise
 from .strands.strands import build_strands
@@ -118,6 +129,12 @@ class WoodModel:
     # the scene's identity and schedule
     info: SceneInfo
     time: TimeSpec
+    # per-tissue parameters, inoculations resolved on the elements, and the solvers' static data
+    materials: Materials
+    inoculations: tuple[Inoculation, ...] = ()
+    bio: BioSetup | None = None
+    mech: MechSetup | None = None
+    coupling: CouplingSetup | None = None
     # bookkeeping
     build_seconds: dict = field(default_factory=dict)
 
@@ -185,6 +202,26 @@ def _particle_s(strands, samp, cp_s: np.ndarray) -> np.ndarray:
         p0, p1 = samp.particle_offsets[k], samp.particle_offsets[k + 1]
         out[p0:p1] = np.interp(samp.u[p0:p1], u_cp, cp_s[o0:o1])
     return out
+
+
+def _collider_rows(scene) -> np.ndarray:
+    """The ground plane (``[mechanics] ground``) and the ``[[collider]]`` tables as rows of
+    :func:`contact.collider_row`."""
+    rows = []
+    mech = scene.mechanics
+    if mech.ground:
+        rows.append(contact.collider_row(contact.PLANE, 0.0, 0.0, mech.ground_height, 0.0, 0.0, 1.0))
+    for c in scene.colliders:
+        kind = c["kind"]
+        if kind == "plane":
+            rows.append(contact.collider_row(contact.PLANE, *c["point"], *c["normal"]))
+        elif kind == "box":
+            rows.append(contact.collider_row(contact.BOX, *c["min"], *c["max"]))
+        elif kind == "sphere":
+            rows.append(contact.collider_row(contact.SPHERE, *c["center"], c["radius"]))
+        else:
+            rows.append(contact.collider_row(contact.CYLINDER, *c["a"], *c["b"], c["radius"]))
+    return np.array(rows, dtype=np.float64).reshape(-1, contact.COLLIDER_COLUMNS)
 
 
 def build_model(scene) -> WoodModel:
@@ -277,12 +314,23 @@ def build_model(scene) -> WoodModel:
         transport_edge_of=t_edge_of,
         cp_offsets=strands.offsets, cp_node=strands.node, cp_uv=cp_uv, cp_s=cp_s, particle_s=particle_s,
         skeleton=skel, topology=topo, r_s=float(st.r_s),
+        materials=Materials({k: tuple(scene.tissue_param(t, k) for t in TISSUES) for k in TISSUE_KEYS}, tissue),
         info=SceneInfo(name=str(scene.name), seed=int(scene.seed), hash=scene.hash),
         time=TimeSpec(days=float(scene.time.days), dt_bio=float(scene.time.dt_bio), frames=int(scene.time.frames),
                       fps=float(scene.time.fps), N_mech=int(scene.mechanics.N_mech),
                       settle=float(scene.mechanics.settle), settle_damping=float(scene.mechanics.settle_damping)),
         build_seconds=sec,
     )
+    with _timed(sec, "solvers"):
+        model = replace(model, inoculations=tuple(
+            Inoculation(day=float(ino["day"]), fungus=str(ino["fungus"]), activity=float(ino["activity"]),
+                        mask=region_mask(model, ino["region"])) for ino in scene.inoculations))
+        bio = biology.prepare(model, phi_pack=float(st.phi_pack), k_W=float(scene.weakpoints.k_W))
+        config = MechConfig(**{f.name: scene.mechanics[f.name] for f in fields(MechConfig)})
+        loads = tuple(Load(day0=ld["days"][0], day1=ld["days"][1], force=tuple(ld["force"]),
+                           mask=region_mask(model, ld["region"])) for ld in scene.loads)
+        mech = mechanics.prepare(model, config, _collider_rows(scene), loads)
+        model = replace(model, bio=bio, mech=mech, coupling=coupling.prepare(model))
     for v in vars(model).values():  # the model is static: solvers change a SimState, never it
         if isinstance(v, np.ndarray):
             v.flags.writeable = False

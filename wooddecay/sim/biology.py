@@ -58,7 +58,7 @@ CLAMP_TOL = 1e-12
 
 @dataclass(frozen=True, eq=False)
 class BioSetup:
-    """Everything static a biology step needs, derived once from (model, scene)."""
+    """Everything static a biology step needs, built once with the model (``model.bio``)."""
 
     op: TransportOperator
     P: np.ndarray  # (n_tissues, n_params) parameters per tissue, columns BIO_PARAMS
@@ -71,16 +71,11 @@ class BioSetup:
     bound: float  # explicit-step stability bound in days (stability_bound)
 
 
-def tissue_table(scene, names) -> np.ndarray:
-    """(n_tissues, len(names)) per-tissue parameter values."""
-    return np.array([[scene.tissue_param(t, k) for k in names] for t in TISSUES], dtype=np.float64)
-
-
-def _schedule(scene, tissue: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    rows = scene.tissue_param(tissue, "schedule")
+def _schedule(materials, t: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    rows = materials.per_tissue("schedule")[t]
     if len(rows) == 0:
-        return (np.zeros(1), np.array([scene.tissue_param(tissue, "M_1")]),
-                np.array([scene.tissue_param(tissue, "M_2")]))
+        return (np.zeros(1), np.array([materials.per_tissue("M_1")[t]]),
+                np.array([materials.per_tissue("M_2")[t]]))
     arr = np.asarray(rows, dtype=np.float64)
     return arr[:, 0], arr[:, 1], arr[:, 2]
 
@@ -91,20 +86,22 @@ def moisture_bounds(setup: BioSetup, t_days: float) -> np.ndarray:
     return np.array([[np.interp(t_days, d, m1), np.interp(t_days, d, m2)] for d, m1, m2 in setup.schedules])
 
 
-def prepare(model, scene) -> BioSetup:
-    """Transport operator, per-tissue parameters and static per-element factors."""
+def prepare(model, phi_pack: float, k_W: float) -> BioSetup:
+    """Transport operator, per-tissue parameters (``model.materials``) and static per-element
+    factors; ``phi_pack`` is the strands' packing fraction (an element's volume is
+    pi r_s^2 l / phi_pack) and ``k_W`` the weak-point gain."""
     tissue = model.tissue.astype(np.int64)
-    aniso = tissue_table(scene, ("a_r", "a_t", "a_l"))[tissue]
-    st = scene.strands
+    mat = model.materials
+    aniso = mat.table(("a_r", "a_t", "a_l"))[tissue]
     kind = model.transport_kind[model.transport_edge_of]
     pa = model.particles[model.first_particle]
     pb = model.particles[model.first_particle + 1]
-    op = assemble(model.centers, model.frames, pa, pb, np.pi * st.r_s**2 / st.phi_pack,
+    op = assemble(model.centers, model.frames, pa, pb, np.pi * model.r_s**2 / phi_pack,
                   model.transport_indptr, model.transport_indices, kind == 1, aniso)
-    P = tissue_table(scene, BIO_PARAMS)
-    wfac = 1.0 + scene.weakpoints.k_W * (2.0 * model.W - 1.0)
+    P = mat.table(BIO_PARAMS)
+    wfac = 1.0 + k_W * (2.0 * model.W - 1.0)
     kappa = np.stack([P[tissue, D_W], P[tissue, D_B], P[tissue, D_C]], axis=1) * wfac[:, None]
-    schedules = tuple(_schedule(scene, t) for t in TISSUES)
+    schedules = tuple(_schedule(mat, t) for t in range(len(TISSUES)))
     # one envelope for every tissue: diffusion mixes tissues with different bounds, and only a
     # common box makes each explicit update a convex combination of values inside it
     envelope = [min(m2.min() for _, _, m2 in schedules), max(m1.max() for _, m1, _ in schedules)]
@@ -270,12 +267,12 @@ def _numba_kernel(setup: BioSetup, state: SimState, h: float, M12: np.ndarray) -
     state.clamp_count += int(clamp.sum())
 
 
-def step(state: SimState, setup: BioSetup, dt: float, n_sub: int | None = None) -> int:
-    """Advance the biology by ``dt`` days (numba). Substeps: ``n_sub`` if given (tests of the
-    unstable regime), else the fewest that respect the stability bound (the driver caches the
-    bound in ``setup``). Returns the number of substeps taken."""
-    n_sub = n_sub or substeps(dt, setup.bound)
-    _advance(setup, state, dt, n_sub, _numba_kernel)
+def step(model, state: SimState, dt: float, n_sub: int | None = None) -> int:
+    """Advance the biology of ``state`` by ``dt`` days (numba) with ``model.bio``. Substeps:
+    ``n_sub`` if given (tests of the unstable regime), else the fewest that respect the stability
+    bound. Returns the number of substeps taken."""
+    n_sub = n_sub or substeps(dt, model.bio.bound)
+    _advance(model.bio, state, dt, n_sub, _numba_kernel)
     return n_sub
 
 
@@ -323,8 +320,8 @@ def _reference_kernel(setup: BioSetup, s: SimState, h: float, M12: np.ndarray) -
     s.M = _clamp_np(s.M + h * (f + op.apply(s.M, kappa_M)), box[:, 0], box[:, 1], s)
 
 
-def step_reference(state: SimState, setup: BioSetup, dt: float, n_sub: int | None = None) -> int:
+def step_reference(model, state: SimState, dt: float, n_sub: int | None = None) -> int:
     """Plain numpy reference of :func:`step` (without inoculation)."""
-    n_sub = n_sub or substeps(dt, setup.bound)
-    _advance(setup, state, dt, n_sub, _reference_kernel)
+    n_sub = n_sub or substeps(dt, model.bio.bound)
+    _advance(model.bio, state, dt, n_sub, _reference_kernel)
     return n_sub

@@ -34,7 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .mechanics import MechSetup, MechState, per_element, set_masses
+from .biology import moisture_bounds
+from .mechanics import set_masses
 
 #: constraint types of L_0 and p_l, in column order (elements: 0, 1; pairs: 2, 3, 4)
 LIMIT_TYPES = ("stretch", "shear", "bundle", "bend", "twist")
@@ -42,6 +43,9 @@ LIMIT_TYPES = ("stretch", "shear", "bundle", "bend", "twist")
 
 @dataclass(frozen=True, eq=False)
 class CouplingSetup:
+    """The per-element and per-pair gains, limits and decay weights of the coupling, built once
+    with the model (``model.coupling``)."""
+
     M_0: np.ndarray  # (n,)
     s: np.ndarray  # (n,) rest-length gain
     g_pair: np.ndarray  # (m,) g_edge of Eq. 16 (pair means of the gains)
@@ -55,26 +59,27 @@ class CouplingSetup:
     k_l_link: np.ndarray  # (n,)
 
 
-def prepare(model, scene) -> CouplingSetup:
-    t = model.tissue.astype(np.int64)
+def prepare(model) -> CouplingSetup:
+    """Gains, limits and decay weights from the tissues' parameters (``model.materials``)."""
+    per_element = model.materials.per_element
     i, j = model.reg_edges[:, 0], model.reg_edges[:, 1]
 
     def pair(name):
-        v = per_element(scene, t, name)
+        v = per_element(name)
         return 0.5 * (v[i] + v[j])
 
     n = model.n_elements
     nxt = np.arange(n) + 1
     nxt[model.element_offsets[1:] - 1] -= 1  # the last element of a strand links to itself
     leaf = model.bsp_leaf
-    k_c_e, k_l_e = per_element(scene, t, "k_c"), per_element(scene, t, "k_l")
+    k_c_e, k_l_e = per_element("k_c"), per_element("k_l")
     dw = model.reg_dir_weights
     g_edge = pair("S") * (pair("S_R") * dw[:, 0] + pair("S_T") * dw[:, 1]) + pair("s") * dw[:, 2]
     return CouplingSetup(
-        M_0=per_element(scene, t, "M_0"), s=per_element(scene, t, "s"),
+        M_0=per_element("M_0"), s=per_element("s"),
         g_pair=g_edge, M_0_pair=pair("M_0"),
-        L_0=np.stack([per_element(scene, t, f"L_0_{k}") for k in LIMIT_TYPES], axis=1),
-        p_l=np.stack([per_element(scene, t, f"p_l_{k}") for k in LIMIT_TYPES], axis=1),
+        L_0=np.stack([per_element(f"L_0_{k}") for k in LIMIT_TYPES], axis=1),
+        p_l=np.stack([per_element(f"p_l_{k}") for k in LIMIT_TYPES], axis=1),
         k_c=model.reg_theta * pair("k_c"), k_l=pair("k_l"), link_next=nxt,
         k_c_link=(leaf != leaf[nxt]) * 0.5 * (k_c_e + k_c_e[nxt]), k_l_link=0.5 * (k_l_e + k_l_e[nxt]),
     )
@@ -91,10 +96,12 @@ def integrity(k_c: np.ndarray, k_l: np.ndarray, H_c_pair: np.ndarray, H_l_pair: 
     return np.clip(I, 0.0, 1.0)
 
 
-def apply(cs: CouplingSetup, setup: MechSetup, ms: MechState, state, M12: np.ndarray,
-          tissue: np.ndarray) -> None:
-    """Update rest data, limits, integrity and masses of ``ms`` from the fields of ``state``;
-    ``M12`` (n_tissues, 2) holds each tissue's [M_1, M_2] on the current day."""
+def step(model, state) -> None:
+    """Update the rods of ``state`` (``state.mech``: rest data, limits, integrity and masses)
+    from its fields, with each tissue's [M_1, M_2] on the day ``state.t_days``. The coupling is
+    instantaneous, so unlike the other solvers it takes no dt."""
+    cs, setup, ms = model.coupling, model.mech, state.mech
+    M12, tissue = moisture_bounds(model.bio, state.t_days), model.bio.tissue
     M = state.M
     i, j = setup.edges[:, 0], setup.edges[:, 1]
     M_pair = 0.5 * (M[i] + M[j])

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..strands.rings import TISSUES
-from .biology import K_H, BioSetup, moisture_bounds
+from .biology import K_H, moisture_bounds
 from .state import FIELDS, SimState
 
 
@@ -19,8 +19,9 @@ def mass_remaining(state: SimState, k: np.ndarray) -> np.ndarray:
     return (state.H_l + k * state.H_c) / (1.0 + k)
 
 
-def diagnostics(state: SimState, setup: BioSetup) -> dict:
+def diagnostics(model, state: SimState) -> dict:
     """Mass loss, moisture content ratio and per-tissue field means at the state's time."""
+    setup = model.bio
     V = setup.op.volume
     k = setup.P[setup.tissue, K_H]
     remaining = mass_remaining(state, k)

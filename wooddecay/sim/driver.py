@@ -4,11 +4,14 @@ Each macro step: ``N_mech`` mechanics substeps of ``dt_mech`` (lines 4-8,
 :mod:`wooddecay.sim.mechanics`), one biology step of ``dt_bio`` (lines 9-11,
 :mod:`wooddecay.sim.biology`), then the coupling of moisture and decay back to the rods
 (lines 12-13, :mod:`wooddecay.sim.coupling`). ``mechanics=False`` runs the biology alone (years of
-decay on a static model). Frames are yielded at ``scene.time.frames`` times evenly spaced over
-[0, scene.time.days] (the first frame is the initial state when frames > 1).
+decay on a static model). Frames are yielded at ``model.time.frames`` times evenly spaced over
+[0, model.time.days] (the first frame is the initial state when frames > 1). Every solver has
+the shape ``solver(model, state, dt)``: the model holds everything static (``model.bio``,
+``model.mech``, ``model.coupling``, ``model.time``, ``model.inoculations``), the
+:class:`~wooddecay.sim.state.SimState` everything that changes.
 
-Settling: before the first step the rods settle under gravity (:func:`mechanics.settle`, ``[mechanics] settle``
-seconds); failure strains are measured from the state they settle into.
+Settling: before the first step the rods settle under gravity (:func:`mechanics.settle`,
+``model.time.settle`` seconds); failure strains are measured from the state they settle into.
 
 Checkpoints: with ``checkpoint_dir`` and ``checkpoint_every = K`` the whole state is written
 after every K-th frame (``frame_<k>.npz``, written to a temporary name and renamed).
@@ -30,7 +33,7 @@ from . import mechanics as mech
 from .diagnostics import diagnostics
 from .state import FIELDS, SimState, initial_state, inoculate
 
-CHECKPOINT_VERSION = 3  # 2: separation overlaps (mech_sep_keys, mech_sep_overlap); 3: sleeping pieces
+CHECKPOINT_VERSION = 3
 
 
 @dataclass(frozen=True, eq=False)
@@ -60,52 +63,43 @@ def mech_diagnostics(ms: mech.MechState) -> dict:
 
 
 class Simulation:
-    """``Simulation(model, scene).run()`` yields :class:`Frame` objects (module docstring).
+    """``Simulation(model).run()`` yields :class:`Frame` objects (module docstring).
     ``history`` collects the diagnostics at day 0 and after every macro step."""
 
-    def __init__(self, model, scene, mechanics: bool = True, checkpoint_dir=None, checkpoint_every: int = 0,
+    def __init__(self, model, mechanics: bool = True, checkpoint_dir=None, checkpoint_every: int = 0,
                  settle: bool = True):
-        self.model, self.scene = model, scene
-        self.setup = biology.prepare(model, scene)
-        self.state: SimState = initial_state(model, scene)
+        self.model = model
+        self.state: SimState = initial_state(model, rods=mechanics)
         self.mechanics = mechanics
         self.checkpoint_dir = None if checkpoint_dir is None else Path(checkpoint_dir)
         self.checkpoint_every = int(checkpoint_every)
         self.last_frame = -1
         if mechanics:
-            self.mech_setup = mech.prepare(model, scene)
-            self.coupling = coupling.prepare(model, scene)
-            self.state.mech = mech.initial_state(model, self.mech_setup)
-            self.couple()
+            coupling.step(model, self.state)
             if settle:
-                mech.settle(self.mech_setup, self.state.mech, scene.mechanics.settle, scene.mechanics.settle_damping)
+                mech.settle(model, self.state, model.time.settle, model.time.settle_damping)
         self.history: list[dict] = [self._diagnostics()]
 
     @property
     def substeps(self) -> int:
         """Biology substeps per ``dt_bio`` (1 when dt_bio is within the stability bound)."""
-        return biology.substeps(self.scene.time.dt_bio, self.setup.bound)
-
-    def couple(self) -> None:
-        """Coupling (Eqs. 16-19, 21) of the current fields into the rods: rest lengths and offsets,
-        masses, integrity and limits."""
-        M12 = biology.moisture_bounds(self.setup, self.state.t_days)
-        coupling.apply(self.coupling, self.mech_setup, self.state.mech, self.state, M12, self.setup.tissue)
+        return biology.substeps(self.model.time.dt_bio, self.model.bio.bound)
 
     def _diagnostics(self) -> dict:
-        d = diagnostics(self.state, self.setup)
+        d = diagnostics(self.model, self.state)
         if self.mechanics:
             d["mechanics"] = mech_diagnostics(self.state.mech)
         return d
 
     def macro_step(self, dt_bio: float) -> None:
         """Algorithm 1 lines 4-13 with a biology step of ``dt_bio`` days."""
+        model, state = self.model, self.state
         if self.mechanics:
-            mech.macro_step(self.mech_setup, self.state.mech, self.state.t_days, int(self.scene.mechanics.N_mech))
-        biology.step(self.state, self.setup, dt_bio)
-        inoculate(self.model, self.scene, self.state)
+            mech.macro_step(model, state, model.time.N_mech)
+        biology.step(model, state, dt_bio)
+        inoculate(model, state)
         if self.mechanics:
-            self.couple()
+            coupling.step(model, state)
         self.history.append(self._diagnostics())
 
     def advance(self, days: float) -> None:
@@ -114,11 +108,11 @@ class Simulation:
         if days <= 0.0:
             return
         t0 = self.state.t_days
-        stops = sorted({t0 + days} | {ino["day"] for ino in self.scene.inoculations
-                                      if t0 + 1e-9 < ino["day"] < t0 + days - 1e-9})
+        stops = sorted({t0 + days} | {ino.day for ino in self.model.inoculations
+                                      if t0 + 1e-9 < ino.day < t0 + days - 1e-9})
         for stop in stops:
             span = stop - self.state.t_days
-            n = max(1, int(np.ceil(span / self.scene.time.dt_bio - 1e-9)))
+            n = max(1, int(np.ceil(span / self.model.time.dt_bio - 1e-9)))
             for _ in range(n):
                 self.macro_step(span / n)
 
@@ -133,7 +127,7 @@ class Simulation:
 
     def run(self):
         """Yield a frame at every frame time after the last one yielded (module docstring)."""
-        for k, t in enumerate(frame_times(self.scene.time.days, self.scene.time.frames)):
+        for k, t in enumerate(frame_times(self.model.time.days, self.model.time.frames)):
             if k <= self.last_frame:
                 continue
             self.advance(t - self.state.t_days)
@@ -151,7 +145,7 @@ class Simulation:
         arrays = {f"field_{f}": getattr(s, f) for f in FIELDS}
         if self.mechanics:
             arrays.update({f"mech_{k}": v for k, v in s.mech.arrays().items()})
-        meta = {"version": CHECKPOINT_VERSION, "scene_hash": self.scene.hash, "mechanics": self.mechanics,
+        meta = {"version": CHECKPOINT_VERSION, "scene_hash": self.model.info.hash, "mechanics": self.mechanics,
                 "frame": self.last_frame, "t_days": s.t_days, "clamp_count": s.clamp_count,
                 "applied": sorted(s.applied), "history": self.history,
                 "t_seconds": s.mech.t_seconds if self.mechanics else 0.0,
@@ -163,14 +157,14 @@ class Simulation:
         return path
 
     @classmethod
-    def resume(cls, model, scene, path, **kwargs) -> "Simulation":
+    def resume(cls, model, path, **kwargs) -> "Simulation":
         """A simulation continuing from the checkpoint ``path`` of the same scene."""
         with np.load(path) as z:
             meta = json.loads(str(z["meta"]))
             arrays = {k: z[k].copy() for k in z.files if k != "meta"}
-        if meta.get("version") != CHECKPOINT_VERSION or meta["scene_hash"] != scene.hash:
+        if meta.get("version") != CHECKPOINT_VERSION or meta["scene_hash"] != model.info.hash:
             raise ValueError(f"{path}: checkpoint of another scene or version; cannot resume")
-        sim = cls(model, scene, mechanics=meta["mechanics"], settle=False, **kwargs)
+        sim = cls(model, mechanics=meta["mechanics"], settle=False, **kwargs)
         s = sim.state
         for f in FIELDS:
             setattr(s, f, arrays[f"field_{f}"])

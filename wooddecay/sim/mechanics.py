@@ -80,9 +80,36 @@ def _sweep_arrays(order, edge_ok, integrity, rest_offset, k_conn0, k_pb0, k_pt0,
         k_twist[t] = integrity[k] * k_pt0[t] if edge_ok[k, 2] else 0.0
 
 
+@dataclass(frozen=True)
+class MechConfig:
+    """The ``[mechanics]`` scalars the rod system is built with (SPEC §4; Table 3)."""
+
+    gravity: tuple
+    damping: float
+    dt_mech: float
+    iterations: int
+    inertia_scale: float
+    k_col: float
+    v_depenetration: float
+    mu_f: float
+    epsilon: float
+    sleep_speed: float
+    sleep_time: float
+
+
+@dataclass(frozen=True)
+class Load:
+    """A ``[[load]]``: ``force`` (N, world) on the elements of ``mask`` over days [day0, day1)."""
+
+    day0: float
+    day1: float
+    force: tuple
+    mask: np.ndarray
+
+
 @dataclass(frozen=True, eq=False)
 class MechSetup:
-    """Static data of the rod system, derived once from (model, scene)."""
+    """Static data of the rod system, built once with the model (``model.mech``)."""
 
     fp: np.ndarray  # (n,) first particle of each element (the second is fp + 1)
     n_particles: int
@@ -119,7 +146,6 @@ class MechSetup:
     epsilon: float
     loads: tuple  # of (day0, day1, (P, 3) particle forces)
     radius_p: np.ndarray = None  # (P,) particle radius (collider clearance)
-    torque: np.ndarray = None  # (n, 3) world torques per element (zero; set by validation studies)
     sleep_speed: float = 0.0  # :mod:`~wooddecay.sim.sleep` (0: never)
     sleep_time: float = 0.2
 
@@ -154,6 +180,8 @@ class MechState:
     asleep: np.ndarray  # (n,) bool: the element's piece sleeps (:mod:`~wooddecay.sim.sleep`)
     sleep_x: np.ndarray  # (P, 3) positions at the start of the sleep window
     sleep_t: np.ndarray  # (1,) seconds at the start of the sleep window
+    force: np.ndarray  # (P, 3) external forces: the [[load]]s of the day (:func:`macro_step`)
+    torque: np.ndarray  # (n, 3) external world torques per element (zero but in studies)
     t_seconds: float = 0.0
     failures: int = 0  # failure events so far (elements + edge flags)
     pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))  # contact list
@@ -173,33 +201,11 @@ class MechState:
                                      else getattr(self, f.name)) for f in fields(self)})
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """The arrays a checkpoint needs (the contact list is rebuilt from them)."""
+        """The arrays a checkpoint needs (the contact list is rebuilt from them, the forces
+        from the loads of the day)."""
         return {f.name: getattr(self, f.name) for f in fields(self)
                 if isinstance(getattr(self, f.name), np.ndarray)
-                and f.name not in ("pairs", "pairs_x", "pairs_rest", "pairs_protect", "pairs_sep")}
-
-
-def per_element(scene, tissue: np.ndarray, name: str) -> np.ndarray:
-    """Per-element value of a per-tissue parameter."""
-    return np.array([scene.tissue_param(t, name) for t in TISSUES], dtype=np.float64)[tissue]
-
-
-def _colliders(scene) -> np.ndarray:
-    rows = []
-    mech = scene.mechanics
-    if mech.ground:
-        rows.append(contact.collider_row(contact.PLANE, 0.0, 0.0, mech.ground_height, 0.0, 0.0, 1.0))
-    for c in scene.colliders:
-        kind = c["kind"]
-        if kind == "plane":
-            rows.append(contact.collider_row(contact.PLANE, *c["point"], *c["normal"]))
-        elif kind == "box":
-            rows.append(contact.collider_row(contact.BOX, *c["min"], *c["max"]))
-        elif kind == "sphere":
-            rows.append(contact.collider_row(contact.SPHERE, *c["center"], c["radius"]))
-        else:
-            rows.append(contact.collider_row(contact.CYLINDER, *c["a"], *c["b"], c["radius"]))
-    return np.array(rows, dtype=np.float64).reshape(-1, contact.COLLIDER_COLUMNS)
+                and f.name not in ("pairs", "pairs_x", "pairs_rest", "pairs_protect", "pairs_sep", "force", "torque")}
 
 
 def _joint_length(l0: np.ndarray, anchored: np.ndarray, je: np.ndarray) -> np.ndarray:
@@ -231,16 +237,16 @@ def _parity_sets(ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (np.ascontiguousarray(ids[ids % 2 == 0]), np.ascontiguousarray(ids[ids % 2 == 1]))
 
 
-def prepare(model, scene) -> MechSetup:
-    """Stiffnesses, colour classes, rest data, colliders and load forces of the rod system."""
-    from .state import region_mask  # the regions of [[load]] are those of [[inoculation]]
-
+def prepare(model, config: MechConfig, colliders: np.ndarray, loads: tuple[Load, ...]) -> MechSetup:
+    """Stiffnesses (from the tissues' E, G, rho_dry in ``model.materials``), colour classes, rest
+    data, ``colliders`` (rows of :func:`contact.collider_row`) and the particle forces of
+    ``loads`` (each shared over its elements' particles in proportion to their dry mass)."""
     n = model.n_elements
-    mech = scene.mechanics
-    tissue = model.tissue.astype(np.int64)
+    mech = config
+    per_element = model.materials.per_element
     fp = model.first_particle.astype(np.int64)
     P = len(model.particles)
-    E, G = per_element(scene, tissue, "E"), per_element(scene, tissue, "G")
+    E, G = per_element("E"), per_element("G")
     r = model.radius
     A, I_b = np.pi * r**2, np.pi * r**4 / 4.0
     l0 = model.rest_length
@@ -249,24 +255,24 @@ def prepare(model, scene) -> MechSetup:
     je = np.flatnonzero(~last)
     joints = np.stack([je, je + 1], axis=1)
     ij = model.reg_edges.astype(np.int64)
-    r_s = scene.strands.r_s
+    r_s = model.r_s
     edge_length = np.maximum(model.reg_rest_offset, r_s)
     Em, Gm = 0.5 * (E[ij[:, 0]] + E[ij[:, 1]]), 0.5 * (G[ij[:, 0]] + G[ij[:, 1]])
     lm = 0.5 * (l0[ij[:, 0]] + l0[ij[:, 1]])
-    rho = per_element(scene, tissue, "rho_dry")
+    rho = per_element("rho_dry")
     anchored_p = np.zeros(P, dtype=bool)
     anchored_p[fp[model.anchored]] = True
     anchored_p[fp[model.anchored] + 1] = True
     dry = rho * A * l0
-    loads = []
-    for ld in scene.loads:
-        mask = region_mask(model, scene, ld["region"])
+    load_forces = []
+    for ld in loads:
+        mask = ld.mask
         pm = np.zeros(P)
         np.add.at(pm, fp[mask], 0.5 * dry[mask])
         np.add.at(pm, fp[mask] + 1, 0.5 * dry[mask])
         pm[anchored_p] = 0.0
         share = pm / pm.sum() if pm.sum() > 0 else pm
-        loads.append((ld["days"][0], ld["days"][1], share[:, None] * np.asarray(ld["force"])[None, :]))
+        load_forces.append((ld.day0, ld.day1, share[:, None] * np.asarray(ld.force)[None, :]))
     return MechSetup(
         fp=fp, n_particles=P, elems=_parity_sets(np.arange(n)), joints=joints,
         joint_sets=_parity_sets(np.arange(len(joints))),
@@ -282,9 +288,10 @@ def prepare(model, scene) -> MechSetup:
                           k_conn0=Gm * 2.0 * r_s * lm / edge_length, k_pb0=Em * np.pi * r_s**4 / 4.0,
                           k_pt0=Gm * np.pi * r_s**4 / 2.0),
         gravity=np.asarray(mech.gravity, dtype=np.float64), damping=float(mech.damping),
-        dt=float(mech.dt_mech), iterations=int(mech.iterations), colliders=_colliders(scene),
-        radius_p=_particle_radius(fp, r, P), torque=np.zeros((n, 3)), k_col=float(mech.k_col),
-        v_depenetration=float(mech.v_depenetration), mu_f=float(mech.mu_f), epsilon=float(mech.epsilon), loads=tuple(loads),
+        dt=float(mech.dt_mech), iterations=int(mech.iterations), colliders=colliders,
+        radius_p=_particle_radius(fp, r, P), k_col=float(mech.k_col),
+        v_depenetration=float(mech.v_depenetration), mu_f=float(mech.mu_f), epsilon=float(mech.epsilon),
+        loads=tuple(load_forces),
         sleep_speed=float(mech.sleep_speed), sleep_time=float(mech.sleep_time),
     )
 
@@ -293,8 +300,10 @@ def _conj_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return mul_np(conj_np(a), b)
 
 
-def initial_state(model, setup: MechSetup) -> MechState:
-    """Rest configuration, at rest; masses and limits are set by :func:`coupling.apply`."""
+def initial_state(model) -> MechState:
+    """Rest configuration, at rest, no external forces; masses and limits are set by
+    :func:`coupling.step`."""
+    setup = model.mech
     n, m, P = setup.n_elements, len(setup.edges), setup.n_particles
     ms = MechState(
         x=model.particles.astype(np.float64).copy(), v=np.zeros((P, 3)), q=model.rest_quat.copy(),
@@ -304,7 +313,7 @@ def initial_state(model, setup: MechSetup) -> MechState:
         element_ok=np.ones(n, dtype=bool), edge_ok=np.ones((m, 3), dtype=bool),
         component=np.zeros(n, dtype=np.int64), strain_ref_elem=np.zeros((n, 2)),
         strain_ref_edge=np.zeros((m, 3)), asleep=np.zeros(n, dtype=bool), sleep_x=np.zeros((P, 3)),
-        sleep_t=np.zeros(1),
+        sleep_t=np.zeros(1), force=np.zeros((P, 3)), torque=np.zeros((n, 3)),
     )
     set_masses(setup, ms, np.zeros(n))
     ms.component = failure.components(setup, ms)
@@ -414,11 +423,16 @@ def stiffness(setup: MechSetup, ms: MechState) -> tuple:
     return setup.sweep.arrays(ms), _joint_stiffness(setup, ms)
 
 
-def substep(setup: MechSetup, ms: MechState, dt: float, force: np.ndarray, stiff: tuple | None = None) -> int:
-    """One XPBD substep (module docstring); returns the number of new failures. ``stiff``:
-    :func:`stiffness` of this state, if the caller holds it."""
+def substep(model, state, dt: float) -> int:
+    """One XPBD substep of ``state.mech`` with ``model.mech`` under the state's external forces
+    (module docstring); returns the number of new failures."""
+    return _substep(model.mech, state.mech, dt)
+
+
+def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: tuple | None = None) -> int:
+    """:func:`substep`; ``stiff``: :func:`stiffness` of this state, if the caller holds it."""
     x_old, q_old = np.empty_like(ms.x), np.empty_like(ms.q)
-    _predict(ms.x, ms.v, ms.q, ms.omega, ms.w_p, ms.w_q, ms.mass_p, force, setup.gravity, setup.torque,
+    _predict(ms.x, ms.v, ms.q, ms.omega, ms.w_p, ms.w_q, ms.mass_p, ms.force, setup.gravity, ms.torque,
              np.exp(-setup.damping * dt), dt, x_old, q_old)
     kreg, kjoint = stiff or stiffness(setup, ms)
     lam = _multipliers(setup)
@@ -477,31 +491,32 @@ def refresh_pairs(setup: MechSetup, ms: MechState) -> None:
     ms.pairs_x = ms.x.copy()
 
 
-def settle(setup: MechSetup, ms: MechState, seconds: float, damping: float, tol: float | None = None,
+def settle(model, state, seconds: float, damping: float, tol: float | None = None,
            max_seconds: float = 10.0) -> float:
-    """Let the rods come to rest under gravity with failure off and viscous damping ``damping``
-    for ``seconds``, then take the strains they hold as the reference of
-    :func:`failure.update` and zero the velocities (docs/decisions.md, "Settling"): the wood
-    starts undamaged in equilibrium with its own weight, as a grown tree is, so only strain
-    added later by shrinkage, decay, loads and impacts counts against L(M).
+    """Let the rods of ``state`` come to rest under gravity with failure off, no external forces
+    and viscous damping ``damping`` for ``seconds``, then take the strains they hold as the
+    reference of :func:`failure.update` and zero the velocities (docs/decisions.md, "Settling"):
+    the wood starts undamaged in equilibrium with its own weight, as a grown tree is, so only
+    strain added later by shrinkage, decay, loads and impacts counts against L(M).
 
     With ``tol`` the settling goes on after ``seconds`` in chunks of :data:`SETTLE_CHUNK` until
     no constraint that can fail changes its strain by more than ``tol`` of its limit within a
     chunk (:func:`failure.drift`), or ``max_seconds`` in all: an overdamped soft structure (a
     decayed branch) is still sagging after a fixed time, and that sag would count against its
     limits once failure is on (docs/decisions.md, "Pull test"). Returns the seconds settled."""
+    setup, ms = model.mech, state.mech
     limits = ms.limit_elem, ms.limit_edge
     ms.limit_elem, ms.limit_edge = np.full_like(limits[0], np.inf), np.full_like(limits[1], np.inf)
     damped = replace(setup, damping=float(damping))
-    zero = np.zeros((setup.n_particles, 3))
-    stiff = advance(damped, ms, zero, int(round(seconds / setup.dt)))[1]
+    ms.force = np.zeros((setup.n_particles, 3))
+    stiff = _advance(damped, ms, int(round(seconds / setup.dt)))[1]
     done = float(seconds)
     now = failure.strains(setup, ms)
     if tol is not None:
         chunk = int(round(SETTLE_CHUNK / setup.dt))
         while done < max_seconds - 1e-12:
             before = now
-            stiff = advance(damped, ms, zero, chunk, stiff)[1]
+            stiff = _advance(damped, ms, chunk, stiff)[1]
             done += chunk * setup.dt
             now = failure.strains(setup, ms)
             if failure.drift(setup, ms, before, now, *limits) <= tol:
@@ -514,34 +529,39 @@ def settle(setup: MechSetup, ms: MechState, seconds: float, damping: float, tol:
     return done
 
 
-def advance(setup: MechSetup, ms: MechState, force: np.ndarray, n_sub: int, stiff: tuple | None = None
-            ) -> tuple[int, tuple | None]:
-    """``n_sub`` substeps of ``setup.dt`` under ``force``, gathering the :func:`stiffness` only
-    when the flags change. Returns (new failures, the stiffness to pass to the next call)."""
+def advance(model, state, n_sub: int) -> int:
+    """``n_sub`` substeps of ``model.mech.dt`` under the state's external forces, gathering the
+    :func:`stiffness` only when the failure flags change; returns the new failures."""
+    return _advance(model.mech, state.mech, n_sub)[0]
+
+
+def _advance(setup: MechSetup, ms: MechState, n_sub: int, stiff: tuple | None = None) -> tuple[int, tuple | None]:
+    """:func:`advance`; returns (new failures, the stiffness to pass to the next call)."""
     new = 0
     for _ in range(n_sub):
         stiff = stiffness(setup, ms) if stiff is None else stiff
-        count = substep(setup, ms, setup.dt, force, stiff)
+        count = _substep(setup, ms, setup.dt, stiff)
         new += count
         if count:  # flags changed
             stiff = None
     return new, stiff
 
 
-def macro_step(setup: MechSetup, ms: MechState, t_days: float, n_sub: int) -> int:
-    """Algorithm 1 lines 4-8: ``n_sub`` substeps of ``setup.dt``; returns new failures. With
-    ``setup.sleep_speed`` > 0 pieces that stopped moving sleep (:mod:`~wooddecay.sim.sleep`):
-    the substeps stop at every end of a sleep window to update who sleeps, and a failure wakes
-    everything."""
-    force = external_forces(setup, t_days)
+def macro_step(model, state, n_sub: int) -> int:
+    """Algorithm 1 lines 4-8: ``n_sub`` substeps of ``model.mech.dt`` under the loads of the day
+    ``state.t_days``; returns new failures. With ``sleep_speed`` > 0 pieces that stopped moving
+    sleep (:mod:`~wooddecay.sim.sleep`): the substeps stop at every end of a sleep window to
+    update who sleeps, and a failure wakes everything."""
+    setup, ms = model.mech, state.mech
+    ms.force = external_forces(setup, state.t_days)
     ms.pairs_x = None  # rebuild the contact list from this state (resumable bit-exactly)
     if setup.sleep_speed <= 0.0:
-        return advance(setup, ms, force, n_sub)[0]
-    sleep.wake_loaded(setup, ms, force)
+        return _advance(setup, ms, n_sub)[0]
+    sleep.wake_loaded(setup, ms)
     new, stiff = 0, None
     while n_sub > 0:
         k = min(n_sub, max(sleep.substeps_left(setup, ms), 1))
-        count, stiff = advance(setup, ms, force, k, stiff)
+        count, stiff = _advance(setup, ms, k, stiff)
         new, n_sub = new + count, n_sub - k
         if count:
             sleep.wake_all(setup, ms)

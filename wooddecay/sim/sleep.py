@@ -56,9 +56,9 @@ def substeps_left(setup, ms) -> int:
     return max(int(round((ms.sleep_t[0] + setup.sleep_time - ms.t_seconds) / setup.dt)), 0)
 
 
-def wake_loaded(setup, ms, force: np.ndarray) -> None:
-    """Wake everything if ``force`` (P, 3) acts on a sleeping particle."""
-    if ms.asleep.any() and np.any(force[ms.w_p == 0.0] != 0.0):
+def wake_loaded(setup, ms) -> None:
+    """Wake everything if an external force (``ms.force``) acts on a sleeping particle."""
+    if ms.asleep.any() and np.any(ms.force[ms.w_p == 0.0] != 0.0):
         wake_all(setup, ms)
 
 

@@ -5,10 +5,9 @@ health H_c, H_l, defence C (all in [0, 1]) and moisture M in [M_2, M_1] (kg/kg),
 days and the count of clamp activations (the safety net of Appendix A, which should stay 0).
 
 Initial values come per tissue ([wood] H_c_init, H_l_init, C_init; [moisture] M_init; each
-overridable in [tissue.*]). Inoculation regions ([[inoculation]]) raise R_w or R_b to the
-region's activity at its day: a box or sphere in world or wood-local coordinates, a sphere around
-a skeleton node, a log end (elements within ``depth`` of the root, or of a branch's tip, along
-the skeleton) or a bark wound (a sphere on the surface, restricted to bark distance < depth).
+overridable in [tissue.*]). Inoculations ([[inoculation]], their regions resolved by
+:mod:`wooddecay.strands.regions` when the model is built) raise R_w or R_b to the region's
+activity at its day.
 """
 from __future__ import annotations
 
@@ -16,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..strands.rings import TISSUES
+from . import mechanics
 
 FIELDS = ("R_w", "R_b", "H_c", "H_l", "C", "M")
 
@@ -55,69 +54,40 @@ class SimState:
                         mech=None if self.mech is None else self.mech.copy())
 
 
-def tissue_values(scene, tissue: np.ndarray, name: str) -> np.ndarray:
-    """Per-element value of a per-tissue parameter (override, else the section's value)."""
-    return np.array([scene.tissue_param(t, name) for t in TISSUES], dtype=np.float64)[tissue]
+@dataclass(frozen=True)
+class Inoculation:
+    """An inoculation resolved on the model: on ``day`` the activity of ``fungus`` ("white":
+    R_w, "brown": R_b) rises to ``activity`` on the elements of ``mask``."""
+
+    day: float
+    fungus: str
+    activity: float
+    mask: np.ndarray
 
 
-def initial_state(model, scene) -> SimState:
-    """Fields at day 0 from the tissues, then the inoculations of day 0."""
-    tissue = model.tissue
+def initial_state(model, rods: bool = False) -> SimState:
+    """Fields at day 0 from the tissues (``model.materials``), then the inoculations of day 0;
+    with ``rods`` also the rods at rest (:func:`wooddecay.sim.mechanics.initial_state`, before
+    any coupling)."""
+    mat = model.materials
     n = model.n_elements
     state = SimState(
         R_w=np.zeros(n), R_b=np.zeros(n),
-        H_c=tissue_values(scene, tissue, "H_c_init"),
-        H_l=tissue_values(scene, tissue, "H_l_init"),
-        C=tissue_values(scene, tissue, "C_init"),
-        M=tissue_values(scene, tissue, "M_init"),
+        H_c=mat.per_element("H_c_init"), H_l=mat.per_element("H_l_init"),
+        C=mat.per_element("C_init"), M=mat.per_element("M_init"),
     )
-    inoculate(model, scene, state)
+    inoculate(model, state)
+    if rods:
+        state.mech = mechanics.initial_state(model)
     return state
 
 
-def _wood_cartesian(wood_coords: np.ndarray) -> np.ndarray:
-    r, phi, s = wood_coords.T
-    return np.stack([r * np.cos(phi), r * np.sin(phi), s], axis=1)
-
-
-def region_mask(model, scene, region) -> np.ndarray:
-    """Elements whose centre lies in an inoculation / load region (see module docstring)."""
-    kind = region["kind"]
-    wood = region.get("space", "world") == "wood"
-    if kind == "box":
-        x = model.wood_coords if wood else model.centers
-        lo, hi = np.asarray(region["min"]), np.asarray(region["max"])
-        return np.all((x >= lo) & (x <= hi), axis=1)
-    if kind == "sphere":
-        if wood:
-            x = _wood_cartesian(model.wood_coords)
-            r, phi, s = region["center"]
-            c = np.array([r * np.cos(phi), r * np.sin(phi), s])
-        else:
-            x, c = model.centers, np.asarray(region["center"])
-        return np.linalg.norm(x - c, axis=1) <= region["radius"]
-    if kind == "node":
-        c = scene.skeleton.positions[scene.skeleton.ids.index(str(region["id"]))]
-        return np.linalg.norm(model.centers - c, axis=1) <= region["radius"]
-    if kind == "end":
-        s = model.wood_coords[:, 2]
-        if region.get("which", "root") == "root":
-            return s <= region["depth"]
-        s_end = np.zeros(model.n_branches)
-        np.maximum.at(s_end, model.branch, s)
-        return s_end[model.branch] - s <= region["depth"]
-    if kind == "wound":
-        near = np.linalg.norm(model.centers - np.asarray(region["position"]), axis=1) <= region["radius"]
-        return near & (model.bark_distance <= region["depth"])
-    raise ValueError(f"unknown region kind {kind!r}")  # the scene validator rules this out
-
-
-def inoculate(model, scene, state: SimState) -> None:
-    """Apply every inoculation whose day has come and that was not applied yet."""
-    for k, ino in enumerate(scene.inoculations):
-        if k in state.applied or ino["day"] > state.t_days + 1e-9:
+def inoculate(model, state: SimState) -> None:
+    """Apply every inoculation of ``model.inoculations`` whose day has come and that was not
+    applied yet."""
+    for k, ino in enumerate(model.inoculations):
+        if k in state.applied or ino.day > state.t_days + 1e-9:
             continue
-        field_ = state.R_w if ino["fungus"] == "white" else state.R_b
-        mask = region_mask(model, scene, ino["region"])
-        np.maximum(field_, np.where(mask, ino["activity"], 0.0), out=field_)
+        field_ = state.R_w if ino.fungus == "white" else state.R_b
+        np.maximum(field_, np.where(ino.mask, ino.activity, 0.0), out=field_)
         state.applied.add(k)
