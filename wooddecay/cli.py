@@ -102,12 +102,11 @@ def _print_report(rep: dict) -> None:
         f"build            {rep['build_seconds']:.3f} s  ("
         + ", ".join(f"{k} {v:.3f}" for k, v in rep["build_stages"].items()) + ")",
     ]
-    if "biology" in rep:
-        b = rep["biology"]
-        lines.append(f"biology step     dt_bio {b['dt_bio_days']:g} d, explicit bound {b['stability_bound_days']:.4g} d"
-                     f" -> {b['substeps']} substep(s) per step")
-        lines.append(f"transport fit    across-grain moment error p99 {b['transport_fit_error_p99']:.3g},"
-                     f" {b['transport_chain_saturated']} element(s) with saturated chains")
+    b = rep["biology"]
+    lines.append(f"biology step     dt_bio {b['dt_bio_days']:g} d, explicit bound {b['stability_bound_days']:.4g} d"
+                 f" -> {b['substeps']} substep(s) per step")
+    lines.append(f"transport fit    across-grain moment error p99 {b['transport_fit_error_p99']:.3g},"
+                 f" {b['transport_chain_saturated']} element(s) with saturated chains")
     click.echo("\n".join(lines))
 
 
