@@ -1,5 +1,5 @@
 """Debris: fragments of the tiny log fall onto the ground and settle (woodstock §5.4, Fig. 12;
-issue: mechanics, "Debris"; :mod:`wooddecay.debris`).
+issue: mechanics, "Debris"; :mod:`wooddecay.studies.debris`).
 
     python benchmarks/debris.py [scene] [seconds] [k_col]
 
@@ -20,7 +20,7 @@ import time
 import numpy as np
 
 import wooddecay as wd
-from wooddecay import debris
+from wooddecay.studies import debris
 
 SCENE = "samples/tiny.toml"
 DROP = 0.05  # m

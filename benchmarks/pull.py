@@ -1,6 +1,6 @@
 """Pull test (woodstock Fig. 17; issue 4) on samples/tree.toml: the smallest horizontal pull that
 breaks the branch through node b1_2, healthy and decayed, each found by bisection on a log scale
-(:mod:`wooddecay.pull`: load, cases, break criterion, bisection; docs/decisions.md "Mechanics").
+(:mod:`wooddecay.studies.pull`: load, cases, break criterion, bisection; docs/decisions.md "Mechanics").
 
 First the branch cut out of the tree at the tree's resolution and clamped at its fork (the
 specimen: cheap), whose brackets, widened by ``--widen``, start the bisection in the whole tree.
@@ -20,7 +20,7 @@ Prints ``name value unit`` lines:
 Usage: python benchmarks/pull.py [--specimen-only] [--rel 0.2] [--widen 1.25] [--decay 0.5]
                                  [--region all|branch] [--brackets H_LO H_HI D_LO D_HI]
 ``--decay`` is H_c = H_l of the decayed case; ``--region branch`` lowers it in the tree only in
-the branch and its junction (:func:`wooddecay.pull.branch_elements`) instead of all the wood;
+the branch and its junction (:func:`wooddecay.studies.pull.branch_elements`) instead of all the wood;
 ``--brackets`` starts the tree's bisections there and skips the specimen.
 The whole tree costs about 0.035 s per mechanics substep on two idle cores, 0.07-0.09 s while
 it fails (settling to pull.SETTLE_TOL, about 0.25 s healthy and 0.65 s decayed, and probes of up
@@ -32,7 +32,7 @@ import argparse
 import time
 
 import wooddecay as wd
-from wooddecay import pull
+from wooddecay.studies import pull
 
 
 def _log(prefix: str):

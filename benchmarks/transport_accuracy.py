@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import time
 
-from wooddecay.validation import fisher_speed_ratio, heat_kernel_ratio
+from wooddecay.studies.transport import fisher_speed_ratio, heat_kernel_ratio
 
 for direction in ("l", "r", "t"):
     t0 = time.perf_counter()

@@ -322,7 +322,7 @@ def chart() -> None:
 @click.option("--days", type=click.FloatRange(min=10.0), default=1500.0, show_default=True)
 def chart_barrier(output: str, days: float) -> None:
     """Fig. 18: mass loss and moisture content ratio over time for beta/kappa in {0, 0.5, 1, 2}."""
-    from .charts.barrier import RATIOS, plot_barrier, run_barrier
+    from .studies.barrier import RATIOS, plot_barrier, run_barrier
 
     out = Path(output)
     if not out.parent.is_dir():
@@ -343,8 +343,8 @@ def chart_barrier(output: str, days: float) -> None:
 def chart_mechanics(output: str, quick: bool) -> None:
     """Issue 4 item 7: cantilever error against wall time over dt (substeps per simulated
     second = 1/dt) and iterations, with PyElastica's point on the same axes."""
-    from .charts.mechanics import (DTS, DTS_QUICK, ITERATIONS, ITERATIONS_QUICK, describe,
-                                   plot_mechanics, run_mechanics)
+    from .studies.mechanics_chart import (DTS, DTS_QUICK, ITERATIONS, ITERATIONS_QUICK, describe,
+                                          plot_mechanics, run_mechanics)
 
     out = Path(output)
     if not out.parent.is_dir():

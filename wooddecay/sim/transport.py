@@ -20,8 +20,8 @@ The target is the tensor A_i = sum_k a_k e_k e_k^T in the wood frame (e_r, e_t, 
   max(0, 1 - (f_i + f_j) / 2) where f is the share of the longitudinal moment 2 a_l that the
   cross pairs already carry through their stagger; ``chain_saturated`` counts elements with f > 1.
 
-Measured on the real rod graph (wooddecay.validation): heat-kernel variance growth within 0.3%
-of 2 D a_k along e_l, e_r and e_t.
+Measured on the real rod graph (benchmarks/transport_accuracy.py): heat-kernel variance growth
+within 0.3% of 2 D a_k along e_l, e_r and e_t.
 """
 from __future__ import annotations
 

@@ -18,61 +18,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..model import build_model
+from ..scene import Scene
+from ..sim.driver import Simulation
+from . import scene_template
+
 #: fraction of the onset peak rate below which decay counts as stalled
 FRAC = 0.3
 #: mass loss above which a low rate is exhaustion, not a plateau
 ML_MAX = 0.5
 RATIOS = (0.0, 0.5, 1.0, 2.0)
-
-BLOCK = """
-[scene]
-name = "barrier-block"
-seed = 18
-[[skeleton.node]]
-id = "a"
-position = [0.0, 0.0, 0.0]
-profile = {{ kind = "polygon", points = [[-0.025, -0.025], [0.025, -0.025], [0.025, 0.025], [-0.025, 0.025]] }}
-[[skeleton.node]]
-id = "b"
-position = [0.05, 0.0, 0.0]
-parent = "a"
-profile = {{ kind = "polygon", points = [[-0.025, -0.025], [0.025, -0.025], [0.025, 0.025], [-0.025, 0.025]] }}
-[strands]
-r_s = 0.005
-rod_length = 0.01
-[bsp]
-cells = 0
-[weakpoints]
-k_W = 0.0
-[fungi]
-alpha_w0 = 0.038
-alpha_b0 = 0.038
-kappa = {kappa}
-delta = 0.00285
-beta_w = {beta}
-beta_b = {beta}
-gamma_cw = 0.0016
-gamma_cb = 0.0016
-gamma_lw = 0.0006
-rho_c = 0.0
-rho_l = 0.0
-[moisture]
-M_init = 0.5
-k_in0 = 0.0
-k_out0 = 0.0
-[time]
-days = {days}
-dt_bio = {dt}
-frames = 2
-[[inoculation]]
-fungus = "white"
-activity = 0.01
-region = {{ kind = "box", min = [-1, -1, -1], max = [1, 1, 1] }}
-[[inoculation]]
-fungus = "brown"
-activity = 0.01
-region = {{ kind = "box", min = [-1, -1, -1], max = [1, 1, 1] }}
-"""
+#: fungi.kappa of the block; beta_w = beta_b = ratio * KAPPA
 KAPPA = 0.036
 
 
@@ -107,13 +63,18 @@ def plateau(t: np.ndarray, mass_loss: np.ndarray) -> tuple[float, np.ndarray]:
     return 0.0, mask
 
 
+def block_scene(ratio: float, days: float = 1500.0, dt: float = 1.0) -> Scene:
+    """``scenes/barrier.toml`` with beta_w = beta_b = ratio * kappa, run for ``days`` in biology
+    steps of ``dt`` days."""
+    beta = ratio * KAPPA
+    return scene_template("barrier", {"fungi.kappa": KAPPA, "fungi.beta_w": beta, "fungi.beta_b": beta,
+                                      "time.days": days, "time.dt_bio": dt})
+
+
 def run_barrier(ratio: float, days: float = 1500.0, dt: float = 1.0) -> BarrierRun:
     """Mass loss and moisture content ratio over time for one beta/kappa."""
-    import wooddecay as wd
-
-    scene = wd.parse_scene(BLOCK.format(kappa=KAPPA, beta=ratio * KAPPA, days=days, dt=dt),
-                           source="barrier-block.toml")
-    sim = wd.Simulation(wd.build_model(scene), scene, mechanics=False)
+    scene = block_scene(ratio, days, dt)
+    sim = Simulation(build_model(scene), scene, mechanics=False)
     for _ in sim.run():
         pass
     t = np.array([h["t_days"] for h in sim.history])

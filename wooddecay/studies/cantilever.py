@@ -19,37 +19,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .scene import parse_scene
-
-SCENE = """
-[scene]
-name = "strand"
-seed = 3
-[[skeleton.node]]
-id = "root"
-position = [0.0, 0.0, 0.0]
-anchored = true
-profile = {{ kind = "circle", radius = {R} }}
-[[skeleton.node]]
-id = "tip"
-position = [{x1}, {y1}, {z1}]
-parent = "root"
-profile = {{ kind = "circle", radius = {R} }}
-[strands]
-r_s = {r_s}
-rod_length = {rod}
-[bsp]
-cells = 0
-[mechanics]
-E = {E}
-G = {G}
-rho_dry = {rho}
-ground = false
-gravity = [0.0, 0.0, {g}]
-damping = {damping}
-dt_mech = {dt}
-iterations = {iterations}
-"""
+from ..model import build_model
+from ..scene import Scene
+from ..sim import mechanics
+from . import scene_template
 
 
 @dataclass
@@ -65,19 +38,28 @@ class Strand:
     q: float  # weight per length (N/m) of the free part
 
 
+def strand_scene(length: float = 0.5, n: int = 20, direction=(1.0, 0.0, 0.0), r_s: float = 0.006,
+                 E: float = 1e9, G: float = 4e8, rho: float = 450.0, g: float = -9.81, damping: float = 20.0,
+                 dt: float = 0.01, iterations: int = 2) -> Scene:
+    """``scenes/cantilever.toml`` as the strand of ``n`` free elements over the free length
+    ``length`` along ``direction`` (module doc), with its material and solver settings."""
+    rod = length / n
+    total = length + rod  # plus the clamped element
+    end = total * np.asarray(direction, dtype=float) / np.linalg.norm(direction)
+    profile = {"kind": "circle", "radius": 1.3 * r_s}
+    nodes = [{"id": "root", "position": [0.0, 0.0, 0.0], "anchored": True, "profile": profile},
+             {"id": "tip", "position": [float(c) for c in end], "parent": "root", "profile": profile}]
+    return scene_template("cantilever", {
+        "strands.r_s": r_s, "strands.rod_length": rod, "mechanics.E": E, "mechanics.G": G, "mechanics.rho_dry": rho,
+        "mechanics.gravity": [0.0, 0.0, g], "mechanics.damping": damping, "mechanics.dt_mech": dt,
+        "mechanics.iterations": iterations}, nodes)
+
+
 def strand(length: float = 0.5, n: int = 20, direction=(1.0, 0.0, 0.0), r_s: float = 0.006,
            E: float = 1e9, G: float = 4e8, rho: float = 450.0, g: float = -9.81, damping: float = 20.0,
            dt: float = 0.01, iterations: int = 2) -> Strand:
     """Build the strand of ``n`` free elements over the free length ``length`` (module doc)."""
-    from . import build_model
-    from .sim import mechanics
-
-    rod = length / n
-    total = length + rod  # plus the clamped element
-    end = total * np.asarray(direction, dtype=float) / np.linalg.norm(direction)
-    text = SCENE.format(R=1.3 * r_s, x1=end[0], y1=end[1], z1=end[2], r_s=r_s, rod=rod, E=E, G=G, rho=rho,
-                        g=g, damping=damping, dt=dt, iterations=iterations)
-    scene = parse_scene(text)
+    scene = strand_scene(length, n, direction, r_s, E, G, rho, g, damping, dt, iterations)
     model = build_model(scene)
     if model.n_strands != 1:
         raise RuntimeError(f"expected one strand, got {model.n_strands}")
@@ -99,8 +81,6 @@ def strand(length: float = 0.5, n: int = 20, direction=(1.0, 0.0, 0.0), r_s: flo
 def settle(s: Strand, seconds: float, substeps: int = 1, force=None) -> float:
     """Run ``seconds`` of simulated time, each step of ``setup.dt`` split into ``substeps``;
     returns the wall time."""
-    from .sim import mechanics
-
     dt = s.setup.dt / substeps
     f = np.zeros((s.setup.n_particles, 3)) if force is None else force
     steps = int(round(seconds / dt))
@@ -142,8 +122,6 @@ def tip_moment(length=0.5, n=40, dt=1e-4, iterations=4, ramp=0.5, seconds=1.5, d
     (distance of its centre from clamp + L / (2 pi) e_z over L); ``out_of_plane_over_L`` (largest
     |y - y_0| / L) and the wall time ``seconds``.
     """
-    from .sim import mechanics
-
     s = strand(length=length, n=n, g=0.0, dt=dt, iterations=iterations, damping=damping)
     torque = np.zeros((s.setup.n_elements, 3))
     setup = replace(s.setup, torque=torque)

@@ -2,7 +2,7 @@
 side branch, healthy and decayed, each found by bisection on a log scale.
 
 Used by ``benchmarks/pull.py`` (the branch through node ``b1_2`` of ``samples/tree.toml``, in the
-whole tree and cut out as a specimen at the tree's resolution) and ``tests/test_pull.py`` (the
+whole tree and cut out as a specimen at the tree's resolution) and ``tests/studies/test_pull.py`` (the
 specimen at ``quality = "draft"``). docs/decisions.md ("Mechanics") gives reasons and figures.
 
 * **Load.** One ``[[load]]`` appended to the scene (:func:`pull_scene`): the elements within
@@ -56,15 +56,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .model import build_model
-from .scene import Scene, load_scene, parse_scene
-from .sim import mechanics
-from .sim.driver import Simulation
-from .sim.state import region_mask
-from .strands.topology import build_topology
+from ..model import build_model
+from ..scene import Scene, load_scene, parse_scene
+from ..sim import mechanics
+from ..sim.driver import Simulation
+from ..sim.state import region_mask
+from ..strands.topology import build_topology
 
 #: the sample tree (the same file as the repository's ``samples/tree.toml``)
-TREE = Path(__file__).resolve().parent / "samples" / "tree.toml"
+TREE = Path(__file__).resolve().parent.parent / "samples" / "tree.toml"
 #: H_c = H_l of the decayed branch: I_ij = 0.5 (0.25 across BSP cells)
 DECAY = 0.5
 #: loaded seconds of a probe: the slowest breaks near the thresholds come at 0.24 s

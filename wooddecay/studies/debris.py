@@ -1,7 +1,7 @@
 """Debris settling (woodstock §5.4, Fig. 12; SPEC §4): a log falls apart into its BSP blocks,
 is dropped onto the ground, and the pieces must come to rest without sinking into each other.
 
-Used by ``benchmarks/debris.py`` and ``tests/test_debris.py``; docs/decisions.md ("Debris")
+Used by ``benchmarks/debris.py`` and ``tests/studies/test_debris.py``; docs/decisions.md ("Debris")
 gives reasons and figures.
 
 * **Fragments** (:func:`fragment`): the log, settled on the ground by ``wd.Simulation``, falls
@@ -25,8 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .sim import contact, failure
-from .sim import mechanics as mech
+from ..sim import contact, failure
+from ..sim import mechanics as mech
 
 #: seconds of mechanics per recorded step
 STEP = 0.1

@@ -1,7 +1,7 @@
 """Cost against accuracy of the rod solver: the gravity cantilever over dt, substeps and
 iterations, with PyElastica's point on the same axes (issue 4, item 7; SPEC §7 "Mechanics").
 
-The case is :func:`wooddecay.mech_validation.cantilever`: one strand of the real pipeline,
+The case is :func:`wooddecay.studies.cantilever.cantilever`: one strand of the real pipeline,
 L = 0.5 m free length, r_s = 6 mm, E = 1 GPa, 20 free elements, clamped at its root and sagging
 under gravity for 1 s of simulated time. The error is |deflection / (q L^4 / (8 E I)) - 1|, the
 cost the wall time of the time stepping only (numba compiled beforehand by a tiny warm-up run,
@@ -11,11 +11,11 @@ parallel work worth sharing, PyElastica is single-threaded too, and with two thr
 same settings took 0.01-0.35 s on one thread and 1.3-10.8 s on two while another job ran).
 
 Substeps are expressed by dt: every XPBD substep advances dt, so a setting makes 1 / dt substeps
-per simulated second (``mech_validation.cantilever``'s own ``substeps`` argument only splits
+per simulated second (``cantilever.cantilever``'s own ``substeps`` argument only splits
 ``dt_mech`` further and gives the same substep length dt / substeps). The sweep is therefore
 dt in :data:`DTS` x solver iterations per substep in :data:`ITERATIONS`.
 
-The reference is :func:`wooddecay.charts.elastica.elastica_cantilever` for the same rod (same L,
+The reference is :func:`wooddecay.studies.elastica.elastica_cantilever` for the same rod (same L,
 radius, E, G, rho_dry, elements): PositionVerlet at 0.9 of its stability limit (5.4 us), damped
 near-critically and run until settled (10 / omega_1 = 0.16 s simulated). PyElastica is optional;
 without it the chart says so and has no reference point.
@@ -26,6 +26,8 @@ import inspect
 import math
 
 import numpy as np
+
+from . import cantilever
 
 #: substep lengths swept (s); substeps per simulated second = 1 / dt
 DTS = (1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4)
@@ -49,10 +51,8 @@ N_ELEMENTS = 20
 
 def case() -> dict:
     """The cantilever's parameters: length and elements from this module, the material and
-    r_s from the defaults of :func:`wooddecay.mech_validation.strand` (so the title stays true)."""
-    from .. import mech_validation as mv
-
-    d = {k: p.default for k, p in inspect.signature(mv.strand).parameters.items()}
+    r_s from the defaults of :func:`wooddecay.studies.cantilever.strand` (so the title stays true)."""
+    d = {k: p.default for k, p in inspect.signature(cantilever.strand).parameters.items()}
     return {"length": LENGTH, "n": N_ELEMENTS, "r_s": d["r_s"], "E": d["E"], "G": d["G"],
             "rho": d["rho"], "g": abs(d["g"]), "seconds": SECONDS}
 
@@ -80,14 +80,12 @@ def run_mechanics(dts=DTS, iterations=ITERATIONS, seconds: float = SECONDS,
 def _sweep(dts, iterations, seconds, elastica) -> list[dict]:
     import numba
 
-    from .. import mech_validation as mv
-
     c = case()
-    mv.cantilever(length=c["length"], n=c["n"], dt=2e-3, iterations=1, seconds=0.01)  # compile numba
+    cantilever.cantilever(length=c["length"], n=c["n"], dt=2e-3, iterations=1, seconds=0.01)  # compile numba
     out = []
     for dt in dts:
         for k in iterations:
-            r = mv.cantilever(length=c["length"], n=c["n"], dt=dt, iterations=k, seconds=seconds)
+            r = cantilever.cantilever(length=c["length"], n=c["n"], dt=dt, iterations=k, seconds=seconds)
             err = float(r["error"])
             out.append({"solver": "wooddecay", "dt": float(dt), "substeps_per_second": 1.0 / dt,
                         "iterations": int(k), "error": err if math.isfinite(err) else math.nan,

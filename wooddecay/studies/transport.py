@@ -15,9 +15,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from .sim import biology
-from .sim.state import initial_state
-from .sim.transport import assemble
+from ..model import build_model
+from ..sim import biology
+from ..sim.state import initial_state
+from ..sim.transport import assemble
+from . import scene_template
 
 X, Y, Z = np.eye(3)
 #: rows (e_r, e_t, e_l), all right-handed; the name is the world axis carrying that direction
@@ -28,49 +30,21 @@ FRAMES = {
 }
 AXIS = {"l": 0, "r": 1, "t": 1}
 
-FISHER = """
-[scene]
-seed = 5
-[[skeleton.node]]
-id = "a"
-position = [0.0, 0.0, 0.0]
-profile = {{ kind = "polygon", points = [[{u0}, {v0}], [{u1}, {v0}], [{u1}, {v1}], [{u0}, {v1}]] }}
-[[skeleton.node]]
-id = "b"
-position = [{length}, 0.0, 0.0]
-parent = "a"
-profile = {{ kind = "polygon", points = [[{u0}, {v0}], [{u1}, {v0}], [{u1}, {v1}], [{u0}, {v1}]] }}
-[strands]
-r_s = 0.005
-rod_length = {rod}
-[bsp]
-cells = 0
-[weakpoints]
-k_W = 0.0
-[fungi]
-alpha_b0 = {alpha}
-D_b = {D}
-D_w = {D}
-D_C = {D}
-beta_b = 0.0
-gamma_cb = 0.0
-gamma_cw = 0.0
-kappa = 0.0
-[moisture]
-D_M0 = {D}
-k_in0 = 0.0
-k_out0 = 0.0
-"""
+
+def block_scene(length, width, thickness, rod, alpha=1.0, D=1e-3):
+    """``scenes/transport.toml`` as a straight block along x, cross-section width (world y) x
+    thickness (world z), rod length ``rod``, growth rate ``alpha`` and diffusivities ``D``."""
+    u0, u1, v0, v1 = -width / 2, width / 2, -thickness / 2, thickness / 2
+    profile = {"kind": "polygon", "points": [[u0, v0], [u1, v0], [u1, v1], [u0, v1]]}
+    nodes = [{"id": "a", "position": [0.0, 0.0, 0.0], "profile": profile},
+             {"id": "b", "position": [length, 0.0, 0.0], "parent": "a", "profile": profile}]
+    return scene_template("transport", {"strands.rod_length": rod, "fungi.alpha_b0": alpha, "fungi.D_b": D,
+                                        "fungi.D_w": D, "fungi.D_C": D, "moisture.D_M0": D}, nodes)
 
 
 def block(length, width, thickness, rod, alpha=1.0, D=1e-3):
-    """A straight block along x, cross-section width (world y) x thickness (world z)."""
-    text = FISHER.format(u0=-width / 2, u1=width / 2, v0=-thickness / 2, v1=thickness / 2,
-                         length=length, rod=rod, alpha=alpha, D=D)
-    from .model import build_model
-    from .scene import parse_scene
-
-    scene = parse_scene(text, source="block.toml")
+    """The scene of :func:`block_scene` and its model."""
+    scene = block_scene(length, width, thickness, rod, alpha, D)
     return scene, build_model(scene)
 
 

@@ -1,1 +1,0 @@
-"""Charts of the studies the paper validates against (matplotlib, written to files)."""
