@@ -1,4 +1,4 @@
-"""Sleeping pieces (wooddecay.sim.sleep) and debris settling (wooddecay.debris; woodstock §5.4,
+"""Sleeping pieces (wooddecay.sim.sleep) and debris settling (wooddecay.studies.debris; woodstock §5.4,
 Fig. 12): the tiny log broken into its BSP blocks."""
 from __future__ import annotations
 
@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 import wooddecay as wd
-from wooddecay import debris
+from wooddecay.studies import debris
 from wooddecay.sim import contact, mechanics, sleep
 
-from .conftest import sample
-from .test_mechanics import _digest as mech_digest
+from ..conftest import sample
+from ..test_mechanics import _digest as mech_digest
 
 
 def _fragments(**overrides):

@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from wooddecay.charts.elastica import elastica_cantilever
+from wooddecay.studies.elastica import elastica_cantilever
 
 KEYS = {"deflection", "analytic", "error", "seconds", "steps", "n_elements"}
 

@@ -3,7 +3,7 @@ smaller than the healthy branch needs.
 
 The specimen is the branch through node b1_2 of ``samples/tree.toml`` cut out of the tree and
 clamped at its fork, at ``quality = "draft"`` (539 rod elements); ``benchmarks/pull.py`` runs the
-same study (:mod:`wooddecay.pull`) on that branch inside the whole tree at the tree's resolution.
+same study (:mod:`wooddecay.studies.pull`) on that branch inside the whole tree at the tree's resolution.
 The draft specimen's thresholds are 6.17-6.73 N (healthy) and 0.436-0.476 N (decayed,
 H_c = H_l = 0.5: I_ij 0.5 and 0.25 across BSP cells), a ratio of at least 13, with both cases
 settled until their strains drift by less than 1% of their limits in 0.05 s (0.25 s and 0.6 s);
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import wooddecay as wd
-from wooddecay import pull
+from wooddecay.studies import pull
 from wooddecay.strands.topology import build_topology
 
 
