@@ -4,22 +4,22 @@ Run after a deliberate change of the simulation, meshing or export (and say why 
 
     python scripts/regenerate_golden.py
 
-It bakes samples/tiny.toml with the arguments of ``tests/test_bake.py::GOLDEN_ARGS`` and writes
-the stage as text (.usda) so reviews can read the change.
+It bakes samples/tiny.toml with the arguments in tests/golden/tiny.args (which
+tests/test_bake.py reads too) and writes the stage as text (.usda) so reviews can read the change.
 """
 from __future__ import annotations
 
-import sys
 import tempfile
 from pathlib import Path
 
 from click.testing import CliRunner
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
+from wooddecay.cli import main
 
-from tests.test_bake import GOLDEN, GOLDEN_ARGS, TINY  # noqa: E402
-from wooddecay.cli import main  # noqa: E402
+ROOT = Path(__file__).resolve().parent.parent
+TINY = str(ROOT / "samples" / "tiny.toml")
+GOLDEN = ROOT / "tests" / "golden" / "tiny.usda"
+GOLDEN_ARGS = GOLDEN.with_suffix(".args").read_text("utf-8").split()
 
 
 def regenerate() -> Path:

@@ -18,8 +18,8 @@ from .conftest import ROOT, SAMPLES
 TINY = str(SAMPLES / "tiny.toml")
 SHORT = ["--days", "2", "--frames", "3"]
 GOLDEN = ROOT / "tests" / "golden" / "tiny.usda"
-#: the bake the golden file holds (regenerate: python scripts/regenerate_golden.py)
-GOLDEN_ARGS = ["--days", "2", "--frames", "2"]
+#: the bake the golden file holds, kept beside it (regenerate: python scripts/regenerate_golden.py)
+GOLDEN_ARGS = GOLDEN.with_suffix(".args").read_text("utf-8").split()
 
 
 def run(*args):
