@@ -86,7 +86,7 @@ def main() -> None:
     t1 = time.perf_counter()
     scene = pull.pull_scene()
     model = wd.build_model(scene)
-    region = pull.branch_elements(model, scene) if args.region == "branch" else None
+    region = pull.branch_elements(model) if args.region == "branch" else None
     st = pull.study(scene, model, healthy=brackets[:2], decayed=brackets[2:], rel=args.rel, decay=args.decay,
                     region=region, log=_log(""))
     print(f"elements {st.n_elements} 1")

@@ -70,7 +70,7 @@ def test_branch_elements_are_the_subtree_and_its_junction():
     sub = {int(topo_branch[skel.ids.index(k)]) for k in ("b1_1", "b1_4", "b1_0_2", "b1_1_2")}
     t4 = skel.ids.index("t4")
     near = np.linalg.norm(model.centers - skel.positions[t4], axis=1) <= 1.5 * skel.profiles[t4].equivalent_radius
-    region = pull.branch_elements(model, scene)
+    region = pull.branch_elements(model)
     in_sub = np.isin(model.branch, sorted(sub))
     assert len(sub) == 3 and in_sub.any() and (near & ~in_sub).any()
     assert np.array_equal(region, in_sub | near)

@@ -74,7 +74,7 @@ def block_scene(ratio: float, days: float = 1500.0, dt: float = 1.0) -> Scene:
 def run_barrier(ratio: float, days: float = 1500.0, dt: float = 1.0) -> BarrierRun:
     """Mass loss and moisture content ratio over time for one beta/kappa."""
     scene = block_scene(ratio, days, dt)
-    sim = Simulation(build_model(scene), scene, mechanics=False)
+    sim = Simulation(build_model(scene), mechanics=False)
     for _ in sim.run():
         pass
     t = np.array([h["t_days"] for h in sim.history])

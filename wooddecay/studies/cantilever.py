@@ -15,13 +15,14 @@ The free length L runs from the clamped element's far particle to the tip.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..model import build_model
 from ..scene import Scene
 from ..sim import mechanics
+from ..sim.state import initial_state
 from . import scene_template
 
 
@@ -30,12 +31,19 @@ class Strand:
     """A single clamped strand ready to simulate."""
 
     model: object
-    setup: object
-    ms: object
+    state: object  # SimState; the rods are ``state.mech``
     clamp: np.ndarray  # the clamped end of the free length
     length: float  # free length L
     EI: float
     q: float  # weight per length (N/m) of the free part
+
+    @property
+    def setup(self):
+        return self.model.mech
+
+    @property
+    def ms(self):
+        return self.state.mech
 
 
 def strand_scene(length: float = 0.5, n: int = 20, direction=(1.0, 0.0, 0.0), r_s: float = 0.006,
@@ -63,8 +71,8 @@ def strand(length: float = 0.5, n: int = 20, direction=(1.0, 0.0, 0.0), r_s: flo
     model = build_model(scene)
     if model.n_strands != 1:
         raise RuntimeError(f"expected one strand, got {model.n_strands}")
-    setup = mechanics.prepare(model, scene)
-    ms = mechanics.initial_state(model, setup)
+    state = initial_state(model, rods=True)
+    setup, ms = model.mech, state.mech
     M = np.full(model.n_elements, scene.moisture.M_init)
     mechanics.set_masses(setup, ms, M)
     ms.limit_elem[:] = np.inf  # no failure in accuracy studies
@@ -74,19 +82,19 @@ def strand(length: float = 0.5, n: int = 20, direction=(1.0, 0.0, 0.0), r_s: flo
     free = ~model.anchored
     q = float(np.sum(setup.dry_mass[free] * (1 + M[free])) * abs(g) / np.sum(model.rest_length[free]))
     r = model.radius[0]
-    return Strand(model=model, setup=setup, ms=ms, clamp=clamp,
+    return Strand(model=model, state=state, clamp=clamp,
                   length=float(np.linalg.norm(model.particles[-1] - clamp)), EI=E * np.pi * r**4 / 4, q=q)
 
 
 def settle(s: Strand, seconds: float, substeps: int = 1, force=None) -> float:
-    """Run ``seconds`` of simulated time, each step of ``setup.dt`` split into ``substeps``;
-    returns the wall time."""
+    """Run ``seconds`` of simulated time under the particle forces ``force`` (default none), each
+    step of ``setup.dt`` split into ``substeps``; returns the wall time."""
     dt = s.setup.dt / substeps
-    f = np.zeros((s.setup.n_particles, 3)) if force is None else force
+    s.ms.force = np.zeros((s.setup.n_particles, 3)) if force is None else force
     steps = int(round(seconds / dt))
     t0 = time.perf_counter()
     for _ in range(steps):
-        mechanics.substep(s.setup, s.ms, dt, f)
+        mechanics.substep(s.model, s.state, dt)
     return time.perf_counter() - t0
 
 
@@ -123,15 +131,13 @@ def tip_moment(length=0.5, n=40, dt=1e-4, iterations=4, ramp=0.5, seconds=1.5, d
     |y - y_0| / L) and the wall time ``seconds``.
     """
     s = strand(length=length, n=n, g=0.0, dt=dt, iterations=iterations, damping=damping)
-    torque = np.zeros((s.setup.n_elements, 3))
-    setup = replace(s.setup, torque=torque)
+    setup, torque = s.setup, s.ms.torque
     M = 2 * np.pi * s.EI / s.length
     y0 = s.ms.x[:, 1].copy()
-    force = np.zeros((setup.n_particles, 3))
     t0 = time.perf_counter()
     for k in range(int(round(seconds / dt))):
         torque[-1, 1] = -M * min(1.0, (k + 1) * dt / ramp)
-        mechanics.substep(setup, s.ms, dt, force)
+        mechanics.substep(s.model, s.state, dt)
     wall = time.perf_counter() - t0
     free = s.ms.x[np.flatnonzero(setup.anchored_p).max():]  # clamp ... tip
     centre, radius, rms = fit_circle(free)

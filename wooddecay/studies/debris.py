@@ -47,7 +47,7 @@ class Record:
 
 def fragment(sim) -> None:
     """Fail the BSP-boundary connections and strand links of ``sim`` (module docstring)."""
-    model, st, ms = sim.model, sim.mech_setup, sim.state.mech
+    model, st, ms = sim.model, sim.model.mech, sim.state.mech
     leaf = model.bsp_leaf
     boundary = np.zeros(model.n_elements, dtype=bool)
     boundary[:-1] = leaf[:-1] != leaf[1:]
@@ -69,13 +69,13 @@ def penetration(st, ms) -> tuple[float, float]:
 def drop(sim, height: float, seconds: float):
     """Lift the pieces of ``sim`` by ``height`` and let them fall for ``seconds``; yields a
     :class:`Record` every :data:`STEP` seconds."""
-    st, ms = sim.mech_setup, sim.state.mech
-    r_s = sim.scene.strands.r_s
+    st, ms = sim.model.mech, sim.state.mech
+    r_s = sim.model.r_s
     ms.x[:, 2] += height
     t0, per = ms.t_seconds, int(round(STEP / st.dt))
     while ms.t_seconds - t0 < seconds - 1e-9:
         x0 = ms.x.copy()
-        mech.macro_step(st, ms, 0.0, per)
+        mech.macro_step(sim.model, sim.state, per)
         speed = np.sqrt(np.sum(ms.v**2, axis=1))
         pen, raw = penetration(st, ms)
         yield Record(t=ms.t_seconds - t0, max_speed=float(speed.max()), p99_speed=float(np.percentile(speed, 99)),

@@ -58,9 +58,9 @@ import numpy as np
 
 from ..model import build_model
 from ..scene import Scene, load_scene, parse_scene
-from ..sim import mechanics
+from ..sim import coupling, mechanics
 from ..sim.driver import Simulation
-from ..sim.state import region_mask
+from ..strands.regions import region_mask
 from ..strands.topology import build_topology
 
 #: the sample tree (the same file as the repository's ``samples/tree.toml``)
@@ -182,8 +182,8 @@ class PullCase:
     """A settled model ready to be pulled (module docstring)."""
 
     name: str
-    setup: object  # MechSetup (with the 1 N pull as its load)
-    settled: object  # MechState after settling
+    model: object  # WoodModel (with the 1 N pull as its load)
+    settled: object  # SimState after settling
     unit_force: np.ndarray  # (P, 3) particle forces of a 1 N pull
     loaded_p: np.ndarray  # particles the pull acts on
     weight_p: np.ndarray  # their share of the force (sums to 1)
@@ -193,12 +193,12 @@ class PullCase:
     settled_seconds: float  # mechanics seconds of its own settling (converged to SETTLE_TOL)
 
 
-def branch_elements(model, scene: Scene, node: str = "b1_2", junction: float = 1.5) -> np.ndarray:
+def branch_elements(model, node: str = "b1_2", junction: float = 1.5) -> np.ndarray:
     """(n,) bool: the elements of the branch through ``node`` and its side branches, and those
     of the wood within ``junction`` times the fork node's radius of the fork (the connection of
     the branch to its parent)."""
-    skel = scene.skeleton
-    branch = build_topology(skel).branch
+    skel = model.skeleton
+    branch = model.topology.branch
     nodes = _subtree(skel, branch, node)
     fork = skel.parent[nodes[0]]
     r = junction * skel.profiles[fork].equivalent_radius
@@ -215,26 +215,26 @@ def pull_cases(scene: Scene, model=None, decay: float = DECAY, resettle: float |
     (elements, bool) limits the decay to those elements (default: all); ``tol`` is the settling
     tolerance (None: fixed times only)."""
     model = build_model(scene) if model is None else model
-    sim = Simulation(model, scene, settle=False)
-    setup = sim.mech_setup
+    sim = Simulation(model, settle=False)
+    setup = model.mech
     if len(setup.loads) != 1:
         raise ValueError("the pull scene must have exactly one [[load]]")
     unit = mechanics.external_forces(setup, setup.loads[0][0])
     unit = unit / np.linalg.norm(unit.sum(axis=0))
     mag = np.linalg.norm(unit, axis=1)
     loaded_p = np.flatnonzero(mag > 0.0)
-    loaded_e = region_mask(model, scene, scene.loads[0]["region"])
+    loaded_e = region_mask(model, scene.loads[0]["region"])
     damping = scene.mechanics.settle_damping
     resettle = scene.mechanics.settle if resettle is None else resettle
     t0 = time.perf_counter()
-    mechanics.settle(setup, sim.state.mech, scene.mechanics.settle, damping, tol=tol)
+    mechanics.settle(model, sim.state, scene.mechanics.settle, damping, tol=tol)
     first = time.perf_counter() - t0
     base = sim.state.mech.copy()
 
     def case(name):
         t0 = time.perf_counter()
-        settled = mechanics.settle(setup, sim.state.mech, resettle, damping, tol=tol)
-        return PullCase(name=name, setup=setup, settled=sim.state.mech.copy(), unit_force=unit, loaded_p=loaded_p,
+        settled = mechanics.settle(model, sim.state, resettle, damping, tol=tol)
+        return PullCase(name=name, model=model, settled=sim.state.copy(), unit_force=unit, loaded_p=loaded_p,
                         weight_p=mag[loaded_p] / mag[loaded_p].sum(), loaded_e=loaded_e,
                         settle_seconds=time.perf_counter() - t0, base_settle_seconds=first,
                         settled_seconds=settled)
@@ -244,7 +244,7 @@ def pull_cases(scene: Scene, model=None, decay: float = DECAY, resettle: float |
     where = slice(None) if region is None else region
     sim.state.H_c[where] = decay
     sim.state.H_l[where] = decay
-    sim.couple()  # Eq. 21 and the limits from the new fields
+    coupling.step(model, sim.state)  # Eq. 21 and the limits from the new fields
     return healthy, case("decayed")
 
 
@@ -266,10 +266,11 @@ def probe(case: PullCase, force: float, seconds: float = SECONDS, displacement: 
           check_every: int = 10, trace: list | None = None) -> Probe:
     """Pull the settled ``case`` with ``force`` newtons for up to ``seconds`` (module docstring);
     ``trace`` collects (t, displacement, detached fraction, failures) at every check."""
-    setup = case.setup
-    ms = case.settled.copy()
+    setup = case.model.mech
+    state = case.settled.copy()
+    ms = state.mech
     ms.pairs_x = None  # rebuild the contact list from this state
-    f = force * case.unit_force
+    ms.force = force * case.unit_force
     x0 = case.weight_p @ ms.x[case.loaded_p]
     failures0 = ms.failures
     anchored = setup.anchored_e
@@ -278,10 +279,10 @@ def probe(case: PullCase, force: float, seconds: float = SECONDS, displacement: 
     n = int(round(seconds / setup.dt))
     d_max = detached = 0.0
     t0 = time.perf_counter()
-    reason, k, last, t_last, stiff = "", 0, failures0, None, None
+    reason, k, last, t_last = "", 0, failures0, None
     while k < n:
         step = min(check_every, n - k)
-        stiff = mechanics.advance(setup, ms, f, step, stiff)[1]
+        mechanics.advance(case.model, state, step)
         k += step
         d_max = max(d_max, float(np.linalg.norm(case.weight_p @ ms.x[case.loaded_p] - x0)))
         now = float(loaded_w[~np.isin(ms.component, ms.component[anchored])].sum())

@@ -48,19 +48,19 @@ def block(length, width, thickness, rod, alpha=1.0, D=1e-3):
     return scene, build_model(scene)
 
 
-def constant_frame_setup(model, scene, direction):
-    """BioSetup whose transport uses a constant wood frame (FRAMES[direction])."""
-    setup = biology.prepare(model, scene)
+def constant_frame_model(model, scene, direction):
+    """``model`` whose biology transport uses a constant wood frame (FRAMES[direction])."""
+    setup = model.bio
     n = model.n_elements
     frames = np.broadcast_to(FRAMES[direction], (n, 3, 3)).copy()
-    aniso = biology.tissue_table(scene, ("a_r", "a_t", "a_l"))[setup.tissue]
+    aniso = model.materials.table(("a_r", "a_t", "a_l"))[setup.tissue]
     kind = model.transport_kind[model.transport_edge_of]
     st = scene.strands
     op = assemble(model.centers, frames, model.particles[model.first_particle],
                   model.particles[model.first_particle + 1], np.pi * st.r_s**2 / st.phi_pack,
                   model.transport_indptr, model.transport_indices, kind == 1, aniso)
     setup = replace(setup, op=op)
-    return replace(setup, bound=biology.stability_bound(setup))
+    return replace(model, bio=replace(setup, bound=biology.stability_bound(setup)))
 
 
 #: principal factors a_dir of the default [transport] section
@@ -71,18 +71,19 @@ def heat_kernel_ratio(direction: str, D: float = 1e-3, t_end: float = 0.6) -> tu
     """(measured d var/dt) / (2 D a_dir) for a point release in a 0.8 x 0.24 x 0.24 m block, and
     the clamp count (0 expected)."""
     scene, model = block(0.8, 0.24, 0.24, 0.015, alpha=0.0, D=D)
-    setup = constant_frame_setup(model, scene, direction)
+    model = constant_frame_model(model, scene, direction)
+    setup = model.bio
     axis = AXIS[direction]
     c = model.centers
     i0 = int(np.argmin(np.linalg.norm(c - [0.4, 0.0, 0.0], axis=1)))
-    s = initial_state(model, scene)
+    s = initial_state(model)
     s.R_b[:] = 0.0
     s.R_b[i0] = 1.0
     V = setup.op.volume
     x = c[:, axis] - c[i0, axis]
     ts, vs = [], []
     while s.t_days < t_end - 1e-12:
-        biology.step(s, setup, 0.01)
+        biology.step(model, s, 0.01)
         w = V * s.R_b / np.sum(V * s.R_b)
         mu = np.sum(w * x)
         ts.append(s.t_days)
@@ -100,16 +101,17 @@ def fisher_speed_ratio(direction: str, alpha: float = 1.0) -> tuple[float, int]:
         scene, model = block(4.0, 0.05, 0.05, 0.01, alpha, D_dir / a)
     else:
         scene, model = block(0.06, 3.4, 0.04, 0.015, alpha, D_dir / a)
-    setup = constant_frame_setup(model, scene, direction)
+    model = constant_frame_model(model, scene, direction)
+    setup = model.bio
     x = model.centers[:, AXIS[direction]]
     x = x - x.min()
-    s = initial_state(model, scene)
+    s = initial_state(model)
     s.R_b[:] = np.where(x < 0.2, 1.0, 0.0)
     V = setup.op.volume
     area = V.sum() / x.max()
     ts, X = [], []
     while s.t_days < 34.0 / alpha - 1e-9:
-        biology.step(s, setup, 0.1 / alpha)
+        biology.step(model, s, 0.1 / alpha)
         ts.append(s.t_days)
         X.append(np.sum(V * s.R_b) / area)
     ts, X = np.array(ts), np.array(X)
