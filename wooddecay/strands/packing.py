@@ -154,6 +154,21 @@ def collision_sweep(pts, pairs, target):
             pts[j, 1] += c * dy
 
 
+def collision_sweep_reference(pts: np.ndarray, pairs: np.ndarray, target: float) -> None:
+    """Plain numpy twin of :func:`collision_sweep` (the same projections in the same order)."""
+    for i, j in pairs:
+        d = pts[j] - pts[i]
+        dist = float(np.sqrt(d[0] * d[0] + d[1] * d[1]))
+        if dist >= target:
+            continue
+        if dist < 1e-15:
+            d, c = np.array([1.0, 0.0]), 0.5 * target
+        else:
+            c = 0.5 * (target - dist) / dist
+        pts[i] -= c * d
+        pts[j] += c * d
+
+
 def pbd_relax(
     profile: Profile, pts: np.ndarray, goal: np.ndarray, r_s: float, iterations: int,
     pull: float = 0.5, sweeps: int = 4,
