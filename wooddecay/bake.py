@@ -25,8 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
+from . import __version__
 from .atomic import write_bytes
 from .errors import InputError
+from .export.gltf import export_gltf
+from .export.usd import export_usd
+from .meshlets.sweep import build_meshlets
+from .model import build_model
 from .sim.driver import Frame, Simulation
 from .sim.state import FIELDS
 
@@ -69,11 +74,6 @@ def bake(scene, out, resume: bool = False, quality: str = "final", progress=None
 
     ``progress(frame, n_frames)`` is called after every simulated frame.
     """
-    from . import __version__
-    from .export.gltf import export_gltf
-    from .export.usd import export_usd
-    from .meshlets.sweep import build_meshlets
-    from .model import build_model
 
     if quality not in QUALITIES:
         raise InputError(str(out), "--quality", f"must be one of {', '.join(QUALITIES)}, not {quality!r}")

@@ -29,7 +29,7 @@ import math
 import numba as nb
 import numpy as np
 
-from ..quaternion import mul, rotate
+from ..quaternion import conj_np, mul, mul_np, normalize_np, pure_np, rotate, rotate_np
 
 
 @nb.njit(inline="always", cache=True)
@@ -216,7 +216,6 @@ def _xpbd_np(C, lam, W, k, dt):
 
 def stretch_shear_reference(elems, fp, x, q, w_p, w_q, rest_length, k_stretch, k_shear, element_ok,
                             lam_s, lam_sh, dt):
-    from ..quaternion import mul_np, normalize_np, pure_np, rotate_np
     e = elems[element_ok[elems]]
     a, b = fp[e], fp[e] + 1
     wa, wb, wq, l = w_p[a], w_p[b], w_q[e], rest_length[e]
@@ -246,7 +245,6 @@ def stretch_shear_reference(elems, fp, x, q, w_p, w_q, rest_length, k_stretch, k
 
 
 def bend_twist_reference(pairs, idx, q, w_q, rest, length, k_bend, k_twist, lam, dt):
-    from ..quaternion import conj_np, mul_np, normalize_np, pure_np
     i, j = pairs[idx, 0], pairs[idx, 1]
     wi, wj = w_q[i], w_q[j]
     act = wi + wj > 0

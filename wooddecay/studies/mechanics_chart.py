@@ -25,9 +25,11 @@ from __future__ import annotations
 import inspect
 import math
 
+import numba
 import numpy as np
 
 from . import cantilever
+from . import elastica as pe
 
 #: substep lengths swept (s); substeps per simulated second = 1 / dt
 DTS = (1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4)
@@ -67,8 +69,6 @@ def run_mechanics(dts=DTS, iterations=ITERATIONS, seconds: float = SECONDS,
     PyElastica), ``error`` (relative, NaN when the run blew up), ``seconds`` (wall time of the
     stepping), ``simulated`` (s) and, for ours, ``threads``. The PyElastica entry is left out when it is not installed.
     """
-    import numba
-
     before = numba.get_num_threads()
     numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
     try:
@@ -78,8 +78,6 @@ def run_mechanics(dts=DTS, iterations=ITERATIONS, seconds: float = SECONDS,
 
 
 def _sweep(dts, iterations, seconds, elastica) -> list[dict]:
-    import numba
-
     c = case()
     cantilever.cantilever(length=c["length"], n=c["n"], dt=2e-3, iterations=1, seconds=0.01)  # compile numba
     out = []
@@ -103,8 +101,6 @@ def _sweep(dts, iterations, seconds, elastica) -> list[dict]:
 
 def run_elastica(c: dict | None = None) -> dict:
     """PyElastica's point for the same rod, with its (default) step and run length made explicit."""
-    from . import elastica as pe
-
     c = case() if c is None else c
     dx = c["length"] / (c["n"] - 0.5)  # as elastica_cantilever lays the rod
     dt = pe.DT_SAFETY * pe.stable_dt(dx, c["r_s"], c["E"], c["G"], c["rho"])
