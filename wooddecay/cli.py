@@ -341,7 +341,7 @@ def chart_barrier(output: str, days: float) -> None:
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="PNG to write.")
 @click.option("--quick", is_flag=True, help="Fewer settings (dt in {1e-2, 1e-3, 2e-4} s x 2, 10 iterations).")
 def chart_mechanics(output: str, quick: bool) -> None:
-    """Issue 4 item 7: cantilever error against wall time over dt (substeps per simulated
+    """SPEC §7 "Speed": cantilever error against wall time over dt (substeps per simulated
     second = 1/dt) and iterations, with PyElastica's point on the same axes."""
     from .studies.mechanics_chart import (DTS, DTS_QUICK, ITERATIONS, ITERATIONS_QUICK, describe,
                                           plot_mechanics, run_mechanics)

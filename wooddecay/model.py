@@ -273,9 +273,9 @@ def build_model(scene) -> WoodModel:
         tissue = classify_tissue(bd, age, elem_years, bark_thickness=rg.bark_thickness,
                                  sapwood_rings=rg.sapwood_rings, pith_rings=rg.pith_rings)
         wood_coords = np.stack([np.hypot(uv[:, 0], uv[:, 1]), np.arctan2(uv[:, 1], uv[:, 0]), geo.s], axis=1)
-        per_tissue = {k: np.array([scene.tissue_param(name, k) for name in TISSUES])[tissue]
-                      for k in ("M_init", "rho_dry")}
-        mass = per_tissue["rho_dry"] * (1.0 + per_tissue["M_init"]) * np.pi * st.r_s**2 * geo.rest_length
+        materials = Materials({k: tuple(scene.tissue_param(t, k) for t in TISSUES) for k in TISSUE_KEYS}, tissue)
+        mass = (materials.per_element("rho_dry") * (1.0 + materials.per_element("M_init")) * np.pi * st.r_s**2
+                * geo.rest_length)
         branch = topo.branch[node_b]
         root_of = np.arange(len(skel.ids))
         for i in range(len(skel.ids)):  # parents precede children
@@ -314,7 +314,7 @@ def build_model(scene) -> WoodModel:
         transport_edge_of=t_edge_of,
         cp_offsets=strands.offsets, cp_node=strands.node, cp_uv=cp_uv, cp_s=cp_s, particle_s=particle_s,
         skeleton=skel, topology=topo, r_s=float(st.r_s),
-        materials=Materials({k: tuple(scene.tissue_param(t, k) for t in TISSUES) for k in TISSUE_KEYS}, tissue),
+        materials=materials,
         info=SceneInfo(name=str(scene.name), seed=int(scene.seed), hash=scene.hash),
         time=TimeSpec(days=float(scene.time.days), dt_bio=float(scene.time.dt_bio), frames=int(scene.time.frames),
                       fps=float(scene.time.fps), N_mech=int(scene.mechanics.N_mech),
