@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 import wooddecay as wd
 from wooddecay.cli import main
-from wooddecay.params import PARAMS
+from wooddecay.scene import PARAMS
 from wooddecay.sim import biology as B
 from wooddecay.sim.state import FIELDS, SimState, initial_state
 from wooddecay.strands.rings import HEARTWOOD, SAPWOOD

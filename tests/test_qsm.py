@@ -6,7 +6,7 @@ from hypothesis import strategies as st
 
 from wooddecay.errors import InputError
 from wooddecay.strands.qsm import load_treeqsm
-from wooddecay.strands.skeleton import load_skeleton
+from wooddecay.strands.skeleton_loader import load_skeleton
 
 # A trunk cylinder (1) with a continuation (2) and a branch (3) starting half way up cylinder 2.
 TABLE = """# start_xyz axis_xyz length radius parent

@@ -8,7 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from wooddecay.errors import InputError
-from wooddecay.strands.skeleton import load_skeleton, parse_nodes
+from wooddecay.strands.skeleton import parse_nodes
+from wooddecay.strands.skeleton_loader import load_skeleton
 
 SRC = "scene.toml"
 

@@ -2,9 +2,10 @@
 
 A skeleton is a forest of nodes, each with an id, a 3D position, an optional parent and a
 planar cross-section profile (see :mod:`wooddecay.strands.profiles`). Roots may be anchored
-(a stump held in place). Nodes come from the scene's ``[skeleton]`` table, either inline
-(``[[skeleton.node]]``), from a native TOML file with a ``[[node]]`` array, or from a TreeQSM
-cylinder table (:mod:`wooddecay.strands.qsm`).
+(a stump held in place). This module holds the :class:`Skeleton` type and the validation of
+native node tables (:func:`parse_nodes`), which every source of nodes goes through: the scene's
+``[skeleton]`` table and the files it names (:mod:`wooddecay.strands.skeleton_loader`) and
+TreeQSM cylinder tables (:mod:`wooddecay.strands.qsm`).
 
 All bad input raises :class:`wooddecay.errors.InputError` naming the file, the key (e.g.
 ``skeleton.node[n3].profile.radius``) and what is allowed; nothing else escapes.
@@ -13,14 +14,11 @@ from __future__ import annotations
 
 import heapq
 import math
-import tomllib
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from wooddecay.errors import InputError
-from wooddecay.params import did_you_mean, format_value, type_name
+from wooddecay.errors import InputError, did_you_mean, format_value, type_name
 from wooddecay.strands import profiles
 from wooddecay.strands.profiles import Profile
 
@@ -33,8 +31,6 @@ PROFILE_KEYS = {
     "ellipse": ("kind", "a", "b", "angle"),
     "polygon": ("kind", "points"),
 }
-TABLE_KEYS = ("file", "format", "node", "scale")
-FORMAT_BY_SUFFIX = {".toml": "native", ".csv": "treeqsm", ".txt": "treeqsm"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -75,7 +71,7 @@ class Skeleton:
 
 # ----------------------------------------------------------------------------- messages
 
-def _check_keys(table: dict, allowed, required, source: str, key: str) -> None:
+def check_keys(table: dict, allowed, required, source: str, key: str) -> None:
     """Reject unknown keys (with a did-you-mean) and missing required keys."""
     prefix = f"{key}." if key else ""
     for name in table:
@@ -108,7 +104,7 @@ def _number(value, source: str, key: str) -> float:
     return x
 
 
-def _positive(value, source: str, key: str) -> float:
+def positive(value, source: str, key: str) -> float:
     """Return ``value`` as a finite float > 0 m."""
     x = _number(value, source, key)
     if x <= 0.0:
@@ -164,12 +160,12 @@ def _profile(value, source: str, key: str) -> Profile:
         raise InputError(source, f"{key}.kind", f"must be one of circle, ellipse, polygon (got {format_value(kind)})")
     allowed = PROFILE_KEYS[kind]
     required = tuple(k for k in allowed if k != "angle")
-    _check_keys(value, allowed, required, source, key)
+    check_keys(value, allowed, required, source, key)
     if kind == "circle":
-        return profiles.circle(_positive(value["radius"], source, f"{key}.radius"))
+        return profiles.circle(positive(value["radius"], source, f"{key}.radius"))
     if kind == "ellipse":
-        a = _positive(value["a"], source, f"{key}.a")
-        b = _positive(value["b"], source, f"{key}.b")
+        a = positive(value["a"], source, f"{key}.a")
+        b = positive(value["b"], source, f"{key}.b")
         angle = _number(value.get("angle", 0.0), source, f"{key}.angle")
         return profiles.ellipse(a, b, angle)
     return _polygon_profile(value["points"], source, f"{key}.points")
@@ -200,7 +196,7 @@ def _parse_node(node, index: int, source: str, key: str) -> tuple[str, str, np.n
         raise InputError(source, f"{key}[#{index}].id", "is required")
     nid = _node_id(node["id"], source, f"{key}[#{index}].id")
     here = f"{key}[{nid}]"
-    _check_keys(node, NODE_KEYS, ("id", "position", "profile"), source, here)
+    check_keys(node, NODE_KEYS, ("id", "position", "profile"), source, here)
     position = _vector(node["position"], 3, source, f"{here}.position")
     parent = node.get("parent", "")
     parent = "" if parent == "" else _node_id(parent, source, f"{here}.parent")
@@ -341,40 +337,12 @@ def parse_nodes(nodes, source: str, key: str = "skeleton.node") -> Skeleton:
     return _make_skeleton(new_ids, positions, new_parent, [parsed[i][3] for i in order], anchored, source)
 
 
-# -------------------------------------------------------------------------------- files
+def scale_skeleton(skel: Skeleton, factor: float, key: str) -> Skeleton:
+    """Return ``skel`` with positions and profiles multiplied by ``factor`` (> 0).
 
-def _read_native(path: Path) -> Skeleton:
-    """Load a native skeleton TOML file (a ``[[node]]`` array)."""
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as err:
-        raise InputError(str(path), "", f"not valid TOML: {err}") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise InputError(str(path), "", f"cannot read the skeleton file: {err}") from None
-    _check_keys(data, ("node",), ("node",), str(path), "")
-    return parse_nodes(data["node"], str(path), "node")
-
-
-def _format_of(table: dict, path: Path | None, source: str) -> str:
-    """Resolve ``skeleton.format`` (explicit, or from the file extension)."""
-    if "format" in table:
-        fmt = table["format"]
-        if fmt not in ("native", "treeqsm"):
-            raise InputError(source, "skeleton.format", f"must be \"native\" or \"treeqsm\" (got {format_value(fmt)})")
-        if path is None and fmt != "native":
-            raise InputError(source, "skeleton.format", "inline skeleton.node tables are always \"native\"")
-        return fmt
-    if path is None:
-        return "native"
-    if path.suffix.lower() not in FORMAT_BY_SUFFIX:
-        raise InputError(source, "skeleton.format", f"cannot tell the format of '{path.name}' from its extension "
-                         "(.toml native, .csv/.txt treeqsm); set format = \"native\" or \"treeqsm\"")
-    return FORMAT_BY_SUFFIX[path.suffix.lower()]
-
-
-def _scaled(skel: Skeleton, factor: float, key: str) -> Skeleton:
-    """Return ``skel`` with positions and profiles multiplied by ``factor`` (``key``: node array key)."""
+    Edges that become too short are reported under ``key`` (the node array's key); positions that
+    overflow under ``skeleton.scale``.
+    """
     if factor == 1.0:
         return skel
     with np.errstate(all="ignore"):
@@ -385,47 +353,3 @@ def _scaled(skel: Skeleton, factor: float, key: str) -> Skeleton:
     parent = skel.parent.copy()
     _check_edges(positions, parent, skel.ids, skel.source, key)
     return _make_skeleton(skel.ids, positions, parent, profs, skel.anchored.copy(), skel.source)
-
-
-def load_skeleton(table, base_dir: Path, source: str) -> Skeleton:
-    """Load the skeleton described by the scene's ``[skeleton]`` table.
-
-    Parameters
-    ----------
-    table : dict
-        Keys ``file`` (path relative to the scene file) or ``node`` (inline array of node
-        tables), exactly one of them; ``format`` ("native" | "treeqsm", default from the file
-        extension: .toml native, .csv/.txt treeqsm); ``scale`` (float > 0, default 1).
-    base_dir : Path
-        Directory of the scene file.
-    source : str
-        The scene file (for messages).
-
-    Returns
-    -------
-    Skeleton
-
-    Raises
-    ------
-    InputError
-        For a bad table or a bad skeleton (file errors name the skeleton file).
-    """
-    if not isinstance(table, dict):
-        raise InputError(source, "skeleton", f"must be a table (got {type_name(table)})")
-    _check_keys(table, TABLE_KEYS, (), source, "skeleton")
-    if ("file" in table) == ("node" in table):
-        raise InputError(source, "skeleton", "give exactly one of skeleton.file or [[skeleton.node]]")
-    scale = _positive(table.get("scale", 1.0), source, "skeleton.scale")
-    if "node" in table:
-        _format_of(table, None, source)
-        return _scaled(parse_nodes(table["node"], source, "skeleton.node"), scale, "skeleton.node")
-    if not isinstance(table["file"], str) or not table["file"].strip():
-        raise InputError(source, "skeleton.file", f"must be a path string (got {format_value(table['file'])})")
-    path = Path(base_dir) / table["file"]
-    if not path.is_file():
-        raise InputError(source, "skeleton.file", f"'{table['file']}' is not a file (looked for {path})")
-    if _format_of(table, path, source) == "treeqsm":
-        from wooddecay.strands.qsm import load_treeqsm
-
-        return _scaled(load_treeqsm(path), scale, "node")
-    return _scaled(_read_native(path), scale, "node")

@@ -1,45 +1,34 @@
-"""The parameter schema: every scene key, its default, unit and allowed range.
+"""The scene schema: every key of every scene table, its default, unit, allowed range and doc.
 
-This module is the single source of truth for the scene parameters (SPEC §1). Every parameter of
-the paper's Table 3 (woodstock) is a key named after its symbol (``alpha_w0``, ``D_b``, ``k_DM``,
-``M_0``, ``S``, ``s``, ``p_l_*``, ``k_c``, ``k_l``, ``k_col``, ``mu_f``, ...) with the Table 3
-typical value as its default. Units are SI; biology time is in days, mechanics time in seconds,
-moisture in kg/kg.
+This module is the single source of truth for what a scene may contain (SPEC §1). Every
+parameter of the paper's Table 3 (woodstock) is a key named after its symbol (``alpha_w0``,
+``D_b``, ``k_DM``, ``M_0``, ``S``, ``s``, ``p_l_*``, ``k_c``, ``k_l``, ``k_col``, ``mu_f``, ...)
+with the Table 3 typical value as its default. Units are SI; biology time is in days, mechanics
+time in seconds, moisture in kg/kg.
 
-The table is built at import from the compact literal :data:`_SCHEMA` into :data:`PARAMS`
-(``{section: {name: Param}}``). :func:`validate_value` checks one value against its
-:class:`Param` and raises :class:`~wooddecay.errors.InputError` naming the file, the dotted key and
-the allowed range with its unit, e.g. ``log.toml: strands.r_s: -1 is outside (0, 1] m``.
+Two kinds of table, one row format ``(name, default, unit, range, doc[, kind])``:
 
-Parameters of :data:`TISSUE_SECTIONS` may be overridden per tissue (``[tissue.heartwood]``); their
-names are unique across those sections (asserted below) so a tissue table can use bare names.
+* scalar sections (``[strands]``, ``[fungi]``, ...): :data:`PARAMS` ``{section: {name: Param}}``
+  from :data:`_SCHEMA`. Parameters of :data:`TISSUE_SECTIONS` may be overridden per tissue
+  (``[tissue.heartwood]``); their names are unique across those sections (asserted below) so a
+  tissue table uses bare names (:data:`TISSUE_KEYS`).
+* entry tables (``[[inoculation]]``, ``[[load]]``, ``[[collider]]`` and the ``region`` table of
+  the first two): :data:`TABLES` ``{name: Table}`` from :data:`_TABLE_SCHEMA`. A key without a
+  default is required. A table with a ``kind`` key has further keys per kind: a region is a
+  ``box`` (``min``, ``max``), ``sphere`` (``center``, ``radius``), skeleton ``node`` (``id``,
+  ``radius``), log ``end`` (``which``, ``depth``) or bark ``wound`` (``position``, ``radius``,
+  ``depth``), in ``world`` or wood-local (r, phi, s) coordinates (SPEC §3 inoculation); a
+  collider (woodstock §5.1) is a ``plane``, ``box``, ``sphere`` or ``cylinder``.
+
+:func:`format_range` says in words what a :class:`Param` allows (``(0, 1] m``); :func:`describe`
+prints the scalar sections as Markdown.
 """
 from __future__ import annotations
 
-import difflib
-import math
-import numbers
 from dataclasses import dataclass
-from typing import Any, Iterable
+from typing import Any
 
-from wooddecay.errors import InputError
-
-__all__ = [
-    "Param",
-    "PARAMS",
-    "SECTIONS",
-    "TISSUES",
-    "TISSUE_SECTIONS",
-    "TISSUE_KEYS",
-    "get_param",
-    "make_param",
-    "validate_value",
-    "format_range",
-    "format_value",
-    "type_name",
-    "did_you_mean",
-    "describe",
-]
+from wooddecay.errors import format_value
 
 
 @dataclass(frozen=True)
@@ -48,8 +37,10 @@ class Param:
 
     ``lo``/``hi`` are ``None`` when unbounded; ``lo_open``/``hi_open`` say whether the bound itself
     is excluded. ``kind`` is one of ``float``, ``int``, ``bool``, ``str``, ``enum``, ``vec3``,
-    ``list``; ``choices`` lists the values of an ``enum``. ``default`` is ``None`` for a derived
-    default (``scene.name``: the scene file stem; ``strands.connect_radius``: ``2.5 * r_s``).
+    ``list`` (the moisture schedule), ``interval`` (``[start, end]`` days), ``region`` (a nested
+    region table) or ``node_id`` (a skeleton node); ``choices`` lists the values of an ``enum``.
+    ``default`` is ``None`` for a derived default in a scalar section (``scene.name``: the scene
+    file stem; ``strands.connect_radius``: ``2.5 * r_s``) and for a required key of an entry table.
     """
 
     section: str
@@ -70,11 +61,28 @@ class Param:
         return f"{self.section}.{self.name}"
 
 
+@dataclass(frozen=True)
+class Table:
+    """The keys of an entry table (``[[inoculation]]``, ``[[load]]``, ``[[collider]]``, ``region``).
+
+    ``keys`` holds the keys of every entry in order; a table with a ``kind`` key lists each kind's
+    further keys in ``kinds`` (empty otherwise). A key whose default is ``None`` is required.
+    """
+
+    name: str
+    keys: dict[str, Param]
+    kinds: dict[str, dict[str, Param]]
+
+    def keys_of(self, kind: str | None) -> dict[str, Param]:
+        """The keys of an entry of ``kind`` (``None`` for a table without kinds), in order."""
+        return self.keys if kind is None else {**self.keys, **self.kinds[kind]}
+
+
 # ---------------------------------------------------------------------------------------------
 # The compact literal. Row: (name, default, unit, range, doc[, kind]).
 # range: "(lo, hi]" style interval ("inf" for unbounded), "any", or "" (no numeric range).
 # kind is inferred from the default (bool/int/float/str) unless given: "float" (derived default),
-# "enum:a|b", "vec3", "list".
+# "enum:a|b", "vec3", "list", "interval", "region", "node_id".
 # ---------------------------------------------------------------------------------------------
 _T3 = "woodstock Table 3"
 _SCHEMA: dict[str, list[tuple]] = {
@@ -212,6 +220,77 @@ _SCHEMA: dict[str, list[tuple]] = {
     ],
 }
 
+#: Factor applied to strand lengths (r_s, rod_length, connect_radius) by ``quality = "draft"``.
+DRAFT_SCALE = 1.5
+#: Default connect_radius in units of r_s, and the smallest allowed.
+CONNECT_FACTOR = 2.5
+CONNECT_MIN_FACTOR = 2.0
+
+_VEC = "vec3"
+_LENGTH = "(0, inf)"
+#: Entry tables: ``{table: {"": common rows, kind: that kind's rows}}``; ``region`` is the
+#: ``region`` key of [[inoculation]] and [[load]].
+_TABLE_SCHEMA: dict[str, dict[str, list[tuple]]] = {
+    "inoculation": {"": [
+        ("fungus", None, "", "", "Fungus kind.", "enum:white|brown"),
+        ("activity", 0.1, "", "(0, 1]", "Initial activity R_w or R_b (woodstock Eqs. 8-9)."),
+        ("day", 0.0, "day", "[0, inf)", "Day the inoculation happens."),
+        ("region", None, "", "", "Where the fungus starts (SPEC §3).", "region"),
+    ]},
+    "load": {"": [
+        ("region", None, "", "", "Elements the force is applied to (SPEC §4, woodstock Fig. 17).", "region"),
+        ("force", None, "N", "", "Force applied to the region.", _VEC),
+        ("days", None, "day", "[0, inf)", "Day interval [start, end] the force acts over.", "interval"),
+    ]},
+    "region": {
+        "": [
+            ("kind", None, "", "", "Region kind.", "enum:box|sphere|node|end|wound"),
+            ("space", "world", "", "", "Coordinates of the region: world, or wood-local (r, phi, s).", "enum:world|wood"),
+        ],
+        "box": [
+            ("min", None, "m", "", "Lower corner; min < max componentwise.", _VEC),
+            ("max", None, "m", "", "Upper corner.", _VEC),
+        ],
+        "sphere": [
+            ("center", None, "m", "", "Centre.", _VEC),
+            ("radius", None, "m", _LENGTH, "Radius.", "float"),
+        ],
+        "node": [
+            ("id", None, "", "", "Id of a skeleton node.", "node_id"),
+            ("radius", None, "m", _LENGTH, "Radius around the node.", "float"),
+        ],
+        "end": [
+            ("which", "root", "", "", "Which log end.", "enum:root|tip"),
+            ("depth", None, "m", _LENGTH, "Depth from the end along the log.", "float"),
+        ],
+        "wound": [
+            ("position", None, "m", "", "Point on the bark.", _VEC),
+            ("radius", None, "m", _LENGTH, "Radius of the wound.", "float"),
+            ("depth", None, "m", _LENGTH, "Depth below the bark.", "float"),
+        ],
+    },
+    "collider": {
+        "": [("kind", None, "", "", "Collider kind.", "enum:plane|box|sphere|cylinder")],
+        "plane": [
+            ("point", None, "m", "", "A point of the plane.", _VEC),
+            ("normal", None, "m", "", "Plane normal (not zero).", _VEC),
+        ],
+        "box": [
+            ("min", None, "m", "", "Lower corner of the axis-aligned box.", _VEC),
+            ("max", None, "m", "", "Upper corner; max > min componentwise.", _VEC),
+        ],
+        "sphere": [
+            ("center", None, "m", "", "Centre.", _VEC),
+            ("radius", None, "m", _LENGTH, "Radius.", "float"),
+        ],
+        "cylinder": [
+            ("a", None, "m", "", "One end of the axis.", _VEC),
+            ("b", None, "m", "", "The other end (not a).", _VEC),
+            ("radius", None, "m", _LENGTH, "Radius.", "float"),
+        ],
+    },
+}
+
 #: Sections whose parameters may be overridden per tissue (``[tissue.<name>]``).
 TISSUE_SECTIONS: tuple[str, ...] = ("fungi", "moisture", "mechanics", "transport", "wood")
 #: Tissue names (SPEC §2), in order from outside in.
@@ -231,43 +310,62 @@ def _parse_range(text: str) -> tuple[float | None, float | None, bool, bool]:
     return lo, hi, lo_open, hi_open
 
 
-def _build(schema: dict[str, list[tuple]]) -> dict[str, dict[str, Param]]:
-    out: dict[str, dict[str, Param]] = {}
-    for section, rows in schema.items():
-        table: dict[str, Param] = {}
-        for row in rows:
-            name, default, unit, rng, doc = row[:5]
-            kind = row[5] if len(row) > 5 else None
-            choices: tuple[str, ...] = ()
-            if kind is None:
-                if isinstance(default, bool):
-                    kind = "bool"
-                elif isinstance(default, int):
-                    kind = "int"
-                elif isinstance(default, float):
-                    kind = "float"
-                elif isinstance(default, str):
-                    kind = "str"
-                else:  # pragma: no cover - schema bug
-                    raise AssertionError(f"cannot infer the kind of {section}.{name}")
-            elif kind.startswith("enum:"):
-                choices = tuple(kind[5:].split("|"))
-                kind = "enum"
-            lo, hi, lo_open, hi_open = _parse_range(rng)
-            if kind == "vec3" and default is not None:
-                default = tuple(float(x) for x in default)
-            elif kind == "list" and default is not None:
-                default = tuple(default)
-            assert name not in table, f"duplicate key {section}.{name}"
-            table[name] = Param(section, name, default, unit, lo, hi, lo_open, hi_open, kind, doc, choices)
-        out[section] = table
-    return out
+def _param(section: str, row: tuple) -> Param:
+    """One :class:`Param` from a schema row."""
+    name, default, unit, rng, doc = row[:5]
+    kind = row[5] if len(row) > 5 else None
+    choices: tuple[str, ...] = ()
+    if kind is None:
+        if isinstance(default, bool):
+            kind = "bool"
+        elif isinstance(default, int):
+            kind = "int"
+        elif isinstance(default, float):
+            kind = "float"
+        elif isinstance(default, str):
+            kind = "str"
+        else:  # pragma: no cover - schema bug
+            raise AssertionError(f"cannot infer the kind of {section}.{name}")
+    elif kind.startswith("enum:"):
+        choices = tuple(kind[5:].split("|"))
+        kind = "enum"
+    lo, hi, lo_open, hi_open = _parse_range(rng)
+    if kind == "vec3" and default is not None:
+        default = tuple(float(x) for x in default)
+    elif kind == "list" and default is not None:
+        default = tuple(default)
+    return Param(section, name, default, unit, lo, hi, lo_open, hi_open, kind, doc, choices)
 
 
-#: ``{section: {name: Param}}`` in schema order.
-PARAMS: dict[str, dict[str, Param]] = _build(_SCHEMA)
-#: Section names of the scalar parameter tables (not ``skeleton``/``tissue``/``inoculation``/``load``).
+def _params(section: str, rows: list[tuple]) -> dict[str, Param]:
+    """``{name: Param}`` of a list of rows, in order."""
+    table: dict[str, Param] = {}
+    for row in rows:
+        assert row[0] not in table, f"duplicate key {section}.{row[0]}"
+        table[row[0]] = _param(section, row)
+    return table
+
+
+def _table(name: str, rows: dict[str, list[tuple]]) -> Table:
+    keys = _params(name, rows[""])
+    kinds = {kind: _params(name, kind_rows) for kind, kind_rows in rows.items() if kind}
+    if kinds:
+        assert keys["kind"].choices == tuple(kinds), f"{name}.kind choices differ from its kinds"
+    for kind_keys in kinds.values():
+        assert not set(kind_keys) & set(keys), f"{name}: a kind repeats a common key"
+    return Table(name, keys, kinds)
+
+
+#: ``{section: {name: Param}}`` of the scalar sections, in schema order.
+PARAMS: dict[str, dict[str, Param]] = {sec: _params(sec, rows) for sec, rows in _SCHEMA.items()}
+#: Section names of the scalar parameter tables (not ``skeleton``/``tissue``/the entry tables).
 SECTIONS: tuple[str, ...] = tuple(PARAMS)
+#: ``{name: Table}`` of the entry tables.
+TABLES: dict[str, Table] = {name: _table(name, rows) for name, rows in _TABLE_SCHEMA.items()}
+#: Entry tables written as arrays of tables at the top of a scene (``[[inoculation]]``).
+ARRAY_TABLES: tuple[str, ...] = ("inoculation", "load", "collider")
+#: Every top-level key of a scene (``[skeleton]`` is read by :mod:`wooddecay.strands.skeleton_loader`).
+TOP_LEVEL: tuple[str, ...] = SECTIONS + ("skeleton", "tissue") + ARRAY_TABLES
 
 #: Bare name -> Param for every tissue-overridable parameter.
 TISSUE_KEYS: dict[str, Param] = {}
@@ -281,13 +379,6 @@ for _sec in TISSUE_SECTIONS:
 del _sec, _name, _p
 
 
-def make_param(section: str, name: str, default: Any, unit: str, rng: str, doc: str = "",
-               kind: str | None = None) -> Param:
-    """Build one :class:`Param` from a schema row (used for the inoculation / load tables)."""
-    row: tuple = (name, default, unit, rng, doc) + ((kind,) if kind else ())
-    return _build({section: [row]})[section][name]
-
-
 def get_param(key: str) -> Param:
     """The :class:`Param` of a dotted key ``section.name`` (``KeyError`` if there is none)."""
     section, _, name = key.partition(".")
@@ -298,7 +389,7 @@ def get_param(key: str) -> Param:
 
 
 # ---------------------------------------------------------------------------------------------
-# Formatting helpers (messages are one line)
+# In words (messages are one line)
 # ---------------------------------------------------------------------------------------------
 def _num(x: float) -> str:
     """Compact number for ranges: 1, 0.5, 1e-5, 1e13."""
@@ -324,6 +415,12 @@ def format_range(p: Param) -> str:
         return f"a list of 3 finite numbers [x, y, z]{unit}"
     if p.kind == "list":
         return "a list of [day, M_1, M_2] rows (days >= 0 strictly increasing, M_2 < M_1) in day, kg/kg"
+    if p.kind == "interval":
+        return "[start, end] in days with 0 <= start < end"
+    if p.kind == "region":
+        return "a region table {kind = ..., ...}"
+    if p.kind == "node_id":
+        return "a skeleton node id (string or integer)"
     if p.lo is None and p.hi is None:
         what = "any integer" if p.kind == "int" else "any finite number"
         return what + unit
@@ -332,203 +429,8 @@ def format_range(p: Param) -> str:
     return f"{lo}, {hi}{unit}"
 
 
-def type_name(v: Any) -> str:
-    """TOML-flavoured name of a value's type for messages."""
-    if isinstance(v, bool):
-        return "boolean"
-    if isinstance(v, numbers.Integral):
-        return "integer"
-    if isinstance(v, numbers.Real):
-        return "float"
-    if isinstance(v, str):
-        return "string"
-    if isinstance(v, dict):
-        return "table"
-    if isinstance(v, (list, tuple)):
-        return "array"
-    return type(v).__name__
-
-
-def format_value(v: Any, limit: int = 60) -> str:
-    """Short, one-line, TOML-like rendering of a value for messages."""
-    if isinstance(v, bool):
-        s = "true" if v else "false"
-    elif isinstance(v, numbers.Integral):
-        try:
-            s = str(int(v))
-        except ValueError:  # more digits than Python converts to text
-            s = f"<integer of about {int(int(v).bit_length() * math.log10(2)) + 1} digits>"
-        if len(s) > 30 and s[0] != "<":
-            s = f"{s[:12]}...({len(s)} digits)"
-    elif isinstance(v, numbers.Real):
-        f = float(v)
-        s = "nan" if math.isnan(f) else ("inf" if f == math.inf else ("-inf" if f == -math.inf else repr(f)))
-    elif isinstance(v, str):
-        s = repr(v)
-    else:
-        try:
-            s = repr(v)
-        except Exception:  # pragma: no cover - defensive
-            s = f"<{type(v).__name__}>"
-    s = " ".join(s.split())
-    if len(s) > limit:
-        s = s[: limit - 3] + "..."
-    return s
-
-
-def did_you_mean(word: Any, candidates: Iterable[str]) -> str:
-    """``"; did you mean 'x'?"`` for the closest candidate, or ``""``."""
-    cands = [str(c) for c in candidates]
-    w = str(word)
-    lower = {c.lower(): c for c in cands}
-    match = None
-    if w.lower() in lower and lower[w.lower()] != w:
-        match = lower[w.lower()]
-    else:
-        close = difflib.get_close_matches(w, cands, n=1, cutoff=0.6)
-        if close:
-            match = close[0]
-    return f"; did you mean {match!r}?" if match else ""
-
-
-# ---------------------------------------------------------------------------------------------
-# Validation
-# ---------------------------------------------------------------------------------------------
-def _is_number(v: Any) -> bool:
-    return isinstance(v, numbers.Real) and not isinstance(v, bool) and type(v).__name__ != "bool_"
-
-
-def _to_float(v: Any) -> float | None:
-    """float(v) or None when not representable / not finite."""
-    try:
-        f = float(v)
-    except (OverflowError, ValueError, TypeError):
-        return None
-    return f if math.isfinite(f) else None
-
-
-def _in_range(p: Param, x: float) -> bool:
-    if p.lo is not None and (x < p.lo or (p.lo_open and x == p.lo)):
-        return False
-    if p.hi is not None and (x > p.hi or (p.hi_open and x == p.hi)):
-        return False
-    return True
-
-
-def _check_number(p: Param, v: Any, file: str, key: str, integer: bool) -> float | int:
-    rng = format_range(p)
-    if not _is_number(v):
-        what = "an integer" if integer else "a number"
-        raise InputError(file, key, f"expected {what} in {rng}, got {type_name(v)} {format_value(v)}")
-    if integer:
-        if isinstance(v, numbers.Integral):
-            x: Any = int(v)
-        else:
-            f = _to_float(v)
-            if f is None or f != int(f):
-                raise InputError(file, key, f"expected an integer in {rng}, got {format_value(v)}")
-            x = int(f)
-        if not _in_range(p, x):
-            raise InputError(file, key, f"{format_value(x)} is outside {rng}")
-        return x
-    f = _to_float(v)
-    if f is None:
-        if isinstance(v, numbers.Integral):  # an integer too large for a float
-            raise InputError(file, key, f"{format_value(v)} is outside {rng}")
-        raise InputError(file, key, f"{format_value(v)} is not a finite number; allowed {rng}")
-    if not _in_range(p, f):
-        raise InputError(file, key, f"{format_value(v)} is outside {rng}")
-    return f
-
-
-def _check_vec3(v: Any, file: str, key: str, what: str) -> tuple[float, float, float]:
-    if hasattr(v, "tolist") and not isinstance(v, (str, bytes)):  # numpy arrays from the Python API
-        try:
-            v = v.tolist()
-        except Exception:  # pragma: no cover - defensive
-            pass
-    if not isinstance(v, (list, tuple)) or len(v) != 3:
-        raise InputError(file, key, f"expected {what}, got {type_name(v)} {format_value(v)}")
-    out = []
-    for i, c in enumerate(v):
-        if not _is_number(c):
-            raise InputError(file, key, f"expected {what}, component {i} is {type_name(c)} {format_value(c)}")
-        f = _to_float(c)
-        if f is None:
-            raise InputError(file, key, f"expected {what}, component {i} is not finite ({format_value(c)})")
-        out.append(f)
-    return (out[0], out[1], out[2])
-
-
-def _check_schedule(p: Param, v: Any, file: str, key: str) -> tuple[tuple[float, float, float], ...]:
-    rng = format_range(p)
-    if not isinstance(v, (list, tuple)):
-        raise InputError(file, key, f"expected {rng}, got {type_name(v)} {format_value(v)}")
-    m1 = PARAMS["moisture"]["M_1"]
-    m2 = PARAMS["moisture"]["M_2"]
-    rows: list[tuple[float, float, float]] = []
-    for i, row in enumerate(v):
-        rkey = f"{key}[{i}]"
-        if not isinstance(row, (list, tuple)) or len(row) != 3:
-            raise InputError(file, rkey, f"expected a row [day, M_1, M_2], got {type_name(row)} {format_value(row)}")
-        vals = []
-        for j, c in enumerate(row):
-            if not _is_number(c) or _to_float(c) is None:
-                raise InputError(file, rkey, f"expected finite numbers [day, M_1, M_2], item {j} is {type_name(c)} {format_value(c)}")
-            vals.append(float(c))
-        day, hi, lo = vals
-        if day < 0:
-            raise InputError(file, rkey, f"day {format_value(day)} is outside [0, inf) day")
-        if rows and day <= rows[-1][0]:
-            raise InputError(file, rkey, f"day {format_value(day)} must be greater than the previous keyframe's day {format_value(rows[-1][0])} (days strictly increasing)")
-        if not _in_range(m1, hi):
-            raise InputError(file, rkey, f"M_1 {format_value(hi)} is outside {format_range(m1)}")
-        if not _in_range(m2, lo):
-            raise InputError(file, rkey, f"M_2 {format_value(lo)} is outside {format_range(m2)}")
-        if not lo < hi:
-            raise InputError(file, rkey, f"M_2 {format_value(lo)} must be < M_1 {format_value(hi)}")
-        rows.append((day, hi, lo))
-    return tuple(rows)
-
-
-def validate_value(p: Param, v: Any, file: str, key: str | None = None) -> Any:
-    """Check ``v`` against ``p`` and return the resolved value.
-
-    ints become floats for ``float`` parameters, integral floats become ints for ``int``
-    parameters, ``vec3`` becomes a tuple of 3 floats and the schedule a tuple of 3-tuples.
-    Booleans are not numbers here. Raises :class:`InputError` (``file``, ``key`` — default
-    ``p.key`` —, a message with the allowed range and unit).
-    """
-    key = p.key if key is None else key
-    kind = p.kind
-    if kind == "float":
-        return _check_number(p, v, file, key, integer=False)
-    if kind == "int":
-        return _check_number(p, v, file, key, integer=True)
-    if kind == "bool":
-        if type(v).__name__ == "bool_":  # numpy.bool_ from the Python API
-            v = bool(v)
-        if not isinstance(v, bool):
-            raise InputError(file, key, f"expected true or false, got {type_name(v)} {format_value(v)}")
-        return v
-    if kind == "str":
-        if not isinstance(v, str):
-            raise InputError(file, key, f"expected a string, got {type_name(v)} {format_value(v)}")
-        return v
-    if kind == "enum":
-        if not isinstance(v, str) or v not in p.choices:
-            hint = did_you_mean(v, p.choices) if isinstance(v, str) else ""
-            raise InputError(file, key, f"{format_value(v)} is not {format_range(p)}{hint}")
-        return v
-    if kind == "vec3":
-        return _check_vec3(v, file, key, format_range(p))
-    if kind == "list":
-        return _check_schedule(p, v, file, key)
-    raise AssertionError(f"unknown kind {kind!r}")  # pragma: no cover
-
-
 def describe() -> str:
-    """The schema as a Markdown table per section (for docs and ``wooddecay inspect``)."""
+    """The scalar sections as a Markdown table each (for docs and ``wooddecay inspect``)."""
     lines: list[str] = []
     for section, table in PARAMS.items():
         lines.append(f"### [{section}]")

@@ -1,0 +1,90 @@
+"""The scene's ``[skeleton]`` table -> a :class:`~wooddecay.strands.skeleton.Skeleton` (SPEC §1).
+
+The nodes of the skeleton graph G (woodstock §3, Fig. 3a) come inline (``[[skeleton.node]]``),
+from a native TOML file with a ``[[node]]`` array, or from a TreeQSM cylinder table
+(:mod:`wooddecay.strands.qsm`), optionally scaled. Errors about the table name the scene file,
+errors inside a skeleton file name that file.
+"""
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+from wooddecay.errors import InputError, format_value, type_name
+from wooddecay.strands.qsm import load_treeqsm
+from wooddecay.strands.skeleton import Skeleton, check_keys, parse_nodes, positive, scale_skeleton
+
+TABLE_KEYS = ("file", "format", "node", "scale")
+FORMAT_BY_SUFFIX = {".toml": "native", ".csv": "treeqsm", ".txt": "treeqsm"}
+
+
+def _read_native(path: Path) -> Skeleton:
+    """Load a native skeleton TOML file (a ``[[node]]`` array)."""
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as err:
+        raise InputError(str(path), "", f"not valid TOML: {err}") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise InputError(str(path), "", f"cannot read the skeleton file: {err}") from None
+    check_keys(data, ("node",), ("node",), str(path), "")
+    return parse_nodes(data["node"], str(path), "node")
+
+
+def _format_of(table: dict, path: Path | None, source: str) -> str:
+    """Resolve ``skeleton.format`` (explicit, or from the file extension)."""
+    if "format" in table:
+        fmt = table["format"]
+        if fmt not in ("native", "treeqsm"):
+            raise InputError(source, "skeleton.format", f"must be \"native\" or \"treeqsm\" (got {format_value(fmt)})")
+        if path is None and fmt != "native":
+            raise InputError(source, "skeleton.format", "inline skeleton.node tables are always \"native\"")
+        return fmt
+    if path is None:
+        return "native"
+    if path.suffix.lower() not in FORMAT_BY_SUFFIX:
+        raise InputError(source, "skeleton.format", f"cannot tell the format of '{path.name}' from its extension "
+                         "(.toml native, .csv/.txt treeqsm); set format = \"native\" or \"treeqsm\"")
+    return FORMAT_BY_SUFFIX[path.suffix.lower()]
+
+
+def load_skeleton(table, base_dir: Path, source: str) -> Skeleton:
+    """Load the skeleton described by the scene's ``[skeleton]`` table.
+
+    Parameters
+    ----------
+    table : dict
+        Keys ``file`` (path relative to the scene file) or ``node`` (inline array of node
+        tables), exactly one of them; ``format`` ("native" | "treeqsm", default from the file
+        extension: .toml native, .csv/.txt treeqsm); ``scale`` (float > 0, default 1).
+    base_dir : Path
+        Directory of the scene file.
+    source : str
+        The scene file (for messages).
+
+    Returns
+    -------
+    Skeleton
+
+    Raises
+    ------
+    InputError
+        For a bad table or a bad skeleton (file errors name the skeleton file).
+    """
+    if not isinstance(table, dict):
+        raise InputError(source, "skeleton", f"must be a table (got {type_name(table)})")
+    check_keys(table, TABLE_KEYS, (), source, "skeleton")
+    if ("file" in table) == ("node" in table):
+        raise InputError(source, "skeleton", "give exactly one of skeleton.file or [[skeleton.node]]")
+    scale = positive(table.get("scale", 1.0), source, "skeleton.scale")
+    if "node" in table:
+        _format_of(table, None, source)
+        return scale_skeleton(parse_nodes(table["node"], source, "skeleton.node"), scale, "skeleton.node")
+    if not isinstance(table["file"], str) or not table["file"].strip():
+        raise InputError(source, "skeleton.file", f"must be a path string (got {format_value(table['file'])})")
+    path = Path(base_dir) / table["file"]
+    if not path.is_file():
+        raise InputError(source, "skeleton.file", f"'{table['file']}' is not a file (looked for {path})")
+    if _format_of(table, path, source) == "treeqsm":
+        return scale_skeleton(load_treeqsm(path), scale, "node")
+    return scale_skeleton(_read_native(path), scale, "node")
