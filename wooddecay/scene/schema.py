@@ -28,6 +28,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from ..strands.rings import TISSUES
+
 from wooddecay.errors import format_value
 
 
@@ -293,8 +295,6 @@ _TABLE_SCHEMA: dict[str, dict[str, list[tuple]]] = {
 
 #: Sections whose parameters may be overridden per tissue (``[tissue.<name>]``).
 TISSUE_SECTIONS: tuple[str, ...] = ("fungi", "moisture", "mechanics", "transport", "wood")
-#: Tissue names (SPEC §2), in order from outside in.
-TISSUES: tuple[str, ...] = ("bark", "sapwood", "heartwood", "pith")
 
 
 def _parse_range(text: str) -> tuple[float | None, float | None, bool, bool]:
