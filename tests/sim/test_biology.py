@@ -21,7 +21,7 @@ from wooddecay.sim import biology as B
 from wooddecay.sim.state import FIELDS, SimState, initial_state
 from wooddecay.strands.rings import HEARTWOOD, SAPWOOD
 
-from .conftest import ROOT, SAMPLES
+from ..conftest import ROOT, SAMPLES
 
 ACTIVE = {
     "fungi.alpha_w0": 0.08, "fungi.alpha_b0": 0.1, "fungi.D_w": 2e-5, "fungi.D_b": 3e-5,

@@ -6,7 +6,7 @@ import numpy as np
 import wooddecay as wd
 from wooddecay.strands.topology import build_topology
 
-from .conftest import SAMPLES
+from ..conftest import SAMPLES
 
 
 def test_frames_orthonormal_right_handed_and_along_skeleton():

@@ -19,7 +19,7 @@ from scipy.sparse.csgraph import connected_components
 
 import wooddecay as wd
 
-from .conftest import SAMPLES
+from ..conftest import SAMPLES
 
 DRYING = {
     "moisture.k_in0": 0.0, "moisture.k_out0": 2.0, "moisture.M_1": 0.6, "moisture.M_2": 0.2,

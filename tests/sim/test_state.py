@@ -10,7 +10,7 @@ from wooddecay.sim.state import initial_state
 from wooddecay.strands.regions import region_mask
 from wooddecay.strands.rings import BARK, HEARTWOOD
 
-from .conftest import SAMPLES
+from ..conftest import SAMPLES
 
 
 def test_initial_fields_follow_tissues():

@@ -10,7 +10,7 @@ from wooddecay.strands import packing, profiles
 from wooddecay.strands.strands import _split_fork, build_strands
 from wooddecay.strands.topology import build_topology
 
-from .conftest import SAMPLES
+from ..conftest import SAMPLES
 
 
 def _strand_set(scene):

@@ -1,0 +1,68 @@
+"""Rod kernels (wooddecay.sim.rods) against their numpy references; the REG colouring and
+Stage 2's colour-ordered data."""
+from __future__ import annotations
+
+import numpy as np
+
+from wooddecay.sim import mechanics, rods
+
+from ..conftest import sample
+from .helpers import perturbed
+
+def test_rod_kernels_equal_numpy_reference():
+    setup, ms = perturbed()
+    dt = 1e-3
+    sw = setup.sweep
+    offset, k_conn, k_bend, k_twist = sw.arrays(ms)
+    results = []
+    for kernels in ((rods.stretch_shear, rods.bend_twist, rods.reg_pass),
+                    (rods.stretch_shear_reference, rods.bend_twist_reference, rods.reg_pass_reference)):
+        x, q = ms.x.copy(), ms.q.copy()
+        lam = mechanics._multipliers(setup)
+        ss, bt, rp = kernels
+        for elems in setup.elems:
+            ss(elems, setup.fp, x, q, ms.w_p, ms.w_q, ms.rest_length, setup.k_stretch, setup.k_shear,
+               ms.element_ok, lam["s"], lam["sh"], dt)
+        for idx in setup.joint_sets:
+            bt(setup.joints, idx, q, ms.w_q, setup.joint_rest, setup.joint_length, setup.joint_kb,
+               setup.joint_kt, lam["j"], dt)
+        for c in range(len(sw.ptr) - 1):
+            rp(sw.edges, sw.ptr[c], sw.ptr[c + 1], setup.fp, x, q, ms.w_p, ms.w_q, offset, k_conn, sw.rest,
+               sw.length, k_bend, k_twist, lam["c"], lam["p"], dt)
+        results.append((x, q, lam))
+    (x1, q1, l1), (x2, q2, l2) = results
+    assert np.abs(x1 - ms.x).max() > 1e-6  # the projections did something
+    np.testing.assert_allclose(x1, x2, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(q1, q2, rtol=0, atol=1e-12)
+    for k in l1:
+        np.testing.assert_allclose(l1[k], l2[k], rtol=1e-9, atol=1e-15)
+
+
+def test_reg_colouring_has_no_shared_particle():
+    setup = sample("log")[1].mech
+    sw = setup.sweep
+    ptr, order = sw.ptr, sw.order
+    assert sorted(order.tolist()) == list(range(len(setup.edges)))
+    np.testing.assert_array_equal(sw.edges, setup.edges[order])  # the sweep's data is the edges'
+    np.testing.assert_array_equal(sw.rest, setup.edge_rest[order])
+    for c in range(len(ptr) - 1):
+        assert np.all(np.diff(order[ptr[c]:ptr[c + 1]]) > 0)  # each class in increasing id
+        e = sw.edges[ptr[c]:ptr[c + 1]]
+        parts = np.concatenate([setup.fp[e[:, 0]], setup.fp[e[:, 0]] + 1, setup.fp[e[:, 1]], setup.fp[e[:, 1]] + 1])
+        assert len(np.unique(parts)) == len(parts)
+    assert len(ptr) - 1 < 80
+
+
+def test_sweep_arrays_equal_numpy_gather():
+    """RegSweep.arrays: the state's dp and stiffness (base x I_ij, 0 where failed) in colour order."""
+    setup, ms = perturbed()
+    rng = np.random.default_rng(1)
+    ms.edge_ok[:] = rng.random(ms.edge_ok.shape) > 0.3
+    ms.rest_offset = ms.rest_offset * rng.uniform(0.9, 1.0, len(ms.rest_offset))
+    sw = setup.sweep
+    o = sw.order
+    want = (ms.rest_offset[o],) + tuple(np.where(ms.edge_ok[o, c], ms.integrity[o] * k0, 0.0)
+                                        for c, k0 in enumerate((sw.k_conn0, sw.k_pb0, sw.k_pt0)))
+    for got, w in zip(sw.arrays(ms), want):
+        np.testing.assert_array_equal(got, w)
+    assert (want[1] == 0).any() and (want[1] > 0).any()
