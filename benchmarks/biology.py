@@ -48,17 +48,17 @@ def main() -> None:
     path = Path(sys.argv[1] if len(sys.argv) > 1 else Path(__file__).resolve().parent.parent / "samples" / "tree.toml")
     scene = wd.load_scene(path, overrides={"fungi.alpha_b0": 0.05, "fungi.D_b": 1e-5})
     model = wd.build_model(scene)
-    setup = B.prepare(model, scene)
-    state = initial_state(model, scene)
+    setup = model.bio
+    state = initial_state(model)
     n, nnz = model.n_elements, len(setup.op.indices)
     print(f"elements {n} -")
     print(f"transport_nonzeros {nnz} -")
     dt = 0.5 * setup.bound
-    B.step(state, setup, dt, n_sub=1)  # compile / load
+    B.step(model, state, dt, n_sub=1)  # compile / load
     results = {}
     for k in range(1, nb.config.NUMBA_NUM_THREADS + 1):
         nb.set_num_threads(k)
-        best = min(_timed(lambda: B.step(state, setup, dt, n_sub=1)) for _ in range(5))
+        best = min(_timed(lambda: B.step(model, state, dt, n_sub=1)) for _ in range(5))
         results[k] = best
         print(f"bio_substep_seconds_threads_{k} {best:.5f} s")
         print(f"bio_updates_per_s_threads_{k} {6 * n / best:.4g} 1/s")
