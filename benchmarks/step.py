@@ -31,7 +31,7 @@ def _instrument(totals: dict) -> None:
                              (mechanics, "refresh_pairs", "contact"), (mechanics, "_velocities", "velocities"),
                              (contact, "collider_velocities", "velocities"),
                              (contact, "contact_velocities", "velocities"), (failure, "update", "failure"),
-                             (biology, "step", "biology"), (coupling, "apply", "coupling")):
+                             (biology, "step", "biology"), (coupling, "step", "coupling")):
         fn = getattr(mod, name)
 
         def timed(*a, _fn=fn, _stage=stage, **k):
