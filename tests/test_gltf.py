@@ -23,7 +23,7 @@ import wooddecay as wd
 from wooddecay.errors import InputError
 from wooddecay.export import gltf as gltf_mod
 from wooddecay.export.gltf import export_gltf
-from wooddecay.export.usd import visible_faces
+from wooddecay.meshlets.visibility import visible_faces
 
 ROOT = Path(__file__).resolve().parent.parent
 VALIDATE_JS = ROOT / "tools" / "gltf_validate.js"

@@ -7,10 +7,10 @@
   without mechanics), each node a mesh of one triangle primitive, node ``translation`` = the
   centre of the piece's bounding box (vertex positions are relative to it, so each piece imports
   as an object with its origin at its centre), node ``extras.piece`` = the component id;
-* the same faces as the USD stage (:func:`wooddecay.export.usd.visible_faces` given this frame's
-  rod state), skinned the same way (:func:`wooddecay.export.usd.frame_arrays`);
+* the same faces as the USD stage (:func:`wooddecay.meshlets.visibility.visible_faces` given this
+  frame's rod state), skinned the same way (:func:`wooddecay.meshlets.skin.frame_arrays`);
 * vertex attributes ``POSITION``, ``NORMAL``, ``COLOR_0`` (the rot preview colour of
-  :func:`wooddecay.export.usd.rot_color`, so a plain glTF viewer shows the rot, as ``displayColor``
+  :func:`wooddecay.export.colors.rot_color`, so a plain glTF viewer shows the rot, as ``displayColor``
   does in USD) and the application-specific ``_H_c``, ``_H_l``, ``_M`` (FLOAT SCALAR), ``_WOOD``
   (VEC3, rest wood-local r, phi, s), ``_RING`` (ring age) and ``_FACE_KIND`` (0 bark, 1 side,
   2 cap, as a float: glTF has no per-face attributes, but every vertex here belongs to faces of
@@ -37,8 +37,9 @@ import numpy as np
 
 from ..atomic import check_output, write_bytes
 from ..meshlets import skin as skin_mod
+from ..meshlets.visibility import visible_faces
 from ..sim.state import FIELDS
-from .usd import frame_arrays, rot_color, visible_faces
+from .colors import rot_color
 
 SUFFIXES = (".glb",)
 GLB_MAGIC, GLB_VERSION = 0x46546C67, 2  # b"glTF"
@@ -129,7 +130,7 @@ def gltf_document(model, mesh, frame, scene, version: str = "", link=None) -> tu
         link = skin_mod.links(model, mesh)
     mech = frame.mech or None
     keep = np.flatnonzero(visible_faces(model, mesh, mech))
-    P, F = frame_arrays(model, mesh, link, frame)
+    P, F = skin_mod.frame_arrays(model, mesh, link, frame)
     if not (np.all(np.isfinite(P)) and np.all(np.isfinite(F))):
         raise ValueError(f"frame {frame.index}: non-finite points or fields, nothing to export")
     component = mech["component"] if mech else np.zeros(model.n_elements, dtype=np.int64)

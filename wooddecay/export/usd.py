@@ -9,13 +9,14 @@
   subdivisionScheme none, static topology), ``points`` and ``extent`` time-sampled (the skinned
   meshlets of :mod:`wooddecay.meshlets.skin`); vertex primvars H_c, H_l, M, R_w, R_b, C
   (time-sampled, interpolated with the skinning weights) and ``displayColor`` (a rot preview, see
-  :func:`rot_color`); static ``wood`` (float3 rest wood-local r, phi, s) and ``ring``; uniform int
-  ``element``, ``tissue``, ``faceKind`` (0 bark, 1 side, 2 cap) and time-sampled ``piece`` (the
-  connected component of the face's element);
-* faces between meshlets that stay connected for the whole bake are left out (:func:`visible_faces`):
-  caps between consecutive elements of a strand, side faces across a REG connection that never
-  breaks, and side faces between unconnected neighbours that stay in one piece. Faces that a crack
-  exposes are present from the first frame; their two sides coincide until it opens;
+  :func:`wooddecay.export.colors.rot_color`); static ``wood`` (float3 rest wood-local r, phi, s)
+  and ``ring``; uniform int ``element``, ``tissue``, ``faceKind`` (0 bark, 1 side, 2 cap) and
+  time-sampled ``piece`` (the connected component of the face's element);
+* faces between meshlets that stay connected for the whole bake are left out
+  (:func:`wooddecay.meshlets.visibility.visible_faces`): caps between consecutive elements of a
+  strand, side faces across a REG connection that never breaks, and side faces between unconnected
+  neighbours that stay in one piece. Faces that a crack exposes are present from the first frame;
+  their two sides coincide until it opens;
 * ``/World/<scene>/Looks/Wood``: a UsdPreviewSurface whose diffuseColor reads ``displayColor``
   through a UsdPrimvarReader_float3, so any USD viewer shows the rot.
 
@@ -28,56 +29,10 @@ from pathlib import Path
 import numpy as np
 
 from ..meshlets import skin as skin_mod
-from ..meshlets.sweep import BARK, CAP
+from ..meshlets.visibility import visible_faces
 from ..sim.state import FIELDS
 from . import stage as stage_mod
-
-#: preview colours (linear RGB): sound wood, brown-rot, white-rot
-SOUND = np.array([0.62, 0.42, 0.22])
-BROWN = np.array([0.22, 0.10, 0.05])
-WHITE = np.array([0.85, 0.80, 0.68])
-
-
-def rot_color(H_c: np.ndarray, H_l: np.ndarray, M: np.ndarray) -> np.ndarray:
-    """Preview colour: brown rot (cellulose lost, low H_c) darkens towards BROWN, white rot (lignin
-    lost, low H_l) bleaches towards WHITE, moisture darkens by up to 30%."""
-    b = np.clip(1.0 - H_c, 0.0, 1.0)[:, None]
-    w = np.clip(1.0 - H_l, 0.0, 1.0)[:, None]
-    c = SOUND * (1.0 - b) + BROWN * b
-    c = c * (1.0 - w) + WHITE * w
-    return (c * (1.0 - 0.3 * np.clip(M, 0.0, 1.0))[:, None]).astype(np.float32)
-
-
-def visible_faces(model, mesh, last) -> np.ndarray:
-    """Faces to export given the rod state of the last frame (failures never heal, so the last
-    frame says which connections broke during the bake); ``last`` None: no mechanics."""
-    o, n, kind = mesh.face_element, mesh.face_neighbour, mesh.face_kind
-    keep = (kind == BARK) | (n < 0)
-    inner = (kind == CAP) & (n >= 0)  # between consecutive elements of a strand: never seen
-    side = ~keep & ~inner
-    if last is not None:
-        e = model.reg_edges
-        nn = model.n_elements
-        keys = np.minimum(e[:, 0], e[:, 1]) * nn + np.maximum(e[:, 0], e[:, 1])
-        order = np.argsort(keys)
-        q = np.minimum(o[side], n[side]) * nn + np.maximum(o[side], n[side])
-        pos = np.clip(np.searchsorted(keys[order], q), 0, len(keys) - 1)
-        has = keys[order][pos] == q
-        broken = np.where(has, ~last["edge_ok"][order[pos], 0],
-                          last["component"][o[side]] != last["component"][n[side]])
-        keep[np.flatnonzero(side)[broken]] = True
-    return keep
-
-
-def frame_arrays(model, mesh, link, frame):
-    """Skinned points (V, 3) and fields (V, 6) of one frame."""
-    fields = np.stack([frame.fields[f] for f in FIELDS], axis=1)
-    if frame.mech:
-        m = frame.mech
-        return skin_mod.skin(model, mesh, link, m["x"], m["q"], m["component"], m["edge_ok"], fields)
-    n = model.n_elements
-    return skin_mod.skin(model, mesh, link, model.particles, model.rest_quat, np.zeros(n, dtype=np.int64),
-                         np.ones((model.n_edges, 3), dtype=bool), fields)
+from .colors import rot_color
 
 
 def export_usd(path, model, mesh, frames, scene, version: str = "") -> Path:
@@ -125,7 +80,7 @@ def export_usd(path, model, mesh, frames, scene, version: str = "") -> Path:
     points, extent = wood.CreatePointsAttr(), wood.CreateExtentAttr()
     for fr in frames:
         t = float(fr.index)
-        P, F = frame_arrays(model, mesh, link, fr)
+        P, F = skin_mod.frame_arrays(model, mesh, link, fr)
         P, F = P[used].astype(np.float32), F[used].astype(np.float32)
         points.Set(Vt.Vec3fArray.FromNumpy(P), t)
         extent.Set(Vt.Vec3fArray([Gf.Vec3f(*P.min(0).tolist()), Gf.Vec3f(*P.max(0).tolist())]), t)

@@ -17,7 +17,8 @@ M, ...) per element are interpolated with the same weights: smooth inside a piec
 across a crack.
 
 :func:`skin` is the numba kernel (parallel over vertices, each writes its own rows: race-free and
-deterministic); :func:`skin_reference` is the plain-numpy twin used by the tests.
+deterministic); :func:`skin_reference` is the plain-numpy twin used by the tests. :func:`frame_arrays`
+skins one :class:`~wooddecay.sim.driver.Frame` (points and its six fields), as both exporters do.
 """
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ import numba as nb
 import numpy as np
 
 from ..quaternion import rotate, rotate_np
+from ..sim.state import FIELDS
 
 #: link kinds of a (vertex, candidate) pair, besides a REG edge index >= 0
 ALWAYS, BY_COMPONENT = -1, -2
@@ -122,3 +124,15 @@ def skin(model, mesh, link, x, q, component, edge_ok, fields):
                  mesh.skin_local, link, model.first_particle, model.rest_length, x, q, component,
                  edge_ok, fields, out_p, out_f)
     return out_p, out_f
+
+
+def frame_arrays(model, mesh, link, frame):
+    """Skinned points (V, 3) and fields (V, 6, in the order of ``FIELDS``) of one frame; without
+    mechanics (empty ``frame.mech``) the rest pose."""
+    fields = np.stack([frame.fields[f] for f in FIELDS], axis=1)
+    if frame.mech:
+        m = frame.mech
+        return skin(model, mesh, link, m["x"], m["q"], m["component"], m["edge_ok"], fields)
+    n = model.n_elements
+    return skin(model, mesh, link, model.particles, model.rest_quat, np.zeros(n, dtype=np.int64),
+                np.ones((model.n_edges, 3), dtype=bool), fields)
