@@ -1,4 +1,4 @@
-"""Kinetic Delaunay sweep and kinetic alpha shape of one branch (issue: meshlets, woodstock §8.1).
+"""Kinetic Delaunay sweep of one branch (issue: meshlets, woodstock §8.1).
 
 A synthetic branch: ``n`` sites (default 500) uniform in the unit disk, carried over ``S`` sections
 (default 50, d_t = 0..1) by a random smooth motion (a few low-frequency sinusoids in d_t per site,
@@ -9,7 +9,6 @@ amplitude about two mean site spacings), sampled at the sections (piecewise line
     kinetic_flips / kinetic_hull       in-circle flips and convex-hull flips
     kinetic_seconds <v> s              wall time of ``sweep`` (best of 2 after a small warm-up)
     kinetic_us_per_event               seconds per event
-    alpha_events / alpha_seconds       alpha-membership events of ``alpha_events`` (alpha = 2 spacings)
 Usage: python benchmarks/kinetic.py [n] [S]
 """
 from __future__ import annotations
@@ -19,7 +18,6 @@ import time
 
 import numpy as np
 
-from wooddecay.meshlets.alpha import alpha_events
 from wooddecay.meshlets.kinetic import sweep
 
 
@@ -35,14 +33,14 @@ def smooth_branch(n: int, S: int, seed: int = 0):
         amp = rng.normal(0.0, 2.0 * spacing / f, (n, 2))
         ph = rng.uniform(0, 2 * np.pi, (n, 2))
         P += amp[None] * np.sin(2 * np.pi * f * d[:, None, None] + ph[None])
-    return d, P, spacing
+    return d, P
 
 
 def main() -> None:
     n = int(sys.argv[1]) if len(sys.argv) > 1 else 500
     S = int(sys.argv[2]) if len(sys.argv) > 2 else 50
-    d, P, spacing = smooth_branch(n, S)
-    sweep(*smooth_branch(30, 4)[:2])                     # numba warm-up (cached kernels)
+    d, P = smooth_branch(n, S)
+    sweep(*smooth_branch(30, 4))                     # numba warm-up (cached kernels)
     best, res = np.inf, None
     for _ in range(2):
         t0 = time.perf_counter()
@@ -55,12 +53,6 @@ def main() -> None:
         print(f"kinetic_{k} {res.counts[k]} -")
     print(f"kinetic_seconds {best:.3f} s")
     print(f"kinetic_us_per_event {1e6 * best / res.n_events:.1f} us")
-    alpha = 2.0 * spacing
-    alpha_events(res, alpha)                              # warm-up
-    t0 = time.perf_counter()
-    ev = alpha_events(res, alpha)
-    print(f"alpha_events {len(ev.d)} -")
-    print(f"alpha_seconds {time.perf_counter() - t0:.3f} s")
 
 
 if __name__ == "__main__":

@@ -277,7 +277,7 @@ def bake(tmp_path_factory):
     scene = wd.load_scene(ROOT / "samples" / "tiny.toml", overrides={"time.days": 4, "time.frames": 3})
     model = wd.build_model(scene)
     frames = list(wd.Simulation(model).run())
-    mesh = wd.build_meshlets(model, scene)
+    mesh = wd.build_meshlets(model)
     usd = export_usd(out / "tiny.usdc", model, mesh, frames, scene)
     glb = export_gltf(out / "tiny.glb", model, mesh, frames[-1], scene)
     # the same GLB without the face kind and ring attributes
@@ -299,7 +299,7 @@ def rot_usd(tmp_path_factory) -> Path:
     scene = wd.load_scene(ROOT / "samples" / "tiny.toml", overrides={"time.days": 1000, "time.frames": 2})
     model = wd.build_model(scene)
     frames = list(wd.Simulation(model, mechanics=False).run())
-    mesh = wd.build_meshlets(model, scene)
+    mesh = wd.build_meshlets(model)
     return Path(export_usd(out / "rot.usdc", model, mesh, frames, scene))
 
 

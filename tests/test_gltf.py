@@ -109,7 +109,7 @@ def tiny():
     """(scene, model, mesh, last frame) of tiny over 4 days, 2 frames (with mechanics)."""
     scene = wd.load_scene(ROOT / "samples" / "tiny.toml", overrides={"time.days": 4, "time.frames": 2})
     model = wd.build_model(scene)
-    mesh = wd.build_meshlets(model, scene)
+    mesh = wd.build_meshlets(model)
     frames = list(wd.Simulation(model).run())
     return scene, model, mesh, frames[-1]
 

@@ -1,4 +1,4 @@
-"""Kinetic Delaunay triangulation and kinetic alpha shape of branch cross-sections (woodstock §8.1; SPEC §5).
+"""Kinetic Delaunay triangulation of branch cross-sections and the contour offset (woodstock §8.1; SPEC §5).
 
 The reference is scipy.spatial.Delaunay (qhull) of the interpolated alive sites at random d_t
 between sections, sampled away from event times (where the triangulation is ambiguous).
@@ -13,8 +13,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial import ConvexHull, Delaunay
 
-from wooddecay.meshlets import alpha as A
 from wooddecay.meshlets import kinetic as K
+from wooddecay.meshlets.kinetic import delaunay
+from wooddecay.meshlets.offset import offset_contour
 
 
 # --------------------------------------------------------------------------------------------
@@ -306,7 +307,7 @@ def test_strands_meeting_mid_piece(k):
 def test_repair_is_the_last_resort(monkeypatch):
     """Without virtual sections a mid-piece cluster of strands can fold the triangulation; the
     sweep then rebuilds from scratch (a ``repair`` event) instead of failing, and is right after."""
-    monkeypatch.setattr(K, "KAPPA", 0.0)
+    monkeypatch.setattr(delaunay, "KAPPA", 0.0)
     repaired = 0
     for seed in range(12):
         rng = np.random.default_rng(seed)
@@ -467,68 +468,13 @@ def test_guard_and_validation():
 
 
 # --------------------------------------------------------------------------------------------
-# alpha shape
+# offset contour
 # --------------------------------------------------------------------------------------------
 
-def test_alpha_inf_is_convex_hull():
-    rng = np.random.default_rng(4)
-    d, P = random_branch(rng, 40, 4, "walk")
-    res = K.sweep(d, P)
-    for t in sample_times(res, rng, 4):
-        shape = A.alpha_shape(res, np.inf, t)
-        assert len(shape.outer) == 1 and not shape.holes
-        X = res.positions_at(t)
-        ids = np.nonzero(res.alive_at(t))[0]
-        hull = ids[ConvexHull(X[ids]).vertices]               # ccw in 2D
-        i = int(np.argmin(hull))
-        assert np.array_equal(shape.outer[0], np.roll(hull, -i))
-
-
-def test_alpha_complex_matches_brute_force():
-    rng = np.random.default_rng(6)
-    d, P = random_branch(rng, 60, 5, "walk")
-    res = K.sweep(d, P)
-    for alpha in (0.15, 0.3, 0.6):
-        for t in sample_times(res, rng, 3):
-            X = res.positions_at(t)
-            ids = np.nonzero(res.alive_at(t))[0]
-            dt = Delaunay(X[ids])
-            T = ids[dt.simplices]
-            ref = {tuple(sorted(x)) for x, r2 in zip(T.tolist(), A.circumradius2(X, T)) if r2 <= alpha**2}
-            shape = A.alpha_shape(res, alpha, t)
-            assert tri_set(shape.triangles) == ref
-            # boundary: closed loops whose directed edges each bound exactly one kept triangle
-            kept = {(a, b) for a, b, c in shape.triangles.tolist()} | \
-                   {(b, c) for a, b, c in shape.triangles.tolist()} | \
-                   {(c, a) for a, b, c in shape.triangles.tolist()}
-            n_edges = 0
-            for lp in shape.outer + shape.holes:
-                for u, v in zip(lp, np.roll(lp, -1)):
-                    assert (u, v) in kept and (v, u) not in kept
-                    n_edges += 1
-            assert n_edges == sum((v, u) not in kept for u, v in kept)
-            for lp in shape.outer:
-                assert A.signed_area(X[lp]) > 0
-            for lp in shape.holes:
-                assert A.signed_area(X[lp]) < 0
-
-
-def test_alpha_contour_with_hole_and_pinch():
-    # an annulus of sites: a moderate alpha removes the big central triangles -> one hole
-    ang = np.linspace(0, 2 * np.pi, 24, endpoint=False)
-    ring = np.concatenate([np.stack([np.cos(ang), np.sin(ang)], 1),
-                           1.25 * np.stack([np.cos(ang + 0.13), np.sin(ang + 0.13)], 1)])
-    T = Delaunay(ring).simplices
-    T = np.where((orient_all(ring, T) > 0)[:, None], T, T[:, [0, 2, 1]])
-    kept = A.alpha_complex(T, ring, 0.5)
-    outer, holes = A.contours(kept, ring)
-    assert len(outer) == 1 and len(holes) == 1
-    assert len(holes[0]) == 24 and len(outer[0]) == 24
-    # two triangles touching at one site: two loops through that site
-    pts = np.array([[0, 0], [1, 0], [0, 1], [-1, 0], [0, -1]], float)
-    loops = A.boundary_loops(np.array([[0, 1, 2], [0, 3, 4]]))
-    assert len(loops) == 2 and all(len(lp) == 3 for lp in loops)
-    assert all(A.signed_area(pts[lp]) > 0 for lp in loops)
+def signed_area(xy):
+    """Shoelace area of a closed polygon (positive when counter-clockwise)."""
+    x, y = xy[:, 0], xy[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
 
 
 def seg_dist(q, P):
@@ -551,8 +497,8 @@ def test_offset_contour_distance(join):
     star = np.stack([rad * np.cos(k * np.pi / 5), rad * np.sin(k * np.pi / 5)], 1)
     r = 0.1
     for poly in (hull, star):
-        Q, owner = A.offset_contour(poly, r, join=join, max_angle=np.pi / 16)
-        assert A.signed_area(Q) > A.signed_area(poly) > 0
+        Q, owner = offset_contour(poly, r, join=join, max_angle=np.pi / 16)
+        assert signed_area(Q) > signed_area(poly) > 0
         assert np.all(np.diff(owner) >= 0) and owner[-1] == len(poly) - 1
         dv = seg_dist(Q, poly)
         if join == "round":
@@ -568,38 +514,11 @@ def test_offset_contour_distance(join):
         if join == "round":
             assert np.all(ds <= r * (1 + 1e-9))
     # Steiner: a convex polygon grown by r has area A + perimeter r + pi r^2 (chords: slightly less)
-    Q, _ = A.offset_contour(hull, r, max_angle=np.pi / 64)
+    Q, _ = offset_contour(hull, r, max_angle=np.pi / 64)
     per = np.linalg.norm(np.roll(hull, -1, 0) - hull, axis=1).sum()
-    steiner = A.signed_area(hull) + per * r + np.pi * r * r
-    assert A.signed_area(Q) == pytest.approx(steiner, rel=1e-4)
-    assert A.signed_area(Q) <= steiner
-
-
-def test_alpha_events_are_circumradius_crossings():
-    rng = np.random.default_rng(12)
-    d, P = random_branch(rng, 50, 5, "walk")
-    res = K.sweep(d, P)
-    alpha = 0.3
-    ev = A.alpha_events(res, alpha)
-    assert len(ev.d) > 0 and np.all(np.diff(ev.d) >= 0)
-    assert len(A.alpha_events(res, np.inf).d) == 0
-    for de, tri, kind in zip(ev.d, ev.triangles, ev.kind):
-        R = np.sqrt(A.circumradius2(res.positions_at(de), tri[None]))[0]
-        assert R == pytest.approx(alpha, rel=1e-6)
-        eps = 1e-7 * (d[-1] - d[0])
-        if d[0] < de - eps and de + eps < d[-1]:
-            before = np.sqrt(A.circumradius2(res.positions_at(de - eps), tri[None]))[0]
-            after = np.sqrt(A.circumradius2(res.positions_at(de + eps), tri[None]))[0]
-            assert (after < before) == (kind == 1)
-    # between consecutive boundaries the alpha complex does not change
-    bounds = A.section_boundaries(res, alpha)
-    gaps = np.nonzero(np.diff(bounds) > 1e-3)[0]
-    for i in rng.choice(gaps, 10, replace=False):
-        lo, hi = bounds[i], bounds[i + 1]
-        t1, t2 = lo + 0.1 * (hi - lo), lo + 0.9 * (hi - lo)
-        s1 = tri_set(A.alpha_shape(res, alpha, t1).triangles)
-        s2 = tri_set(A.alpha_shape(res, alpha, t2).triangles)
-        assert s1 == s2
+    steiner = signed_area(hull) + per * r + np.pi * r * r
+    assert signed_area(Q) == pytest.approx(steiner, rel=1e-4)
+    assert signed_area(Q) <= steiner
 
 
 @pytest.mark.slow
@@ -611,5 +530,3 @@ def test_large_branch_matches_scipy():
     res = K.sweep(d, P, alive)
     print(f"\nkinetic {n} sites x {S} sections: {res.n_events} events {res.counts}")
     assert assert_matches_scipy(res, rng, k=40) >= 39
-    ev = A.alpha_events(res, 0.05)
-    assert len(ev.d) > 0

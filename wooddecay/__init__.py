@@ -5,7 +5,7 @@ Python API (DESIGN "Python API")::
     import wooddecay as wd
     scene = wd.load_scene("samples/log.toml", overrides={"time.days": 30})
     model = wd.build_model(scene)
-    mesh = wd.build_meshlets(model, scene)
+    mesh = wd.build_meshlets(model)
 """
 from .errors import InputError
 from .export.compare import compare_usd

@@ -112,7 +112,7 @@ def bake(scene, out, resume: bool = False, quality: str = "final", progress=None
     seconds["simulation"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    mesh = build_meshlets(model, scene)
+    mesh = build_meshlets(model)
     seconds["meshing"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()

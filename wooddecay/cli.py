@@ -174,7 +174,7 @@ def _meshlets_report(model, scene, usd_path: Path | None) -> dict:
     from .meshlets import checks
     from .meshlets.sweep import build_meshlets
 
-    mesh = build_meshlets(model, scene)
+    mesh = build_meshlets(model)
     closed = checks.closed_oriented(mesh)
     vol = checks.volumes(mesh)
     rep = {
@@ -183,7 +183,7 @@ def _meshlets_report(model, scene, usd_path: Path | None) -> dict:
         "vertices": int(len(mesh.points)),
         "closed_fraction": float(closed.mean()) if mesh.count else 1.0,
         "positive_volume_fraction": float((vol > 0).mean()) if mesh.count else 1.0,
-        "volume_error": float(vol.sum() / checks.bark_volume(scene) - 1.0),
+        "volume_error": float(vol.sum() / checks.bark_volume(model) - 1.0),
         "seconds": round(mesh.stats["seconds"], 4),
         "events": {k: v for k, v in mesh.stats.items() if k != "seconds"},
     }

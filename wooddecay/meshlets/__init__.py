@@ -1,1 +1,2 @@
-"""Meshlets: kinetic Delaunay triangulation and kinetic alpha shape of branch cross-sections (woodstock §8.1, Fig. 10; SPEC §5)."""
+"""Meshlets (woodstock §8.1, §8.3, Fig. 10; SPEC §5): the kinetic Voronoi sweep of the strand sites
+into per-element closed shells, their blend skinning per frame and crack-face visibility."""

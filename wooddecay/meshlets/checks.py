@@ -4,19 +4,19 @@
   and its reverse exactly once (a closed, consistently oriented 2-manifold surface).
 * :func:`volumes`: signed volume per meshlet by the divergence theorem, sum over faces of
   x0 . (x1 x x2) / 6 (relative to the meshlet's first vertex, for precision).
-* :func:`bark_volume`: the volume inside the bark surface: the skeleton's profiles lofted along
+* :func:`bark_volume`: the volume inside the bark surface: the model's skeleton profiles lofted along
   each edge (polar radius about the centroid interpolated linearly in the polar angle, the
   star-shaped map the strands follow), integrated along the edge; for the partition check. A side
   branch's first edge is lofted from its own profile (the fork's belongs to the parent branch);
   where branches meet the lofts still overlap, so on a tree this is a reference, not an exact
-  volume (woodstock §8.1 leaves junction gaps and overlaps; they are reported).
+  volume (woodstock §8.1 leaves junction gaps and overlaps; ``wooddecay inspect --meshlets``
+  reports the volume error).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..strands.profiles import polygon_centroid, ray_extent
-from ..strands.topology import build_topology
 
 
 def closed_oriented(mesh) -> np.ndarray:
@@ -51,10 +51,9 @@ def volumes(mesh, points=None) -> np.ndarray:
     return np.bincount(mesh.face_element, weights=v, minlength=mesh.count)
 
 
-def bark_volume(scene, samples_per_edge: int = 64, angles: int = 720) -> float:
-    """Volume inside the bark surface of the scene's skeleton (see the module docstring)."""
-    skel = scene.skeleton
-    topo = build_topology(skel)
+def bark_volume(model, samples_per_edge: int = 64, angles: int = 720) -> float:
+    """Volume inside the bark surface of the model's skeleton (see the module docstring)."""
+    skel, topo = model.skeleton, model.topology
     phi = np.linspace(-np.pi, np.pi, angles, endpoint=False)
     total = 0.0
     for i in range(len(skel.ids)):

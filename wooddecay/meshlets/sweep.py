@@ -1,9 +1,9 @@
 """Per-element meshlets: each strand site's Voronoi cell swept along d_t over its rod element.
 
-Woodstock §8.1 and Fig. 10; SPEC §5. Per branch, the strand sites P_i(d_t) (control points of the
-strands in their nodes' cross-section frames, linear in d_t between sections) are carried along the
-branch by the kinetic Delaunay triangulation of :mod:`wooddecay.meshlets.kinetic`. The meshlet of the
-rod element of strand i over [a, b] is the sweep of site i's Voronoi cell over [a, b]:
+Woodstock §8.1 and Fig. 10; SPEC §5. Per branch, the strand sites P_i(d_t) and their ghost mirrors
+(:mod:`wooddecay.meshlets.branch`) are carried along the branch by the kinetic Delaunay
+triangulation of :mod:`wooddecay.meshlets.kinetic`. The meshlet of the rod element of strand i
+over [a, b] is the sweep of site i's Voronoi cell over [a, b]:
 
 * Voronoi vertices are the circumcentres c(t, d) of the Delaunay triangles t. A triangle's vertex is
   sampled at its birth and death events, at the branch's node sections (where the motion bends)
@@ -22,19 +22,14 @@ rod element of strand i over [a, b] is the sweep of site i's Voronoi cell over [
   Voronoi vertices (before the event) and the added run (after it), and the strips beside the
   changed triangles carry the horizontal junction from the old to the new vertex. The strand's own
   element gets its cap.
-* Bounding the wood. Instead of clipping the Voronoi cells with the offset alpha-shape contour, the
-  sites within GHOST_DEPTH r_s of a node's profile are mirrored across it (ghost sites, linear in
-  d_t like the real ones, alive with their strand). A real site's cell then ends at the bisector
-  with its mirror, which is the tangent of the profile at the closest boundary point: the cells are
-  bounded, the bark surface follows the input profile (concave ones too), and all changes along
-  d_t stay continuous (a clipped alpha contour jumps at every alpha event). Faces between a real
-  and a ghost site are bark. ``docs/decisions.md`` (Meshlets) records this choice.
+* Bark: faces between a real and a ghost site (the cell ends at the bisector with its mirror, the
+  tangent of the profile).
 * Caps close each element at its two ends: the cell polygon at d_t = a (facing -d) and at b (+d).
 
-Forks: a strand is meshed in each branch it crosses over the part of its path in that branch;
-an element that straddles a fork belongs to the branch of its midpoint (``model.branch``) and is
-clipped at the fork section; the next element of the strand covers the rest. Junction gaps and
-overlaps are reported by :func:`wooddecay.meshlets.checks.junction_report`.
+Forks: an element that straddles a fork belongs to the branch of its midpoint (``model.branch``)
+and is clipped at the fork section; the next element of the strand covers the rest. Per-branch
+sweeps overlap slightly near junctions (woodstock §8.1 leaves junction gaps and overlaps;
+``docs/decisions.md``, "Forks and hull repair").
 
 Output: :class:`Meshlets`, disjoint closed shells (each meshlet owns copies of its vertices), faces
 tagged bark / side (with the neighbouring element) / cap, rest wood-local coordinates and ring age
@@ -46,19 +41,15 @@ import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError
+from scipy.spatial import ConvexHull
 
-from ..strands.topology import build_topology
 from ..quaternion import conj_np, rotate_np
-from .alpha import offset_contour
-from .kinetic import FLIP, REPAIR, SECTION, _perturbation, sweep
+from .branch import Branch, setup_branch
+from .checks import closed_oriented
+from .kinetic import FLIP, REPAIR, SECTION, perturbation, sweep
 
 #: face kinds (DESIGN "USD stage": uniform int faceKind)
 BARK, SIDE, CAP = 0, 1, 2
-#: sites closer than this many r_s to a node's profile get a mirrored ghost site
-GHOST_DEPTH = 4.0
-#: far sites around every branch (see _setup_branch)
-FAR_RING = 8
 
 
 @dataclass(frozen=True, eq=False)
@@ -96,153 +87,6 @@ class Meshlets:
     @property
     def n_faces(self) -> int:
         return len(self.faces)
-
-
-# --------------------------------------------------------------------------------------------
-# Branch set-up: sections, sites and ghosts
-# --------------------------------------------------------------------------------------------
-
-@dataclass
-class _Branch:
-    chain: np.ndarray  # skeleton nodes along the branch (start node first)
-    s_chain: np.ndarray  # their distance to the root
-    d: np.ndarray  # kinetic sections
-    P: np.ndarray  # (S, n, 2) sites (real first, then ghosts)
-    alive: np.ndarray  # (S, n)
-    strand: np.ndarray  # (n_real,) strand of each real site
-    ghost_of: np.ndarray  # (n_ghost,) real site mirrored by each ghost
-    bounds: list  # per real site: element boundaries strictly inside its run
-    elem0: np.ndarray  # per real site: its first element in this branch
-    n_elem: np.ndarray  # per real site: its number of elements in this branch
-
-    @property
-    def n_real(self) -> int:
-        return len(self.strand)
-
-
-#: a corner: the second mirror edge turns by more than this from the nearest one
-CORNER = np.deg2rad(30.0)
-
-
-def _feet(poly: np.ndarray, pts: np.ndarray):
-    """Feet of the two mirrors of each point: on its nearest profile edge, and on the nearest edge
-    turned by more than CORNER from that one (inf distance where there is none). Returns
-    (n, 2, 2) feet and (n, 2) distances."""
-    a = np.asarray(poly, float)
-    e = np.roll(a, -1, axis=0) - a
-    ln2 = (e * e).sum(1)
-    t = np.clip(((pts[:, None] - a[None]) * e[None]).sum(-1) / ln2[None], 0.0, 1.0)
-    foot = a[None] + t[..., None] * e[None]
-    dist = np.linalg.norm(pts[:, None] - foot, axis=-1)
-    n = len(pts)
-    e0 = np.argmin(dist, axis=1)
-    u = e / np.sqrt(ln2)[:, None]
-    turned = (u[e0] @ u.T) < np.cos(CORNER)
-    d1 = np.where(turned, dist, np.inf)
-    e1 = np.argmin(d1, axis=1)
-    rows = np.arange(n)
-    feet = np.stack([foot[rows, e0], foot[rows, e1]], axis=1)
-    return feet, np.stack([dist[rows, e0], d1[rows, e1]], axis=1)
-
-
-def _section_profile(skel, chain, node: int, pts: np.ndarray, r_s: float) -> np.ndarray:
-    """The contour the ghosts mirror across at a node section: the node's profile, except where a
-    side branch starts (its strands fill only part of the fork's profile): there the convex hull
-    of the branch's sites (the alpha shape with alpha = inf) offset outwards by r_s."""
-    if node != chain[0] or skel.parent[node] < 0 or node != skel.parent[chain[1]] or len(pts) < 3:
-        return skel.profiles[node].polygon
-    try:
-        hull = ConvexHull(pts)
-    except QhullError:
-        return skel.profiles[node].polygon
-    return offset_contour(pts[hull.vertices], r_s, "round")[0]
-
-
-def _branch_chain(topo, skel, b: int) -> np.ndarray:
-    nodes = np.flatnonzero(topo.branch == b)
-    nodes = nodes[np.argsort(topo.s[nodes], kind="stable")]
-    first = nodes[0]
-    if skel.parent[first] >= 0:
-        nodes = np.concatenate([[skel.parent[first]], nodes])
-    return nodes
-
-
-def _setup_branch(model, skel, topo, b: int, r_s: float) -> _Branch | None:
-    chain = _branch_chain(topo, skel, b)
-    s_chain = topo.s[chain].astype(float)
-    cpo, node = model.cp_offsets, model.cp_node
-    seg_branch = np.full(len(node), -1)
-    seg_branch[:-1] = topo.branch[node[1:]]
-    seg_branch[cpo[1:] - 1] = -1  # the last control point of a strand starts no segment
-    segs = np.flatnonzero(seg_branch == b)
-    if len(segs) == 0:
-        return None
-    cp_strand = np.repeat(np.arange(len(cpo) - 1), np.diff(cpo))
-    strands, first_seg = np.unique(cp_strand[segs], return_index=True)
-    last_seg = np.append(first_seg[1:], len(segs)) - 1
-    c0, c1 = segs[first_seg], segs[last_seg] + 1
-    # keep the strands that own at least one element in this branch
-    e_br = model.branch
-    rows, e0s, ns = [], [], []
-    for k, st in enumerate(strands):
-        e = np.arange(model.element_offsets[st], model.element_offsets[st + 1])
-        mine = e[e_br[e] == b]
-        if len(mine):
-            rows.append(k)
-            e0s.append(mine[0])
-            ns.append(len(mine))
-    rows = np.array(rows, dtype=np.int64)
-    strands, c0, c1 = strands[rows], c0[rows], c1[rows]
-    s0, s1 = model.cp_s[c0], model.cp_s[c1]
-    d = np.unique(np.concatenate([s_chain[(s_chain >= s0.min()) & (s_chain <= s1.max())], s0, s1]))
-    n = len(strands)
-    P = np.zeros((len(d), n, 2))
-    alive = (d[:, None] >= s0[None]) & (d[:, None] <= s1[None])
-    for i in range(n):
-        cs, uv = model.cp_s[c0[i]:c1[i] + 1], model.cp_uv[c0[i]:c1[i] + 1]
-        dd = d[alive[:, i]]
-        P[alive[:, i], i, 0] = np.interp(dd, cs, uv[:, 0])
-        P[alive[:, i], i, 1] = np.interp(dd, cs, uv[:, 1])
-    # ghosts: mirrors across each node profile of the sites near it (ranks: the nearest edge and
-    # the nearest edge turned by more than CORNER from it, for corners); the offset ghost - site is
-    # linear between node sections and constant beyond them
-    is_node = np.isin(d, s_chain)
-    node_at = {float(s): int(c) for s, c in zip(s_chain, chain)}
-    depth = np.full((n, 2), -np.inf)
-    offset = np.full((len(d), n, 2, 2), np.nan)
-    for k in np.flatnonzero(is_node):
-        idx = np.flatnonzero(alive[k])
-        poly = _section_profile(skel, chain, node_at[float(d[k])], P[k, idx], r_s)
-        foot, dist = _feet(poly, P[k, idx])
-        depth[idx] = np.maximum(depth[idx], dist)
-        offset[k, idx] = 2.0 * (foot - P[k, idx][:, None])
-    ghosts = [(i, r) for r in range(2) for i in np.flatnonzero(depth[:, r] < GHOST_DEPTH * r_s)]
-    G = np.zeros((len(d), len(ghosts), 2))
-    for j, (i, r) in enumerate(ghosts):
-        rows_i = np.flatnonzero(alive[:, i])
-        known = rows_i[is_node[rows_i]]
-        if len(known) == 0:  # a run between two nodes: mirror across the nearer node's profile
-            k = int(np.argmin(np.abs(s_chain - d[rows_i].mean())))
-            foot, _ = _feet(skel.profiles[chain[k]].polygon, P[rows_i, i])
-            G[rows_i, j] = 2.0 * foot[:, r] - P[rows_i, i]
-            continue
-        for c in range(2):
-            G[rows_i, j, c] = P[rows_i, i, c] + np.interp(d[rows_i], d[known], offset[known, i, r, c])
-    ghost_of = np.array([i for i, _ in ghosts], dtype=np.int64)
-    # a far ring keeps every real cell bounded even where no mirror reaches (a safety net)
-    pts = P[alive]
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
-    ang = 2.0 * np.pi * np.arange(FAR_RING) / FAR_RING
-    ring = 0.5 * (lo + hi) + 4.0 * (float(np.max(hi - lo)) + r_s) * np.stack([np.cos(ang), np.sin(ang)], 1)
-    P = np.concatenate([P, G, np.broadcast_to(ring, (len(d), FAR_RING, 2))], axis=1)
-    alive = np.concatenate([alive, alive[:, ghost_of], np.ones((len(d), FAR_RING), dtype=bool)], axis=1)
-    bounds = []
-    for i in range(n):
-        e = np.arange(e0s[i], e0s[i] + ns[i])
-        inner = model.particle_s[model.first_particle[e[:-1]] + 1]
-        bounds.append(inner[(inner > s0[i]) & (inner < s1[i])])
-    return _Branch(chain=chain, s_chain=s_chain, d=d, P=P, alive=alive, strand=strands,
-                   ghost_of=ghost_of, bounds=bounds, elem0=np.array(e0s), n_elem=np.array(ns))
 
 
 # --------------------------------------------------------------------------------------------
@@ -306,7 +150,7 @@ class _BranchSweep:
     +1: the one starting at d, 0: the one containing d).
     """
 
-    def __init__(self, br: _Branch):
+    def __init__(self, br: Branch):
         self.br, self.nr = br, br.n_real
         self.vkey = {}  # (triangle, d) -> vertex id
         self.vtri, self.vd, self.vfourth = [], [], []  # sites, d and (at a flip) the fourth site
@@ -537,7 +381,7 @@ class _BranchSweep:
         return out
 
 
-def sweep_branch(br: _Branch):
+def sweep_branch(br: Branch):
     """Run the kinetic sweep of one branch and collect its faces (see the module docstring)."""
     kin = sweep(br.d, br.P, br.alive)
     bs = _BranchSweep(br)
@@ -609,7 +453,7 @@ def _vertex_uv(kin, T, d):
         X = (1.0 - s) * kin.P[k[:, None], T] + s * kin.P[np.minimum(k + 1, S - 1)[:, None], T]
     else:
         X = kin.P[0][T]
-    Xn = (X - kin.centre) / kin.scale + kin.eta * _perturbation(kin.n_sites)[T]
+    Xn = (X - kin.centre) / kin.scale + kin.eta * perturbation(kin.n_sites)[T]
     return kin.centre + kin.scale * _circumcentres(Xn)
 
 
@@ -628,12 +472,12 @@ def _embed(skel, topo, chain, s_chain, d, uv):
     return origin + uv[:, :1] * U + uv[:, 1:] * V
 
 
-def _branch_arrays(model, skel, topo, br, kin, bs):
+def _branch_arrays(model, br, kin, bs):
     """Vertices (3D, uv, d), face rows and each vertex's candidate skinning elements."""
     T = np.array(bs.vtri, dtype=np.int64).reshape(-1, 3)
     d = np.array(bs.vd, dtype=float)
     uv = _vertex_uv(kin, T, d)
-    xyz = _embed(skel, topo, br.chain, br.s_chain, d, uv)
+    xyz = _embed(model.skeleton, model.topology, br.chain, br.s_chain, d, uv)
     F = np.array(bs.faces, dtype=float).reshape(-1, 9)
     tri = F[:, :3].astype(np.int64)
     site, side, fd = F[:, 3].astype(np.int64), F[:, 4].astype(np.int64), F[:, 5]
@@ -652,17 +496,15 @@ def _branch_arrays(model, skel, topo, br, kin, bs):
     return xyz, uv, d, tri, elem, F[:, 6].astype(np.int8), nbr, cand_v, cand_e
 
 
-def build_meshlets(model, scene) -> Meshlets:
+def build_meshlets(model) -> Meshlets:
     """Rest meshlets of every rod element of ``model`` (see the module docstring)."""
     t0 = time.perf_counter()
-    skel = scene.skeleton
-    topo = build_topology(skel)
-    r_s = scene.strands.r_s
+    r_s = model.r_s
     parts, counts = [], {"flips": 0, "hull": 0, "inserts": 0, "deletes": 0, "repairs": 0,
                          "sections": 0, "unmatched": 0, "branches": 0}
     off = 0
-    for b in range(topo.n_branches):
-        br = _setup_branch(model, skel, topo, b, r_s)
+    for b in range(model.n_branches):
+        br = setup_branch(model, b)
         if br is None:
             continue
         kin, bs = sweep_branch(br)
@@ -670,7 +512,7 @@ def build_meshlets(model, scene) -> Meshlets:
             counts[k] += v
         counts["unmatched"] += bs.unmatched
         counts["branches"] += 1
-        xyz, uv, d, tri, elem, kind, nbr, cv, ce = _branch_arrays(model, skel, topo, br, kin, bs)
+        xyz, uv, d, tri, elem, kind, nbr, cv, ce = _branch_arrays(model, br, kin, bs)
         parts.append((xyz, uv, d, tri + off, elem, kind, nbr, cv + off, ce))
         off += len(d)
     cat = [np.concatenate([p[i] for p in parts]) for i in range(9)]
@@ -715,13 +557,11 @@ def build_meshlets(model, scene) -> Meshlets:
 
 
 def hull_repair(mesh: Meshlets) -> Meshlets:
-    """Last resort for a meshlet the sweep left open (``checks.closed_oriented`` false; 3 of the
-    tree's 54,675 at the time of writing, where three sites pass through collinearity between
-    two element boundaries): its faces are replaced by the convex hull of its vertices, tagged
-    side faces with no neighbour (so they are always exported). The hull is closed and
-    outward-oriented; it may overlap its neighbours slightly. Counted in ``stats['hull_repairs']``."""
-    from .checks import closed_oriented
-
+    """Last resort for a meshlet the sweep left open (:func:`~wooddecay.meshlets.checks.closed_oriented`
+    false; 3 of the tree's 54,675, where three sites pass through collinearity between two element
+    boundaries): its faces are replaced by the convex hull of its vertices, tagged side faces with
+    no neighbour (so they are always exported). The hull is closed and outward-oriented; it may
+    overlap its neighbours slightly. Counted in ``stats['hull_repairs']``."""
     bad = np.flatnonzero(~closed_oriented(mesh))
     mesh.stats["hull_repairs"] = int(len(bad))
     if len(bad) == 0:

@@ -1,0 +1,179 @@
+"""A branch's kinetic sites: sections, strand sites, ghost mirrors and element bounds (SPEC §5).
+
+Woodstock §8.1: per branch, the strand sites P_i(d_t) are the strands' control points in their
+nodes' cross-section frames (``model.cp_uv``, ``model.cp_s``), linear in d_t between the sections
+``d``: the branch's node sections and the ends of its strands' runs. A strand is meshed in each
+branch it crosses over the part of its path in that branch (its elements whose midpoint lies in
+the branch, ``model.branch``).
+
+Bounding the wood. Instead of clipping the Voronoi cells with the offset alpha-shape contour, the
+sites within GHOST_DEPTH r_s of a node's profile are mirrored across it (ghost sites, linear in
+d_t like the real ones, alive with their strand). A real site's cell then ends at the bisector
+with its mirror, which is the tangent of the profile at the closest boundary point: the cells are
+bounded, the bark surface follows the input profile (concave ones too), and all changes along
+d_t stay continuous (a clipped alpha contour jumps at every alpha event). Near a corner a second
+mirror goes across the nearest edge turned by more than CORNER. Where a side branch starts, the
+mirrors go across the hull of its sites offset by r_s (:func:`~wooddecay.meshlets.offset.offset_contour`).
+FAR_RING far sites keep every real cell bounded even where no mirror reaches. ``docs/decisions.md``
+(Meshlets) records this choice.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+from .offset import offset_contour
+
+#: sites closer than this many r_s to a node's profile get a mirrored ghost site
+GHOST_DEPTH = 4.0
+#: far sites around every branch
+FAR_RING = 8
+#: a corner: the second mirror edge turns by more than this from the nearest one
+CORNER = np.deg2rad(30.0)
+
+
+@dataclass
+class Branch:
+    """The kinetic input of one branch (:func:`setup_branch`): real sites first, then ghosts, then
+    the far ring."""
+
+    chain: np.ndarray  # skeleton nodes along the branch (start node first)
+    s_chain: np.ndarray  # their distance to the root
+    d: np.ndarray  # kinetic sections
+    P: np.ndarray  # (S, n, 2) sites (real first, then ghosts)
+    alive: np.ndarray  # (S, n)
+    strand: np.ndarray  # (n_real,) strand of each real site
+    ghost_of: np.ndarray  # (n_ghost,) real site mirrored by each ghost
+    bounds: list  # per real site: element boundaries strictly inside its run
+    elem0: np.ndarray  # per real site: its first element in this branch
+    n_elem: np.ndarray  # per real site: its number of elements in this branch
+
+    @property
+    def n_real(self) -> int:
+        return len(self.strand)
+
+
+def _feet(poly: np.ndarray, pts: np.ndarray):
+    """Feet of the two mirrors of each point: on its nearest profile edge, and on the nearest edge
+    turned by more than CORNER from that one (inf distance where there is none). Returns
+    (n, 2, 2) feet and (n, 2) distances."""
+    a = np.asarray(poly, float)
+    e = np.roll(a, -1, axis=0) - a
+    ln2 = (e * e).sum(1)
+    t = np.clip(((pts[:, None] - a[None]) * e[None]).sum(-1) / ln2[None], 0.0, 1.0)
+    foot = a[None] + t[..., None] * e[None]
+    dist = np.linalg.norm(pts[:, None] - foot, axis=-1)
+    n = len(pts)
+    e0 = np.argmin(dist, axis=1)
+    u = e / np.sqrt(ln2)[:, None]
+    turned = (u[e0] @ u.T) < np.cos(CORNER)
+    d1 = np.where(turned, dist, np.inf)
+    e1 = np.argmin(d1, axis=1)
+    rows = np.arange(n)
+    feet = np.stack([foot[rows, e0], foot[rows, e1]], axis=1)
+    return feet, np.stack([dist[rows, e0], d1[rows, e1]], axis=1)
+
+
+def _section_profile(skel, chain, node: int, pts: np.ndarray, r_s: float) -> np.ndarray:
+    """The contour the ghosts mirror across at a node section: the node's profile, except where a
+    side branch starts (its strands fill only part of the fork's profile): there the convex hull
+    of the branch's sites (the alpha shape with alpha = inf) offset outwards by r_s."""
+    if node != chain[0] or skel.parent[node] < 0 or node != skel.parent[chain[1]] or len(pts) < 3:
+        return skel.profiles[node].polygon
+    try:
+        hull = ConvexHull(pts)
+    except QhullError:
+        return skel.profiles[node].polygon
+    return offset_contour(pts[hull.vertices], r_s, "round")[0]
+
+
+def _branch_chain(topo, skel, b: int) -> np.ndarray:
+    nodes = np.flatnonzero(topo.branch == b)
+    nodes = nodes[np.argsort(topo.s[nodes], kind="stable")]
+    first = nodes[0]
+    if skel.parent[first] >= 0:
+        nodes = np.concatenate([[skel.parent[first]], nodes])
+    return nodes
+
+
+def setup_branch(model, b: int) -> Branch | None:
+    """Sections, sites (real, ghosts, far ring) and element bounds of branch ``b`` of ``model``
+    (see the module docstring); None when no strand runs through the branch."""
+    skel, topo, r_s = model.skeleton, model.topology, model.r_s
+    chain = _branch_chain(topo, skel, b)
+    s_chain = topo.s[chain].astype(float)
+    cpo, node = model.cp_offsets, model.cp_node
+    seg_branch = np.full(len(node), -1)
+    seg_branch[:-1] = topo.branch[node[1:]]
+    seg_branch[cpo[1:] - 1] = -1  # the last control point of a strand starts no segment
+    segs = np.flatnonzero(seg_branch == b)
+    if len(segs) == 0:
+        return None
+    cp_strand = np.repeat(np.arange(len(cpo) - 1), np.diff(cpo))
+    strands, first_seg = np.unique(cp_strand[segs], return_index=True)
+    last_seg = np.append(first_seg[1:], len(segs)) - 1
+    c0, c1 = segs[first_seg], segs[last_seg] + 1
+    # keep the strands that own at least one element in this branch
+    e_br = model.branch
+    rows, e0s, ns = [], [], []
+    for k, st in enumerate(strands):
+        e = np.arange(model.element_offsets[st], model.element_offsets[st + 1])
+        mine = e[e_br[e] == b]
+        if len(mine):
+            rows.append(k)
+            e0s.append(mine[0])
+            ns.append(len(mine))
+    rows = np.array(rows, dtype=np.int64)
+    strands, c0, c1 = strands[rows], c0[rows], c1[rows]
+    s0, s1 = model.cp_s[c0], model.cp_s[c1]
+    d = np.unique(np.concatenate([s_chain[(s_chain >= s0.min()) & (s_chain <= s1.max())], s0, s1]))
+    n = len(strands)
+    P = np.zeros((len(d), n, 2))
+    alive = (d[:, None] >= s0[None]) & (d[:, None] <= s1[None])
+    for i in range(n):
+        cs, uv = model.cp_s[c0[i]:c1[i] + 1], model.cp_uv[c0[i]:c1[i] + 1]
+        dd = d[alive[:, i]]
+        P[alive[:, i], i, 0] = np.interp(dd, cs, uv[:, 0])
+        P[alive[:, i], i, 1] = np.interp(dd, cs, uv[:, 1])
+    # ghosts: mirrors across each node profile of the sites near it (ranks: the nearest edge and
+    # the nearest edge turned by more than CORNER from it, for corners); the offset ghost - site is
+    # linear between node sections and constant beyond them
+    is_node = np.isin(d, s_chain)
+    node_at = {float(s): int(c) for s, c in zip(s_chain, chain)}
+    depth = np.full((n, 2), -np.inf)
+    offset = np.full((len(d), n, 2, 2), np.nan)
+    for k in np.flatnonzero(is_node):
+        idx = np.flatnonzero(alive[k])
+        poly = _section_profile(skel, chain, node_at[float(d[k])], P[k, idx], r_s)
+        foot, dist = _feet(poly, P[k, idx])
+        depth[idx] = np.maximum(depth[idx], dist)
+        offset[k, idx] = 2.0 * (foot - P[k, idx][:, None])
+    ghosts = [(i, r) for r in range(2) for i in np.flatnonzero(depth[:, r] < GHOST_DEPTH * r_s)]
+    G = np.zeros((len(d), len(ghosts), 2))
+    for j, (i, r) in enumerate(ghosts):
+        rows_i = np.flatnonzero(alive[:, i])
+        known = rows_i[is_node[rows_i]]
+        if len(known) == 0:  # a run between two nodes: mirror across the nearer node's profile
+            k = int(np.argmin(np.abs(s_chain - d[rows_i].mean())))
+            foot, _ = _feet(skel.profiles[chain[k]].polygon, P[rows_i, i])
+            G[rows_i, j] = 2.0 * foot[:, r] - P[rows_i, i]
+            continue
+        for c in range(2):
+            G[rows_i, j, c] = P[rows_i, i, c] + np.interp(d[rows_i], d[known], offset[known, i, r, c])
+    ghost_of = np.array([i for i, _ in ghosts], dtype=np.int64)
+    # a far ring keeps every real cell bounded even where no mirror reaches (a safety net)
+    pts = P[alive]
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    ang = 2.0 * np.pi * np.arange(FAR_RING) / FAR_RING
+    ring = 0.5 * (lo + hi) + 4.0 * (float(np.max(hi - lo)) + r_s) * np.stack([np.cos(ang), np.sin(ang)], 1)
+    P = np.concatenate([P, G, np.broadcast_to(ring, (len(d), FAR_RING, 2))], axis=1)
+    alive = np.concatenate([alive, alive[:, ghost_of], np.ones((len(d), FAR_RING), dtype=bool)], axis=1)
+    bounds = []
+    for i in range(n):
+        e = np.arange(e0s[i], e0s[i] + ns[i])
+        inner = model.particle_s[model.first_particle[e[:-1]] + 1]
+        bounds.append(inner[(inner > s0[i]) & (inner < s1[i])])
+    return Branch(chain=chain, s_chain=s_chain, d=d, P=P, alive=alive, strand=strands,
+                   ghost_of=ghost_of, bounds=bounds, elem0=np.array(e0s), n_elem=np.array(ns))
