@@ -278,8 +278,8 @@ def bake(tmp_path_factory):
     model = wd.build_model(scene)
     frames = list(wd.Simulation(model).run())
     mesh = wd.build_meshlets(model)
-    usd = export_usd(out / "tiny.usdc", model, mesh, frames, scene)
-    glb = export_gltf(out / "tiny.glb", model, mesh, frames[-1], scene)
+    usd = export_usd(out / "tiny.usdc", model, mesh, frames)
+    glb = export_gltf(out / "tiny.glb", model, mesh, frames[-1])
     # the same GLB without the face kind and ring attributes
     importer = load_pure("importer")
     doc, binary = importer.read_glb(Path(glb).read_bytes())
@@ -300,7 +300,7 @@ def rot_usd(tmp_path_factory) -> Path:
     model = wd.build_model(scene)
     frames = list(wd.Simulation(model, mechanics=False).run())
     mesh = wd.build_meshlets(model)
-    return Path(export_usd(out / "rot.usdc", model, mesh, frames, scene))
+    return Path(export_usd(out / "rot.usdc", model, mesh, frames))
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""``wooddecay bake`` and ``wooddecay diff`` end to end (issue "Bake end to end")."""
+"""``wooddecay bake`` and ``wooddecay diff`` end to end."""
 from __future__ import annotations
 
 import json

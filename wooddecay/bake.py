@@ -1,4 +1,4 @@
-"""``wooddecay bake``: simulate, mesh and export a scene (DESIGN "CLI"; issue "Bake end to end").
+"""``wooddecay bake``: simulate, mesh and export a scene (DESIGN "CLI").
 
 :func:`bake` runs the model build, the coupled simulation (:class:`wooddecay.sim.driver.Simulation`),
 the rest meshlets (:func:`wooddecay.meshlets.sweep.build_meshlets`) and the exporters, and writes
@@ -116,8 +116,8 @@ def bake(scene, out, resume: bool = False, quality: str = "final", progress=None
     seconds["meshing"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    usd = export_usd(out / f"{scene.name}.usdc", model, mesh, frames, scene, version=__version__)
-    glb = export_gltf(out / f"{scene.name}.glb", model, mesh, frames[-1], scene, version=__version__)
+    usd = export_usd(out / f"{scene.name}.usdc", model, mesh, frames, version=__version__)
+    glb = export_gltf(out / f"{scene.name}.glb", model, mesh, frames[-1], version=__version__)
     seconds["export"] = time.perf_counter() - t0
 
     summary = {

@@ -151,10 +151,10 @@ def inspect(scene_path: str, as_json: bool, strands_usd: Path | None, with_meshl
         from .export.strands_usd import write_strands_usd
 
         t0 = time.perf_counter()
-        write_strands_usd(strands_usd, model, scene)
+        write_strands_usd(strands_usd, model)
         rep["strands_usd"] = {"path": str(strands_usd), "seconds": round(time.perf_counter() - t0, 4)}
     if with_meshlets or meshlets_usd:
-        rep["meshlets"] = _meshlets_report(model, scene, meshlets_usd)
+        rep["meshlets"] = _meshlets_report(model, meshlets_usd)
     if as_json:
         click.echo(json.dumps(rep, indent=2))
     else:
@@ -168,7 +168,7 @@ def inspect(scene_path: str, as_json: bool, strands_usd: Path | None, with_meshl
                        + (f" -> {meshlets_usd}" if meshlets_usd else ""))
 
 
-def _meshlets_report(model, scene, usd_path: Path | None) -> dict:
+def _meshlets_report(model, usd_path: Path | None) -> dict:
     """``meshlets`` fields of the inspect report: count, closed fraction, volume error against
     the volume inside the bark surface, seconds (and the debug USD)."""
     from .meshlets import checks
@@ -190,7 +190,7 @@ def _meshlets_report(model, scene, usd_path: Path | None) -> dict:
     if usd_path:
         from .export.meshlets_usd import write_meshlets_usd
 
-        write_meshlets_usd(usd_path, mesh, scene)
+        write_meshlets_usd(usd_path, model, mesh)
         rep["usd"] = str(usd_path)
     return rep
 

@@ -180,7 +180,7 @@ def test_brown_rot_breaks_bsp_boundaries_into_blocks_white_rot_does_not_and_wet_
     assert frac["brown"] > base + 0.15
     assert abs(frac["white"] - base) < 0.08
     assert n_wet < np.count_nonzero(brown10) / 10
-    (bs, bp), (ws, wp) = pieces["brown"], pieces["white"]
+    (bs, bp), (ws, _) = pieces["brown"], pieces["white"]
     assert np.count_nonzero(bs >= 5) >= 4  # blocks came loose
     assert np.median(bp[bs >= 5]) >= 0.8  # each mostly one BSP cell
     assert np.count_nonzero(ws < 5) >= 5 * max(np.count_nonzero(bs < 5), 1)  # white rot frays

@@ -1,4 +1,4 @@
-"""Compare two USD stages (``wooddecay diff``; DESIGN "CLI", issue "Bake end to end").
+"""Compare two USD stages (``wooddecay diff``; DESIGN "CLI").
 
 :func:`compare_usd` returns the list of :class:`Difference` between stage ``a`` and stage ``b``:
 

@@ -1,6 +1,6 @@
 """One baked frame as binary glTF 2.0 (DESIGN "glTF"; woodstock §8.3, exported meshlets).
 
-``export_gltf(path, model, mesh, frame, scene)`` writes a ``.glb`` of one
+``export_gltf(path, model, mesh, frame)`` writes a ``.glb`` of one
 :class:`wooddecay.sim.driver.Frame` (the CLI passes the last by default):
 
 * one node per connected piece (``frame.mech["component"]`` of the face's element; one piece
@@ -124,7 +124,7 @@ def glb_bytes(doc: dict, binary: bytes) -> bytes:
     return b"".join(out)
 
 
-def gltf_document(model, mesh, frame, scene, version: str = "", link=None) -> tuple[dict, bytes]:
+def gltf_document(model, mesh, frame, version: str = "", link=None) -> tuple[dict, bytes]:
     """The glTF JSON document and its binary buffer for ``frame`` (module docstring)."""
     if link is None:
         link = skin_mod.links(model, mesh)
@@ -162,7 +162,7 @@ def gltf_document(model, mesh, frame, scene, version: str = "", link=None) -> tu
     color = rot_color(fields[:, ix["H_c"]], fields[:, ix["H_l"]], fields[:, ix["M"]])
     buf = _Bin()
     nodes, meshes = [], []
-    name = str(scene.name) or "scene"
+    name = str(model.info.name) or "scene"
     for k, piece in enumerate(pieces.tolist()):
         vs = vorder[vstart[k]:vstart[k + 1]]
         tri = faces[fstart[k]:fstart[k + 1]] - vstart[k]
@@ -186,8 +186,8 @@ def gltf_document(model, mesh, frame, scene, version: str = "", link=None) -> tu
     binary = buf.bytes()
     doc = {
         "asset": {"version": "2.0", "generator": "wooddecay",
-                  "extras": {"wooddecay_version": version, "scene": name, "seed": int(scene.seed),
-                             "scene_hash": scene.hash, "frame": int(frame.index),
+                  "extras": {"wooddecay_version": version, "scene": name, "seed": int(model.info.seed),
+                             "scene_hash": model.info.hash, "frame": int(frame.index),
                              "t_days": float(frame.t_days)}},
         "scene": 0,
         "scenes": [{"name": name, "nodes": list(range(len(nodes)))} if nodes else {"name": name}],
@@ -200,9 +200,9 @@ def gltf_document(model, mesh, frame, scene, version: str = "", link=None) -> tu
     return doc, binary
 
 
-def export_gltf(path, model, mesh, frame, scene, version: str = "", link=None) -> Path:
+def export_gltf(path, model, mesh, frame, version: str = "", link=None) -> Path:
     """Write ``frame`` (a :class:`wooddecay.sim.driver.Frame`) as a binary glTF to ``path``
     (.glb); ``link`` (from :func:`wooddecay.meshlets.skin.links`) may be passed to reuse it."""
     path = check_glb_path(path)
-    doc, binary = gltf_document(model, mesh, frame, scene, version=version, link=link)
+    doc, binary = gltf_document(model, mesh, frame, version=version, link=link)
     return write_bytes(path, glb_bytes(doc, binary), "glTF")

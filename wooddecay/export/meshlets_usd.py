@@ -1,6 +1,6 @@
-"""Debug view of the rest meshlets as one USD Mesh (woodstock Fig. 10; issue "Meshlets").
+"""Debug view of the rest meshlets as one USD Mesh (woodstock Fig. 10).
 
-``write_meshlets_usd(path, mesh, scene)`` writes ``/World/<scene>/Meshlets``: all meshlets as
+``write_meshlets_usd(path, model, mesh)`` writes ``/World/<scene>/Meshlets``: all meshlets as
 disjoint closed shells of triangles (subdivisionScheme none), ``displayColor`` per face by element
 (a hash colour, so neighbours differ), uniform int ``element`` and ``faceKind`` (0 bark, 1 side,
 2 cap), vertex float ``ring``. Stage conventions and the atomic write: :mod:`.stage`.
@@ -22,12 +22,12 @@ def element_colors(element: np.ndarray) -> np.ndarray:
     return rgb.astype(np.float32)
 
 
-def write_meshlets_usd(path, mesh, scene) -> Path:
+def write_meshlets_usd(path, model, mesh) -> Path:
     """Write the rest meshlets ``mesh`` to ``path`` (.usda, .usdc or .usd)."""
     from pxr import Gf, Sdf, UsdGeom, Vt
 
     path = stage_mod.check_usd_path(path, "meshlets")
-    stage, root = stage_mod.new_stage(scene)
+    stage, root = stage_mod.new_stage(model.info.name)
     m = UsdGeom.Mesh.Define(stage, f"{root}/Meshlets")
     pts = np.ascontiguousarray(mesh.points, dtype=np.float32)
     m.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(pts))

@@ -25,8 +25,9 @@ def check_usd_path(path, what: str) -> Path:
     return check_output(path, SUFFIXES, f"{what} USD")
 
 
-def new_stage(scene):
-    """An in-memory stage with the conventions above; returns (stage, scene prim path)."""
+def new_stage(name: str):
+    """An in-memory stage with the conventions above for the scene called ``name``; returns
+    (stage, scene prim path)."""
     from pxr import Usd, UsdGeom
 
     stage = Usd.Stage.CreateInMemory()
@@ -34,7 +35,7 @@ def new_stage(scene):
     UsdGeom.SetStageMetersPerUnit(stage, 1.0)
     world = UsdGeom.Xform.Define(stage, "/World")
     stage.SetDefaultPrim(world.GetPrim())
-    root = f"/World/{prim_name(scene.name)}"
+    root = f"/World/{prim_name(name)}"
     UsdGeom.Xform.Define(stage, root)
     return stage, root
 

@@ -1,6 +1,6 @@
 """Debug view of the strand group as USD BasisCurves (woodstock Fig. 3b).
 
-``write_strands_usd(path, model, scene)`` writes one linear, non-periodic ``BasisCurves`` prim
+``write_strands_usd(path, model)`` writes one linear, non-periodic ``BasisCurves`` prim
 ``/World/<scene name>/Strands`` with one curve per strand through its particles. Per vertex it
 carries ``widths`` (= 2 r_s of the strand's elements), the integer ``tissue`` (0 bark, 1 sapwood,
 2 heartwood, 3 pith), the float ``ring`` age in years from the pith and a ``displayColor`` by
@@ -50,7 +50,7 @@ def check_usd_path(path) -> Path:
     return stage_mod.check_usd_path(path, "strands")
 
 
-def write_strands_usd(path, model, scene) -> Path:
+def write_strands_usd(path, model) -> Path:
     """Write the strands of ``model`` as USD BasisCurves to ``path`` (.usda, .usdc or .usd).
 
     Raises
@@ -74,7 +74,7 @@ def write_strands_usd(path, model, scene) -> Path:
     widths = (2.0 * np.asarray(model.radius)[src]).astype(np.float32)
     colors = TISSUE_COLORS[np.clip(tissue, 0, len(TISSUE_COLORS) - 1)]
 
-    stage, root = stage_mod.new_stage(scene)
+    stage, root = stage_mod.new_stage(model.info.name)
     curves = UsdGeom.BasisCurves.Define(stage, f"{root}/Strands")
     curves.CreateTypeAttr(UsdGeom.Tokens.linear)
     curves.CreateWrapAttr(UsdGeom.Tokens.nonperiodic)

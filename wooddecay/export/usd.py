@@ -1,6 +1,6 @@
 """The baked USD stage (DESIGN "USD stage": the contract between bake, the add-on and CI).
 
-``export_usd(path, model, mesh, frames, scene)`` writes:
+``export_usd(path, model, mesh, frames)`` writes:
 
 * stage metadata: Z up, metersPerUnit 1, defaultPrim ``/World``, timeCodesPerSecond = ``time.fps``,
   start/end time codes = the first and last frame index, customLayerData (wooddecay version, scene
@@ -35,23 +35,23 @@ from . import stage as stage_mod
 from .colors import rot_color
 
 
-def export_usd(path, model, mesh, frames, scene, version: str = "") -> Path:
+def export_usd(path, model, mesh, frames, version: str = "") -> Path:
     """Write the baked stage (module docstring) for ``frames`` (a list of
     :class:`wooddecay.sim.driver.Frame`) to ``path`` (.usda, .usdc or .usd)."""
     from pxr import Gf, Sdf, UsdGeom, UsdShade, Vt
 
     path = stage_mod.check_usd_path(path, "baked")
     frames = list(frames)
-    stage, root = stage_mod.new_stage(scene)
+    stage, root = stage_mod.new_stage(model.info.name)
     stage.SetStartTimeCode(float(frames[0].index))
     stage.SetEndTimeCode(float(frames[-1].index))
-    stage.SetTimeCodesPerSecond(float(scene.time.fps))
-    stage.SetFramesPerSecond(float(scene.time.fps))
+    stage.SetTimeCodesPerSecond(float(model.time.fps))
+    stage.SetFramesPerSecond(float(model.time.fps))
     days = [float(f.t_days) for f in frames]
     stage.GetRootLayer().customLayerData = {
-        "wooddecay_version": version, "scene": scene.name, "seed": int(scene.seed),
-        "scene_hash": scene.hash,
-        "days_per_frame": float(scene.time.days) / max(int(scene.time.frames) - 1, 1),
+        "wooddecay_version": version, "scene": model.info.name, "seed": int(model.info.seed),
+        "scene_hash": model.info.hash,
+        "days_per_frame": float(model.time.days) / max(int(model.time.frames) - 1, 1),
         "frame_days": Vt.DoubleArray(days),
     }
     link = skin_mod.links(model, mesh)

@@ -44,7 +44,6 @@ from wooddecay.scene.schema import (
     TABLES,
     TISSUE_KEYS,
     TISSUE_SECTIONS,
-    TISSUES,
     Param,
     Table,
     describe,
@@ -53,6 +52,7 @@ from wooddecay.scene.schema import (
 )
 from wooddecay.scene.types import FrozenMap, Scene, Section
 from wooddecay.scene.validate import validate_value
+from wooddecay.strands.rings import TISSUES
 
 __all__ = [
     "Scene",

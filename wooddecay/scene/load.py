@@ -39,7 +39,6 @@ from wooddecay.scene.schema import (
     TABLES,
     TISSUE_KEYS,
     TISSUE_SECTIONS,
-    TISSUES,
     TOP_LEVEL,
 )
 from wooddecay.scene.types import FrozenMap, Scene, Section
@@ -50,6 +49,7 @@ from wooddecay.scene.validate import (
     validate_table,
     validate_value,
 )
+from wooddecay.strands.rings import TISSUES
 from wooddecay.strands.skeleton_loader import load_skeleton
 
 

@@ -28,8 +28,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ..strands.rings import TISSUES
-
 from wooddecay.errors import format_value
 
 

@@ -17,7 +17,8 @@ from pathlib import Path
 from typing import Any, Iterator
 
 from wooddecay.errors import did_you_mean
-from wooddecay.scene.schema import SECTIONS, TISSUE_KEYS, TISSUES
+from wooddecay.scene.schema import SECTIONS, TISSUE_KEYS
+from wooddecay.strands.rings import TISSUES
 
 
 class FrozenMap(Mapping):

@@ -28,9 +28,8 @@ from dataclasses import dataclass, field, fields, replace
 import numba as nb
 import numpy as np
 
-from ..strands.rings import TISSUES
-from . import contact, failure, rods, sleep
 from ..quaternion import conj_np, mul, mul_np, rotate
+from . import contact, failure, rods, sleep
 
 #: contact candidate pairs are searched with this margin (in r_s) and rebuilt once a particle
 #: has moved half of it (a Verlet list)

@@ -25,7 +25,7 @@ from wooddecay.export import gltf as gltf_mod
 from wooddecay.export.gltf import export_gltf
 from wooddecay.meshlets.visibility import visible_faces
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 VALIDATE_JS = ROOT / "tools" / "gltf_validate.js"
 HOW = ("install Node.js (node and npm on PATH) and run `npm ci` in the repository root; "
        "the glTF tests need the Khronos validator (npm gltf-validator, pinned in package-lock.json)")
@@ -117,7 +117,7 @@ def tiny():
 @pytest.fixture(scope="module")
 def tiny_glb(tiny, tmp_path_factory):
     scene, model, mesh, frame = tiny
-    return export_gltf(tmp_path_factory.mktemp("glb") / "tiny.glb", model, mesh, frame, scene, version="test")
+    return export_gltf(tmp_path_factory.mktemp("glb") / "tiny.glb", model, mesh, frame, version="test")
 
 
 def split_frame(model, frame):
@@ -148,7 +148,7 @@ def test_tiny_glb_passes_khronos_validator(tiny, tiny_glb, gltf_validator):
 def test_validator_reports_a_broken_file(tiny, tmp_path, gltf_validator):
     """The harness is not vacuous: a wrong POSITION max is an error for the validator."""
     scene, model, mesh, frame = tiny
-    doc, binary = gltf_mod.gltf_document(model, mesh, frame, scene)
+    doc, binary = gltf_mod.gltf_document(model, mesh, frame)
     doc["accessors"][doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"]]["max"][0] += 1.0
     bad = tmp_path / "bad.glb"
     bad.write_bytes(gltf_mod.glb_bytes(doc, binary))
@@ -210,7 +210,7 @@ def test_trimesh_reads_the_glb(tiny_glb):
 def test_broken_log_gives_two_nodes(tiny, tmp_path, gltf_validator):
     scene, model, mesh, frame = tiny
     split = split_frame(model, frame)
-    path = export_gltf(tmp_path / "split.glb", model, mesh, split, scene)
+    path = export_gltf(tmp_path / "split.glb", model, mesh, split)
     report = validate(gltf_validator, path)
     assert report["issues"]["numErrors"] == 0, summary(report)
     doc, arrays = read_glb(path)
@@ -228,7 +228,7 @@ def test_broken_log_gives_two_nodes(tiny, tmp_path, gltf_validator):
 def test_without_mechanics_one_piece(tiny, tmp_path, gltf_validator):
     scene, model, mesh, frame = tiny
     bio = dataclasses.replace(frame, mech={})
-    path = export_gltf(tmp_path / "bio.glb", model, mesh, bio, scene)
+    path = export_gltf(tmp_path / "bio.glb", model, mesh, bio)
     assert validate(gltf_validator, path)["issues"]["numErrors"] == 0
     doc, _ = read_glb(path)
     assert len(doc["nodes"]) == 1 and doc["nodes"][0]["extras"]["piece"] == 0
@@ -238,7 +238,7 @@ def test_write_is_atomic_and_replaces(tiny, tmp_path):
     scene, model, mesh, frame = tiny
     path = tmp_path / "out.glb"
     path.write_bytes(b"old")
-    export_gltf(path, model, mesh, frame, scene)
+    export_gltf(path, model, mesh, frame)
     assert path.read_bytes()[:4] == b"glTF"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.glb"]  # no temporary left
 
@@ -249,7 +249,7 @@ def test_bad_path_is_an_input_error(tiny, tmp_path, name, needle):
     scene, model, mesh, frame = tiny
     path = tmp_path / name
     with pytest.raises(InputError) as err:
-        export_gltf(path, model, mesh, frame, scene)
+        export_gltf(path, model, mesh, frame)
     assert str(path) in str(err.value) and needle in str(err.value)
     assert "\n" not in str(err.value)
     assert list(tmp_path.iterdir()) == []

@@ -24,21 +24,21 @@ def _expected_per_vertex(model, values):
 
 
 @pytest.fixture(scope="module")
-def tiny_usd(tmp_path_factory, tiny_model, tiny_scene):
+def tiny_usd(tmp_path_factory, tiny_model):
     path = tmp_path_factory.mktemp("usd") / "tiny_strands.usda"
-    write_strands_usd(path, tiny_model, tiny_scene)
+    write_strands_usd(path, tiny_model)
     return path
 
 
-def _curves(path, scene):
+def _curves(path, model):
     stage = Usd.Stage.Open(str(path))
-    prim = stage.GetPrimAtPath(f"/World/{scene.name}/Strands")
+    prim = stage.GetPrimAtPath(f"/World/{model.info.name}/Strands")
     assert prim.IsValid()
     return stage, UsdGeom.BasisCurves(prim)
 
 
-def test_stage_and_geometry(tiny_usd, tiny_model, tiny_scene):
-    stage, curves = _curves(tiny_usd, tiny_scene)
+def test_stage_and_geometry(tiny_usd, tiny_model):
+    stage, curves = _curves(tiny_usd, tiny_model)
     assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z
     assert UsdGeom.GetStageMetersPerUnit(stage) == 1.0
     assert stage.GetDefaultPrim().GetPath() == "/World"
@@ -55,8 +55,8 @@ def test_stage_and_geometry(tiny_usd, tiny_model, tiny_scene):
     np.testing.assert_allclose(widths, 2 * _expected_per_vertex(tiny_model, tiny_model.radius), rtol=1e-6)
 
 
-def test_primvars(tiny_usd, tiny_model, tiny_scene):
-    _, curves = _curves(tiny_usd, tiny_scene)
+def test_primvars(tiny_usd, tiny_model):
+    _, curves = _curves(tiny_usd, tiny_model)
     pv = UsdGeom.PrimvarsAPI(curves)
     tissue_pv = pv.GetPrimvar("tissue")
     assert tissue_pv.GetInterpolation() == UsdGeom.Tokens.vertex
@@ -75,29 +75,29 @@ def test_primvars(tiny_usd, tiny_model, tiny_scene):
 
 
 @pytest.mark.parametrize("suffix", [".usdc", ".usd"])
-def test_binary_formats_and_no_temp_left(tmp_path, tiny_model, tiny_scene, suffix):
+def test_binary_formats_and_no_temp_left(tmp_path, tiny_model, suffix):
     path = tmp_path / f"strands{suffix}"
-    write_strands_usd(path, tiny_model, tiny_scene)
+    write_strands_usd(path, tiny_model)
     assert [p.name for p in tmp_path.iterdir()] == [path.name]
-    _, curves = _curves(path, tiny_scene)
+    _, curves = _curves(path, tiny_model)
     assert len(curves.GetCurveVertexCountsAttr().Get()) == tiny_model.n_strands
 
 
-def test_rejects_other_suffix(tmp_path, tiny_model, tiny_scene):
+def test_rejects_other_suffix(tmp_path, tiny_model):
     with pytest.raises(InputError, match=r"strands.txt: a strands USD file must end in .usda, .usdc, .usd"):
-        write_strands_usd(tmp_path / "strands.txt", tiny_model, tiny_scene)
+        write_strands_usd(tmp_path / "strands.txt", tiny_model)
 
 
-def test_missing_folder_is_not_created(tmp_path, tiny_model, tiny_scene):
+def test_missing_folder_is_not_created(tmp_path, tiny_model):
     with pytest.raises(InputError, match="does not exist"):
-        write_strands_usd(tmp_path / "no" / "such" / "strands.usda", tiny_model, tiny_scene)
+        write_strands_usd(tmp_path / "no" / "such" / "strands.usda", tiny_model)
     assert list(tmp_path.iterdir()) == []
 
 
-def test_failed_write_is_input_error_and_leaves_no_temp(tmp_path, tiny_model, tiny_scene):
+def test_failed_write_is_input_error_and_leaves_no_temp(tmp_path, tiny_model):
     (tmp_path / "strands.usda").mkdir()  # a folder where the file should go: the rename fails
     with pytest.raises(InputError, match="cannot write the strands USD file") as info:
-        write_strands_usd(tmp_path / "strands.usda", tiny_model, tiny_scene)
+        write_strands_usd(tmp_path / "strands.usda", tiny_model)
     assert "\n" not in str(info.value)
     assert [p.name for p in tmp_path.iterdir()] == ["strands.usda"]
 

@@ -1,8 +1,10 @@
-"""Meshlets (SPEC §5, issue "Meshlets"): closed and oriented shells, a partition of the wood,
+"""Meshlets (SPEC §5): closed and oriented shells, a partition of the wood,
 bark on the profile, tags, skinning."""
 from __future__ import annotations
 
+import dataclasses
 import json
+import pickle
 from functools import cache
 
 import manifold3d
@@ -17,7 +19,7 @@ from wooddecay.meshlets.sweep import BARK, CAP, SIDE, build_meshlets
 from wooddecay.quaternion import mul_np
 from wooddecay.strands.profiles import signed_distance
 
-from .conftest import SAMPLES, sample
+from ..conftest import SAMPLES, sample
 
 
 @cache
@@ -207,6 +209,16 @@ def test_inspect_meshlets_json_and_usd(tmp_path):
     assert UsdGeom.PrimvarsAPI(m).GetPrimvar("element").GetInterpolation() == "uniform"
     bad = CliRunner().invoke(main, ["inspect", str(SAMPLES / "tiny.toml"), "--meshlets-usd", str(tmp_path / "x.obj")])
     assert bad.exit_code == 2 and "must end in" in bad.output and not (tmp_path / "x.obj").exists()
+
+
+def test_meshlets_read_only_the_model():
+    """model -> meshlets: a pickled copy of the model, with no scene beside it, meshes to the same
+    arrays as the model it was built as."""
+    _, model, mesh = meshed("log")
+    again = build_meshlets(pickle.loads(pickle.dumps(model)))
+    for f in dataclasses.fields(mesh):
+        if f.name != "stats":
+            np.testing.assert_array_equal(getattr(again, f.name), getattr(mesh, f.name), err_msg=f.name)
 
 
 @pytest.mark.slow
