@@ -96,17 +96,24 @@ def _bisect(c, deg, neg, pos):
 
 
 @nb.njit(cache=True)
+def _critical_points(c, deg, lo, hi):
+    """The roots of c' in [lo, hi] where it changes sign, ascending, and their count: c is
+    monotone between consecutive ones."""
+    dc = np.empty(deg)
+    for j in range(deg):
+        dc[j] = c[j + 1] * (j + 1)
+    crit = np.empty(deg)
+    return crit, _sign_change_roots(dc, deg - 1, lo, hi, crit)
+
+
+@nb.njit(cache=True)
 def first_positive(c, deg, t0, t1):
     """Smallest t in [t0, t1] with c(t) > 0 (to the last bit; c(t) > 0 holds there), inf if none."""
     if horner(c, deg, t0) > 0.0:
         return t0
     if deg <= 0:
         return np.inf
-    dc = np.empty(deg)
-    for j in range(deg):
-        dc[j] = c[j + 1] * (j + 1)
-    crit = np.empty(deg)
-    m = _sign_change_roots(dc, deg - 1, t0, t1, crit)
+    crit, m = _critical_points(c, deg, t0, t1)
     a = t0
     for j in range(m + 1):
         b = crit[j] if j < m else t1
@@ -123,11 +130,7 @@ def last_positive(c, deg, lo, hi):
         return hi
     if deg <= 0:
         return -np.inf
-    dc = np.empty(deg)
-    for j in range(deg):
-        dc[j] = c[j + 1] * (j + 1)
-    crit = np.empty(deg)
-    m = _sign_change_roots(dc, deg - 1, lo, hi, crit)
+    crit, m = _critical_points(c, deg, lo, hi)
     b = hi
     for j in range(m, -1, -1):
         a = crit[j - 1] if j > 0 else lo
