@@ -1,4 +1,4 @@
-"""Biology step throughput and memory-bandwidth efficiency (issue: biophysics).
+"""Biology step throughput and memory-bandwidth efficiency.
 
 Prints ``name value unit`` lines for samples/tree.toml (or the scene given):
     bio_updates_per_s_threads_<k>   element-field updates per second (6 fields x elements x substeps)
@@ -24,6 +24,8 @@ import wooddecay as wd
 from wooddecay.sim import biology as B
 from wooddecay.sim.state import initial_state
 
+from timing import SAMPLES
+
 
 @nb.njit(parallel=True, cache=True)
 def _triad(a, b, c, s):
@@ -45,7 +47,7 @@ def _timed(fn) -> float:
 
 
 def main() -> None:
-    path = Path(sys.argv[1] if len(sys.argv) > 1 else Path(__file__).resolve().parent.parent / "samples" / "tree.toml")
+    path = Path(sys.argv[1] if len(sys.argv) > 1 else SAMPLES / "tree.toml")
     scene = wd.load_scene(path, overrides={"fungi.alpha_b0": 0.05, "fungi.D_b": 1e-5})
     model = wd.build_model(scene)
     setup = model.bio

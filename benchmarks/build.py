@@ -1,4 +1,4 @@
-"""Build time and peak memory of the wood model (issue: foundation).
+"""Build time and peak memory of the wood model.
 
 Prints machine-readable lines ``name value unit``:
     build_seconds        first build in this process (includes loading numba's cached kernels)
@@ -16,9 +16,11 @@ from pathlib import Path
 
 import wooddecay as wd
 
+from timing import SAMPLES
+
 
 def main() -> None:
-    path = Path(sys.argv[1] if len(sys.argv) > 1 else Path(__file__).resolve().parent.parent / "samples" / "tree.toml")
+    path = Path(sys.argv[1] if len(sys.argv) > 1 else SAMPLES / "tree.toml")
     scene = wd.load_scene(path)
     t0 = time.perf_counter()
     model = wd.build_model(scene)

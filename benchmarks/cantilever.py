@@ -1,5 +1,5 @@
 """The gravity cantilever (L = 0.5 m, r_s = 6 mm, E = 1 GPa, 20 elements) in wooddecay's XPBD
-rods and in PyElastica (issue: mechanics; SPEC §7). Prints ``name value unit`` lines:
+rods and in PyElastica (SPEC §7). Prints ``name value unit`` lines:
     cantilever_error, cantilever_seconds     ours at dt = 2e-4 s, 2 iterations, 1 s simulated
     pyelastica_error, pyelastica_seconds     PyElastica (wooddecay.studies.elastica), settled
     cantilever_error_dt_<dt>_it_<k>          ours over a few other settings (same 1 s)

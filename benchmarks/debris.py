@@ -1,5 +1,5 @@
 """Debris: fragments of the tiny log fall onto the ground and settle (woodstock §5.4, Fig. 12;
-issue: mechanics, "Debris"; :mod:`wooddecay.studies.debris`).
+:mod:`wooddecay.studies.debris`).
 
     python benchmarks/debris.py [scene] [seconds] [k_col]
 
@@ -10,7 +10,7 @@ scene's contact stiffness (to see how robust the result is). Prints a line every
 the largest window_speed of the last 0.5 s before settled_at, and at the end max_speed,
 p99_speed, window_speed, max_penetration_over_r_s (beyond the rest overlap; the largest over the
 whole run after settled_at), max_raw_overlap_over_r_s, z_min, broken_connections, seconds
-(wall). The issue's target: afterwards max_speed < 1e-3 m/s and max_penetration_over_r_s < 0.1.
+(wall). The target: afterwards max_speed < 1e-3 m/s and max_penetration_over_r_s < 0.1.
 """
 from __future__ import annotations
 
@@ -22,7 +22,9 @@ import numpy as np
 import wooddecay as wd
 from wooddecay.studies import debris
 
-SCENE = "samples/tiny.toml"
+from timing import SAMPLES
+
+SCENE = str(SAMPLES / "tiny.toml")
 DROP = 0.05  # m
 SECONDS = 8.0  # of mechanics after the drop
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numba
 import numpy as np
-from timing import best
+from timing import SAMPLES, best
 
 import wooddecay as wd
 from wooddecay.strands.elements import transport_frames_numba, transport_frames_reference
@@ -21,7 +21,7 @@ from wooddecay.strands.reg import segment_pairs, segment_pairs_reference
 
 
 def main() -> None:
-    path = Path(sys.argv[1] if len(sys.argv) > 1 else Path(__file__).resolve().parent.parent / "samples" / "tree.toml")
+    path = Path(sys.argv[1] if len(sys.argv) > 1 else SAMPLES / "tree.toml")
     scene = wd.load_scene(path)
     m = wd.build_model(scene)
     pa, pb = m.particles[m.first_particle], m.particles[m.first_particle + 1]

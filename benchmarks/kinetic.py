@@ -1,4 +1,4 @@
-"""Kinetic Delaunay sweep of one branch (issue: meshlets, woodstock §8.1).
+"""Kinetic Delaunay sweep of one branch (woodstock §8.1).
 
 A synthetic branch: ``n`` sites (default 500) uniform in the unit disk, carried over ``S`` sections
 (default 50, d_t = 0..1) by a random smooth motion (a few low-frequency sinusoids in d_t per site,

@@ -1,4 +1,4 @@
-"""Meshlet build and per-frame skinning on a sample scene (issue: meshlets; woodstock §8.1, §8.3).
+"""Meshlet build and per-frame skinning on a sample scene (woodstock §8.1, §8.3).
 
 Prints ``name value unit`` lines:
     meshing_elements <n>          rod elements (one meshlet each)
@@ -20,10 +20,10 @@ import numpy as np
 import wooddecay as wd
 from wooddecay.meshlets import checks, skin
 
-from timing import best
+from timing import SAMPLES, best
 
 
-def main(path: str = "samples/tree.toml") -> None:
+def main(path: str = str(SAMPLES / "tree.toml")) -> None:
     scene = wd.load_scene(path)
     model = wd.build_model(scene)
     t0 = time.perf_counter()

@@ -1,4 +1,4 @@
-"""Pull test (woodstock Fig. 17; issue 4) on samples/tree.toml: the smallest horizontal pull that
+"""Pull test (woodstock Fig. 17) on samples/tree.toml: the smallest horizontal pull that
 breaks the branch through node b1_2, healthy and decayed, each found by bisection on a log scale
 (:mod:`wooddecay.studies.pull`: load, cases, break criterion, bisection; docs/decisions.md "Mechanics").
 

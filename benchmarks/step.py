@@ -1,5 +1,5 @@
 """Seconds per Algorithm 1 iteration (N_mech mechanics substeps + one biology step + coupling)
-on samples/tree.toml (or the scene given), split per stage (issue: mechanics).
+on samples/tree.toml (or the scene given), split per stage.
 
 Prints ``name value unit`` lines:
     elements, reg_edges, reg_colors
@@ -15,12 +15,13 @@ from __future__ import annotations
 import sys
 import time
 from collections import defaultdict
-from pathlib import Path
 
 import numpy as np
 
 import wooddecay as wd
 from wooddecay.sim import biology, contact, coupling, failure, mechanics, rods
+
+from timing import SAMPLES
 
 
 def _instrument(totals: dict) -> None:
@@ -66,4 +67,4 @@ def main(path: str) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else str(Path(__file__).resolve().parent.parent / "samples" / "tree.toml"))
+    main(sys.argv[1] if len(sys.argv) > 1 else str(SAMPLES / "tree.toml"))

@@ -1,7 +1,12 @@
-"""Shared timing helper of the benchmark scripts (run as ``python benchmarks/<name>.py``)."""
+"""Shared helpers of the benchmark scripts (run as ``python benchmarks/<name>.py`` from any folder):
+the sample scenes and a timer."""
 from __future__ import annotations
 
 import time
+from pathlib import Path
+
+#: the repository's sample scenes, found from this file so the scripts run from any folder
+SAMPLES = Path(__file__).resolve().parent.parent / "samples"
 
 
 def best(fn, repeat=3) -> float:
