@@ -77,7 +77,8 @@ ALPHA_C = 27.0 / 28.0
 BETA1_SQ = 1.8751040687**2
 
 
-def _elastica():
+def load_elastica():
+    """The PyElastica package, or an ImportError that says how to install it."""
     try:
         import elastica
     except ImportError as err:  # pragma: no cover - depends on the environment
@@ -141,7 +142,7 @@ def _integrate(sim, t0: float, dt: float, steps: int) -> float:
 @cache
 def _warm_up() -> None:
     """Run a throwaway rod for one step so numba compilation stays out of the timing."""
-    elastica = _elastica()
+    elastica = load_elastica()
     sim, _ = _simulator(elastica, 4, 0.1, 0.01, 1e6, 4e5, 1000.0, 9.81, 1e-5, 1.0)
     _integrate(sim, 0.0, 1e-5, 1)
 
@@ -173,7 +174,7 @@ def elastica_cantilever(
     """
     if n_elements < 2:
         raise ValueError("n_elements must be at least 2")
-    elastica = _elastica()
+    elastica = load_elastica()
     n = int(n_elements)
     dx = length / (n - 0.5)
     omega_1 = first_mode(length, radius, E, rho)

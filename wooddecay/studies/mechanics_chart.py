@@ -91,8 +91,7 @@ def _sweep(dts, iterations, seconds, elastica) -> list[dict]:
                         "threads": numba.get_num_threads()})
     if elastica:
         try:
-            from .elastica import _elastica
-            _elastica()
+            pe.load_elastica()
         except ImportError:
             return out
         out.append(run_elastica(c))
