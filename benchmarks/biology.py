@@ -3,7 +3,7 @@
 Prints ``name value unit`` lines for samples/tree.toml (or the scene given):
     bio_updates_per_s_threads_<k>   element-field updates per second (6 fields x elements x substeps)
     bio_substep_seconds_threads_<k> seconds per biology substep
-    stream_triad_gb_s               a = b + s c over 3 x 160 MB arrays (numba, all threads)
+    stream_triad_gb_s               a = b + s c over 3 x 160 MB arrays (numba, all threads, median of 5)
     bio_bytes_per_substep           compulsory traffic of one substep (model below)
     bio_bandwidth_fraction          (bytes per substep / substep time) / triad bandwidth
 Traffic model per substep: each of the four diffusing passes (R_w, R_b, C, M) streams its CSR
@@ -18,26 +18,12 @@ import time
 from pathlib import Path
 
 import numba as nb
-import numpy as np
 
 import wooddecay as wd
 from wooddecay.sim import biology as B
 from wooddecay.sim.state import initial_state
 
-from timing import SAMPLES
-
-
-@nb.njit(parallel=True, cache=True)
-def _triad(a, b, c, s):
-    for i in nb.prange(len(a)):
-        a[i] = b[i] + s * c[i]
-
-
-def stream_triad(n: int = 20_000_000) -> float:
-    a, b, c = np.zeros(n), np.ones(n), np.full(n, 2.0)
-    _triad(a, b, c, 3.0)
-    best = min(_timed(lambda: _triad(a, b, c, 3.0)) for _ in range(5))
-    return 3 * 8 * n / best
+from timing import SAMPLES, stream_triad
 
 
 def _timed(fn) -> float:
