@@ -134,3 +134,21 @@ def test_golden_tiny_bake(tmp_path):
     assert res.exit_code == 0, res.output
     diff = run("diff", GOLDEN, tmp_path / "tiny.usdc", "--rtol", "1e-4", "--atol", "1e-5")
     assert diff.exit_code == 0, diff.output
+
+
+def test_any_thread_count_bakes_the_same_stage_and_the_summary_says_which(tmp_path):
+    outs = {}
+    for threads in ("1", "2", "auto"):
+        out = tmp_path / threads
+        res = run("bake", TINY, "-o", out, *SHORT, "--threads", threads)
+        assert res.exit_code == 0, res.output
+        outs[threads] = out
+        used = json.loads((out / "summary.json").read_text())["threads"]
+        assert used["requested"] == ("auto" if threads == "auto" else int(threads))
+        assert sum(used["steps"].values()) > 0
+    assert set(json.loads((outs["1"] / "summary.json").read_text())["threads"]["steps"]) == {"1"}
+    for threads in ("2", "auto"):
+        diff = run("diff", outs["1"] / "tiny.usdc", outs[threads] / "tiny.usdc", "--rtol", "0", "--atol", "0")
+        assert diff.exit_code == 0, diff.output
+    bad = run("bake", TINY, "-o", tmp_path / "bad", "--threads", "0")
+    assert bad.exit_code == 2 and "--threads: must be" in bad.output and not (tmp_path / "bad").exists()

@@ -34,6 +34,7 @@ from .meshlets.sweep import build_meshlets
 from .model import build_model
 from .sim.driver import Frame, Simulation
 from .sim.state import FIELDS
+from .sim.threads import ThreadChoice
 
 QUALITIES = ("draft", "final")
 _MECH_KEYS = ("x", "q", "component", "element_ok", "edge_ok", "integrity")
@@ -69,10 +70,12 @@ def frame_summary(frame: Frame) -> dict:
     return row
 
 
-def bake(scene, out, resume: bool = False, quality: str = "final", progress=None) -> dict:
+def bake(scene, out, resume: bool = False, quality: str = "final", progress=None, threads: int | None = None) -> dict:
     """Bake ``scene`` into the folder ``out`` (module docstring); returns the summary.
 
-    ``progress(frame, n_frames)`` is called after every simulated frame.
+    ``progress(frame, n_frames)`` is called after every simulated frame. ``threads``: the numba
+    thread count of the simulation, or None to pick it per macro step
+    (:class:`wooddecay.sim.threads.ThreadChoice`).
     """
 
     if quality not in QUALITIES:
@@ -92,16 +95,17 @@ def bake(scene, out, resume: bool = False, quality: str = "final", progress=None
 
     t0 = time.perf_counter()
     frames: list[Frame] = []
+    choice = ThreadChoice(threads)
     if resume and ckpt.exists():
         try:
-            sim = Simulation.resume(model, ckpt)
+            sim = Simulation.resume(model, ckpt, threads=choice)
         except ValueError as err:
             raise InputError(str(ckpt), "", f"{err}; bake without --resume to start over") from None
         frames = [load_frame(work / f"frame_{k:05d}.npz") for k in range(sim.last_frame + 1)]
     else:
         for stale in work.glob("*.npz"):
             stale.unlink()
-        sim = Simulation(model, mechanics=mechanics)
+        sim = Simulation(model, mechanics=mechanics, threads=choice)
     n_frames = int(scene.time.frames)
     for fr in sim.run():
         save_frame(work / f"frame_{fr.index:05d}.npz", fr)
@@ -122,7 +126,7 @@ def bake(scene, out, resume: bool = False, quality: str = "final", progress=None
 
     summary = {
         "wooddecay_version": __version__, "scene": scene.name, "seed": int(scene.seed),
-        "scene_hash": scene.hash, "quality": quality,
+        "scene_hash": scene.hash, "quality": quality, "threads": choice.summary(),
         "counts": {"strands": model.n_strands, "elements": model.n_elements, "reg_edges": model.n_edges,
                    "meshlets": mesh.count, "meshlet_faces": mesh.n_faces, "frames": len(frames)},
         "seconds": {k: round(v, 3) for k, v in seconds.items()},

@@ -204,11 +204,17 @@ def _meshlets_report(model, usd_path: Path | None) -> dict:
 @click.option("--quality", type=click.Choice(["draft", "final"]), default="final", show_default=True,
               help="final: coupled mechanics (cracks, debris); draft: biology only, fast preview.")
 @click.option("--resume", is_flag=True, help="Continue an interrupted bake in the same folder.")
+@click.option("--threads", default=None, metavar="N|auto",
+              help="Threads of the simulation kernels (default $WOODDECAY_THREADS, else auto: the faster of "
+                   "one and all, measured while baking). Results are identical for any count.")
 @click.option("--set", "set_items", multiple=True, metavar="KEY=VALUE", help="Override a scene key (repeatable).")
 def bake(scene_path: str, out: str | None, days: float | None, frames: int | None, quality: str,
-         resume: bool, set_items: tuple[str, ...]) -> None:
+         resume: bool, threads: str | None, set_items: tuple[str, ...]) -> None:
     """Simulate SCENE and write DIR/<name>.usdc, DIR/<name>.glb and DIR/summary.json."""
     from .bake import bake as run_bake
+    from .sim.threads import requested_threads
+
+    n_threads = requested_threads(threads)
 
     extra = tuple(f"time.{k}={v}" for k, v in (("days", days), ("frames", frames)) if v is not None)
     scene = _load(scene_path, set_items + extra)
@@ -228,14 +234,16 @@ def bake(scene_path: str, out: str | None, days: float | None, frames: int | Non
 
     if bar is not None:
         with bar:
-            summary = run_bake(scene, out_dir, resume=resume, quality=quality, progress=progress)
+            summary = run_bake(scene, out_dir, resume=resume, quality=quality, progress=progress, threads=n_threads)
     else:
-        summary = run_bake(scene, out_dir, resume=resume, quality=quality, progress=progress)
+        summary = run_bake(scene, out_dir, resume=resume, quality=quality, progress=progress, threads=n_threads)
     sec = summary["seconds"]
     for name, o in summary["outputs"].items():
         click.echo(f"wrote {o['path']}  ({o['bytes'] / 2**20:.1f} MB)")
     click.echo(f"wrote {out_dir / 'summary.json'}")
     click.echo("seconds: " + ", ".join(f"{k} {v:.2f}" for k, v in sec.items()))
+    used = summary["threads"]["steps"]
+    click.echo("threads: " + ", ".join(f"{k} for {v} steps" for k, v in used.items()))
 
 
 @main.command()

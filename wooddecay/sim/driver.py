@@ -13,6 +13,10 @@ the shape ``solver(model, state, dt)``: the model holds everything static (``mod
 Settling: before the first step the rods settle under gravity (:func:`mechanics.settle`,
 ``model.time.settle`` seconds); failure strains are measured from the state they settle into.
 
+Threads: with ``threads`` (a :class:`~wooddecay.sim.threads.ThreadChoice`) every macro step and
+every settling chunk runs through :meth:`ThreadChoice.run` (the count it gives, its wall time
+reported back); without, numba's own setting is left alone.
+
 Checkpoints: with ``checkpoint_dir`` and ``checkpoint_every = K`` the whole state is written
 after every K-th frame (``frame_<k>.npz``, written to a temporary name and renamed).
 :meth:`Simulation.resume` continues from one; the frames that follow are bit-identical to an
@@ -32,6 +36,7 @@ from . import biology, coupling
 from . import mechanics as mech
 from .diagnostics import diagnostics
 from .state import FIELDS, SimState, initial_state, inoculate
+from .threads import ThreadChoice
 
 CHECKPOINT_VERSION = 3
 
@@ -67,8 +72,9 @@ class Simulation:
     ``history`` collects the diagnostics at day 0 and after every macro step."""
 
     def __init__(self, model, mechanics: bool = True, checkpoint_dir=None, checkpoint_every: int = 0,
-                 settle: bool = True):
+                 settle: bool = True, threads: ThreadChoice | None = None):
         self.model = model
+        self.threads = threads
         self.state: SimState = initial_state(model, rods=mechanics)
         self.mechanics = mechanics
         self.checkpoint_dir = None if checkpoint_dir is None else Path(checkpoint_dir)
@@ -77,7 +83,8 @@ class Simulation:
         if mechanics:
             coupling.step(model, self.state)
             if settle:
-                mech.settle(model, self.state, model.time.settle, model.time.settle_damping)
+                mech.settle(model, self.state, model.time.settle, model.time.settle_damping,
+                            run=None if threads is None else threads.run)
         self.history: list[dict] = [self._diagnostics()]
 
     @property
@@ -93,6 +100,12 @@ class Simulation:
 
     def macro_step(self, dt_bio: float) -> None:
         """Algorithm 1 lines 4-13 with a biology step of ``dt_bio`` days."""
+        if self.threads is None:
+            self._macro_step(dt_bio)
+        else:
+            self.threads.run(lambda: self._macro_step(dt_bio))
+
+    def _macro_step(self, dt_bio: float) -> None:
         model, state = self.model, self.state
         if self.mechanics:
             mech.macro_step(model, state, model.time.N_mech)

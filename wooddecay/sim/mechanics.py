@@ -491,7 +491,7 @@ def refresh_pairs(setup: MechSetup, ms: MechState) -> None:
 
 
 def settle(model, state, seconds: float, damping: float, tol: float | None = None,
-           max_seconds: float = 10.0) -> float:
+           max_seconds: float = 10.0, run=None) -> float:
     """Let the rods of ``state`` come to rest under gravity with failure off, no external forces
     and viscous damping ``damping`` for ``seconds``, then take the strains they hold as the
     reference of :func:`failure.update` and zero the velocities (docs/decisions.md, "Settling"):
@@ -502,13 +502,18 @@ def settle(model, state, seconds: float, damping: float, tol: float | None = Non
     no constraint that can fail changes its strain by more than ``tol`` of its limit within a
     chunk (:func:`failure.drift`), or ``max_seconds`` in all: an overdamped soft structure (a
     decayed branch) is still sagging after a fixed time, and that sag would count against its
-    limits once failure is on (docs/decisions.md, "Pull test"). Returns the seconds settled."""
+    limits once failure is on (docs/decisions.md, "Pull test"). The first ``seconds`` go in chunks
+    of ``model.time.N_mech`` substeps, each called as ``run(chunk)`` when given (the thread choice
+    of a bake, :mod:`wooddecay.sim.threads`); chunking changes no bit. Returns the seconds settled."""
     setup, ms = model.mech, state.mech
     limits = ms.limit_elem, ms.limit_edge
     ms.limit_elem, ms.limit_edge = np.full_like(limits[0], np.inf), np.full_like(limits[1], np.inf)
     damped = replace(setup, damping=float(damping))
     ms.force = np.zeros((setup.n_particles, 3))
-    stiff = _advance(damped, ms, int(round(seconds / setup.dt)))[1]
+    run = run or (lambda fn: fn())
+    n, chunk, stiff = int(round(seconds / setup.dt)), max(int(model.time.N_mech), 1), None
+    for start in range(0, n, chunk):
+        stiff = run(lambda m=min(chunk, n - start), s=stiff: _advance(damped, ms, m, s)[1])
     done = float(seconds)
     now = failure.strains(setup, ms)
     if tol is not None:
