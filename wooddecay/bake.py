@@ -5,7 +5,7 @@ the rest meshlets (:func:`wooddecay.meshlets.sweep.build_meshlets`) and the expo
 into ``out``:
 
 * ``<name>.usdc`` (:func:`wooddecay.export.usd.export_usd`), ``<name>.glb`` (the last frame,
-  :func:`wooddecay.export.gltf.export_gltf`) and ``summary.json`` (counts, seconds per stage,
+  :func:`wooddecay.export.gltf.export_gltf`) and ``summary.json`` (counts, seconds per stage, threads,
   output sizes, and per frame the day, mass loss, moisture content ratio and crack statistics);
 * ``.bake/``: one small file per finished frame (fields and rod state) and the latest full
   simulation checkpoint. ``resume=True`` reloads the frames, continues the simulation from the
