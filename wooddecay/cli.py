@@ -5,6 +5,7 @@ traceback unless ``--debug`` is given.
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import sys
@@ -232,10 +233,7 @@ def bake(scene_path: str, out: str | None, days: float | None, frames: int | Non
                        + (f"  broken {mech['broken_connections']}  pieces {mech['components']}" if mech else ""),
                        err=True)
 
-    if bar is not None:
-        with bar:
-            summary = run_bake(scene, out_dir, resume=resume, quality=quality, progress=progress, threads=n_threads)
-    else:
+    with bar if bar is not None else contextlib.nullcontext():
         summary = run_bake(scene, out_dir, resume=resume, quality=quality, progress=progress, threads=n_threads)
     sec = summary["seconds"]
     for name, o in summary["outputs"].items():
