@@ -6,6 +6,7 @@ into ``out``:
 
 * ``<name>.usdc`` (:func:`wooddecay.export.usd.export_usd`), ``<name>.glb`` (the last frame,
   :func:`wooddecay.export.gltf.export_gltf`) and ``summary.json`` (counts, seconds per stage, threads,
+  the schedule's macro steps, mechanics solves and seconds (:meth:`Simulation.schedule_summary`),
   output sizes, and per frame the day, mass loss, moisture content ratio and crack statistics);
 * ``.bake/``: one small file per finished frame (fields and rod state) and the latest full
   simulation checkpoint. ``resume=True`` reloads the frames, continues the simulation from the
@@ -127,6 +128,7 @@ def bake(scene, out, resume: bool = False, quality: str = "final", progress=None
     summary = {
         "wooddecay_version": __version__, "scene": scene.name, "seed": int(scene.seed),
         "scene_hash": scene.hash, "quality": quality, "threads": choice.summary(),
+        "schedule": sim.schedule_summary(),
         "counts": {"strands": model.n_strands, "elements": model.n_elements, "reg_edges": model.n_edges,
                    "meshlets": mesh.count, "meshlet_faces": mesh.n_faces, "frames": len(frames)},
         "seconds": {k: round(v, 3) for k, v in seconds.items()},

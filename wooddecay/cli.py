@@ -367,5 +367,30 @@ def chart_mechanics(output: str, quick: bool) -> None:
     click.echo(f"wrote {out}")
 
 
+@chart.command("schedule")
+@click.argument("scene", required=False)
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="schedule.png", show_default=True)
+@click.option("--days", type=click.FloatRange(min=0.0, min_open=True), default=None,
+              help="Simulated days (default: the scene's).")
+def chart_schedule(scene: str | None, output: str, days: float | None) -> None:
+    """Adaptive against fixed schedule: largest position difference against wall time over the
+    schedule's tolerances (times 0.25, 1, 4), on SCENE (default: the log sample)."""
+    from .studies.schedule import FACTORS, compare, describe, plot_schedule
+
+    out = Path(output)
+    if not out.parent.is_dir():
+        raise InputError(output, "", f"folder {out.parent} does not exist")
+    path = scene or str(resources.files("wooddecay").joinpath("samples", "log.toml"))
+    name = _load(path, ()).name  # bad input fails here, before minutes of simulation
+    fixed, runs = compare(path, FACTORS, overrides=None if days is None else {"time.days": days})
+    with tempfile.TemporaryDirectory(dir=out.parent) as tmp:
+        tmp_png = Path(tmp) / out.name
+        plot_schedule(name, fixed, runs, tmp_png)
+        os.replace(tmp_png, out)
+    for r in (fixed, *runs):
+        click.echo(describe(r, fixed))
+    click.echo(f"wrote {out}")
+
+
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())

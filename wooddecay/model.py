@@ -22,6 +22,7 @@ from .sim import biology, contact, coupling, mechanics
 from .sim.biology import BioSetup
 from .sim.coupling import CouplingSetup
 from .sim.mechanics import Load, MechConfig, MechSetup
+from .sim.schedule import Tolerances
 from .sim.state import Inoculation
 from .strands import bsp as bsp_mod
 from .strands.elements import element_geometry, sample_strands
@@ -58,7 +59,9 @@ class SceneInfo:
 class TimeSpec:
     """The schedule of a simulation (Algorithm 1): ``days`` simulated in macro steps of at most
     ``dt_bio`` days, each with ``N_mech`` mechanics substeps; ``frames`` output frames played at
-    ``fps``; ``settle`` seconds of settling with damping ``settle_damping`` before the first step."""
+    ``fps``; ``settle`` seconds of settling with damping ``settle_damping`` before the first step.
+    ``schedule`` "fixed" runs the N_mech substeps in every macro step, "adaptive" only when
+    :mod:`wooddecay.sim.schedule` finds them due, within ``tolerances``."""
 
     days: float
     dt_bio: float
@@ -67,6 +70,8 @@ class TimeSpec:
     N_mech: int
     settle: float
     settle_damping: float
+    schedule: str  # "adaptive" or "fixed" (sim/schedule.py)
+    tolerances: Tolerances  # of the adaptive schedule
 
 
 @dataclass(frozen=True, eq=False)
@@ -318,7 +323,12 @@ def build_model(scene) -> WoodModel:
         info=SceneInfo(name=str(scene.name), seed=int(scene.seed), hash=scene.hash),
         time=TimeSpec(days=float(scene.time.days), dt_bio=float(scene.time.dt_bio), frames=int(scene.time.frames),
                       fps=float(scene.time.fps), N_mech=int(scene.mechanics.N_mech),
-                      settle=float(scene.mechanics.settle), settle_damping=float(scene.mechanics.settle_damping)),
+                      settle=float(scene.mechanics.settle), settle_damping=float(scene.mechanics.settle_damping),
+                      schedule=str(scene.time.schedule),
+                      tolerances=Tolerances(strain=float(scene.time.strain_tolerance),
+                                            relative=float(scene.time.tolerance),
+                                            rest_speed=float(scene.time.rest_speed),
+                                            max_seconds=float(scene.time.max_mechanics))),
         build_seconds=sec,
     )
     with _timed(sec, "solvers"):

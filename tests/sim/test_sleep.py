@@ -1,14 +1,15 @@
 """Sleeping pieces (wooddecay.sim.sleep): quiet pieces sleep, loud ones wake their neighbours,
-failures, new masses and loads wake everything, a coupled run never sleeps."""
+failures and loads wake everything, coupled changes wake only the pieces they changed past the
+schedule's tolerances, so a coupled run sleeps."""
 from __future__ import annotations
 
 import numpy as np
 
 import wooddecay as wd
-from wooddecay.sim import contact, mechanics, sleep
+from wooddecay.sim import contact, mechanics, schedule, sleep
 
 from ..conftest import sample
-from .helpers import fragments, quiet_window, sleep_digest
+from .helpers import fragments, quiet_window
 
 def test_quiet_pieces_sleep_and_hold_still():
     sim = fragments()
@@ -49,14 +50,19 @@ def test_a_loud_piece_wakes_the_pieces_it_touches_and_no_other():
         assert set(np.unique(ms.component[~ms.asleep])) == woken
 
 
-def test_failures_new_masses_and_loads_wake_everything():
+def test_failures_and_loads_wake_everything_new_masses_wake_nothing():
     sim = fragments()
     st, ms = sim.model.mech, sim.state.mech
     quiet_window(st, ms)
+    window = ms.sleep_t.copy(), ms.sleep_x.copy()
     mechanics.set_masses(st, ms, np.full(st.n_elements, 0.3))
-    assert not ms.asleep.any() and ms.sleep_t[0] == ms.t_seconds and np.array_equal(ms.sleep_x, ms.x)
+    assert ms.asleep.all() and not ms.w_p.any() and not ms.w_q.any()
+    assert ms.sleep_t[0] == window[0][0] and np.array_equal(ms.sleep_x, window[1])
+    ms.asleep[:] = False
+    sleep.hold(st, ms)
     w_p, w_q = sleep.weights(st, ms)
     assert np.array_equal(ms.w_p, w_p) and np.array_equal(ms.w_q, w_q) and np.count_nonzero(w_p) > 0
+    assert np.isclose(ms.mass_e.sum(), 1.3 * st.dry_mass.sum())
     quiet_window(st, ms)
     ms.force = np.zeros((st.n_particles, 3))
     sleep.wake_loaded(st, ms)
@@ -72,18 +78,42 @@ def test_failures_new_masses_and_loads_wake_everything():
     assert not ms.asleep.any()
 
 
-def test_coupled_run_is_unchanged_by_sleeping():
-    """The coupling sets new masses after every biology step, which wakes everything and restarts
-    the sleep window, so a coupled run whose macro steps are shorter than the window never sleeps
-    (here 0.1 s steps and a 0.2 s window over 0.3 s; without the restart the window would end
-    with the second step and the third would be asleep), and its state does not depend on sleep_speed."""
-    states = []
-    for speed in (0.0, 1.0):  # 1 m/s: everything would be quiet
-        scene = wd.load_scene(sample("tiny")[0].path, overrides={
-            "mechanics.sleep_speed": speed, "mechanics.sleep_time": 0.2, "mechanics.N_mech": 1000})
-        sim = wd.Simulation(wd.build_model(scene))
-        for _ in range(3):
-            sim.macro_step(scene.time.dt_bio)
-        states.append(sim.state.mech)
-    assert not states[1].asleep.any()
-    assert sleep_digest(states[0]) == sleep_digest(states[1])
+def test_only_the_pieces_that_changed_past_the_tolerances_wake():
+    """A coupled change below the schedule's tolerances (masses 1%, integrity 0.01) leaves every
+    piece asleep; a mass change of 5% on one piece, or an integrity drop of 0.1 on its REG pairs,
+    wakes that piece alone, and the window goes on."""
+    sim = fragments()
+    model, st, ms = sim.model, sim.model.mech, sim.state.mech
+    tol = model.time.tolerances
+    schedule.mark(model, ms, 0.0, quiet=True)
+    quiet_window(st, ms)
+    piece = ms.component[0]
+    mine = ms.component == piece
+    ms.mass_e = ms.mass_e * 1.01
+    ms.integrity = ms.integrity - 0.01
+    assert schedule.wake_changed(model, sim.state, tol) is None and ms.asleep.all()
+    for change in ("mass", "integrity"):
+        quiet_window(st, ms)
+        t = ms.sleep_t[0]
+        if change == "mass":
+            ms.mass_e = np.where(mine, ms.mass_e * 1.05, ms.mass_e)
+        else:
+            on = mine[st.edges[:, 0]] & mine[st.edges[:, 1]]
+            ms.integrity = np.where(on, ms.integrity - 0.1, ms.integrity)
+        assert schedule.wake_changed(model, sim.state, tol) == "integrity_mass"
+        assert not ms.asleep[mine].any() and ms.asleep[~mine].all() and ms.sleep_t[0] == t
+        assert np.count_nonzero(ms.w_p) > 0
+        schedule.mark(model, ms, 0.0, quiet=True)
+
+
+def test_a_coupled_run_sleeps():
+    """The coupling's new masses after every biology step wake nothing, so in a coupled run whose
+    macro steps are shorter than the sleep window the window still ends (here 0.1 s steps, a
+    0.2 s window, 0.3 s) and the quiet log falls asleep."""
+    scene = wd.load_scene(sample("tiny")[0].path, overrides={
+        "mechanics.sleep_speed": 1.0, "mechanics.sleep_time": 0.2, "mechanics.N_mech": 1000,
+        "time.schedule": "fixed"})
+    sim = wd.Simulation(wd.build_model(scene))
+    for _ in range(3):
+        sim.macro_step(scene.time.dt_bio)
+    assert sim.state.mech.asleep.all()

@@ -32,13 +32,13 @@ from pathlib import Path
 
 import numpy as np
 
-from . import biology, coupling
+from . import biology, coupling, schedule
 from . import mechanics as mech
 from .diagnostics import diagnostics
 from .state import FIELDS, SimState, initial_state, inoculate
 from .threads import ThreadChoice
 
-CHECKPOINT_VERSION = 3
+CHECKPOINT_VERSION = 4
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,6 +85,7 @@ class Simulation:
             if settle:
                 mech.settle(model, self.state, model.time.settle, model.time.settle_damping,
                             run=None if threads is None else threads.run)
+            schedule.mark(model, self.state.mech, self.state.t_days, quiet=settle)
         self.history: list[dict] = [self._diagnostics()]
 
     @property
@@ -107,13 +108,43 @@ class Simulation:
 
     def _macro_step(self, dt_bio: float) -> None:
         model, state = self.model, self.state
+        step = {}
         if self.mechanics:
-            mech.macro_step(model, state, model.time.N_mech)
+            step = self._mechanics()
         biology.step(model, state, dt_bio)
         inoculate(model, state)
         if self.mechanics:
             coupling.step(model, state)
-        self.history.append(self._diagnostics())
+        d = self._diagnostics()
+        if self.mechanics:
+            d["mechanics"].update(step)
+        self.history.append(d)
+
+    def _mechanics(self) -> dict:
+        """Algorithm 1 lines 4-8 under ``model.time.schedule``: the N_mech substeps, or with
+        "adaptive" the chunks of them :mod:`~wooddecay.sim.schedule` finds due. Returns the
+        chunks run and why (None: skipped)."""
+        model, state, time = self.model, self.state, self.model.time
+        if time.schedule == "fixed":
+            schedule.wake_changed(model, state, time.tolerances)
+            mech.macro_step(model, state, time.N_mech)
+            schedule.mark(model, state.mech, state.t_days, quiet=True)
+            return {"chunks": 1, "due": "fixed"}
+        due = schedule.due(model, state, time.tolerances)
+        return {"chunks": 0 if due is None else schedule.solve(model, state, time.tolerances), "due": due}
+
+    def schedule_summary(self) -> dict:
+        """The schedule and, over the macro steps run so far (``history``), how many ran
+        mechanics, the chunks of N_mech substeps, the seconds of mechanics and the solves by
+        reason (:func:`schedule.due`)."""
+        steps = [h["mechanics"] for h in self.history[1:] if "chunks" in h.get("mechanics", {})]
+        reasons: dict[str, int] = {}
+        for h in steps:
+            if h["due"] is not None:
+                reasons[h["due"]] = reasons.get(h["due"], 0) + 1
+        return {"schedule": self.model.time.schedule, "macro_steps": len(steps),
+                "solves": sum(reasons.values()), "chunks": sum(h["chunks"] for h in steps),
+                "mechanics_seconds": self.state.mech.t_seconds if self.mechanics else 0.0, "due": reasons}
 
     def advance(self, days: float) -> None:
         """Advance by ``days`` in macro steps of at most ``time.dt_bio``, equal between the days

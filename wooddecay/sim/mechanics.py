@@ -194,6 +194,14 @@ class MechState:
     #: (docs/decisions.md, "Separation overlap"; checkpointed)
     sep_keys: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     sep_overlap: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: the rest data, integrity and masses of the last mechanics solve, its day and whether it
+    #: ended quiet (:mod:`~wooddecay.sim.schedule`; checkpointed)
+    solved_rest_length: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    solved_rest_offset: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    solved_integrity: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    solved_mass: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    solved_day: np.ndarray = field(default_factory=lambda: np.zeros(1))
+    quiet: np.ndarray = field(default_factory=lambda: np.zeros(1, dtype=bool))
 
     def copy(self) -> "MechState":
         return MechState(**{f.name: (getattr(self, f.name).copy() if isinstance(getattr(self, f.name), np.ndarray)
@@ -313,22 +321,26 @@ def initial_state(model) -> MechState:
         component=np.zeros(n, dtype=np.int64), strain_ref_elem=np.zeros((n, 2)),
         strain_ref_edge=np.zeros((m, 3)), asleep=np.zeros(n, dtype=bool), sleep_x=np.zeros((P, 3)),
         sleep_t=np.zeros(1), force=np.zeros((P, 3)), torque=np.zeros((n, 3)),
+        solved_rest_length=setup.rest_length0.copy(), solved_rest_offset=setup.offset0.copy(),
+        solved_integrity=np.ones(m), solved_mass=np.zeros(n),
     )
     set_masses(setup, ms, np.zeros(n))
+    ms.solved_mass = ms.mass_e.copy()
+    sleep.wake_all(setup, ms)  # the first sleep window starts at rest
     ms.component = failure.components(setup, ms)
     return ms
 
 
 def set_masses(setup: MechSetup, ms: MechState, M: np.ndarray) -> None:
     """Element mass rho_dry (1 + M) pi r^2 l (SPEC §2), half to each particle; inverse masses
-    and quaternion weights 1 / (4 I_rot) (zero where anchored). New masses wake every sleeping
-    piece (:func:`sleep.wake_all`)."""
+    and quaternion weights 1 / (4 I_rot) (zero where anchored or asleep: new masses wake no
+    piece, :func:`sleep.hold`)."""
     ms.mass_e = setup.dry_mass * (1.0 + M)
     mass_p = np.zeros(setup.n_particles)
     np.add.at(mass_p, setup.fp, 0.5 * ms.mass_e)
     np.add.at(mass_p, setup.fp + 1, 0.5 * ms.mass_e)
     ms.mass_p = mass_p
-    sleep.wake_all(setup, ms)
+    sleep.hold(setup, ms)
 
 
 def external_forces(setup: MechSetup, t_days: float) -> np.ndarray:

@@ -20,11 +20,15 @@ Rule, evaluated at the end of every window of ``sleep_time`` seconds of :func:`m
   element: it does not move, and the pieces on it rest on a still support; its velocities are
   zero.
 
-Everything wakes (:func:`wake_all`, which restarts the window) when a constraint fails, when the
-masses change (:func:`wooddecay.sim.mechanics.set_masses`: the coupling does it after every
-biology step, so in a coupled bake nothing sleeps) and when an external force acts on a sleeping
-particle. ``sleep_speed`` 0 switches sleeping off. Per piece and per particle in numpy, so
-deterministic; the state (``asleep``, ``sleep_x``, ``sleep_t``) is checkpointed.
+Everything wakes (:func:`wake_all`, which restarts the window) when a constraint fails and when
+an external force acts on a sleeping particle. The coupling's new masses, rest data and
+integrity after every biology step wake only the pieces where they changed past the schedule's
+tolerances since those pieces fell asleep (:func:`wake`, called by
+:func:`wooddecay.sim.schedule.wake_changed`): a small change leaves a piece asleep, holding the
+shape it slept in, so pieces sleep in a coupled bake and a window outlasts macro steps (it counts
+seconds of mechanics, which the adaptive schedule runs only when due). ``sleep_speed`` 0
+switches sleeping off. Per piece and per particle in numpy, so deterministic; the state
+(``asleep``, ``sleep_x``, ``sleep_t``) is checkpointed.
 """
 from __future__ import annotations
 
@@ -49,6 +53,16 @@ def wake_all(setup, ms) -> None:
     ms.asleep[:] = False
     ms.w_p, ms.w_q = weights(setup, ms)
     _restart(ms)
+
+
+def wake(setup, ms, elements: np.ndarray) -> int:
+    """Wake the sleeping pieces holding any of ``elements`` (a boolean mask); the window goes
+    on. Returns the number of pieces woken."""
+    pieces = np.unique(ms.component[elements & ms.asleep])
+    if len(pieces):
+        ms.asleep[np.isin(ms.component, pieces)] = False
+        hold(setup, ms)
+    return len(pieces)
 
 
 def substeps_left(setup, ms) -> int:
@@ -77,7 +91,7 @@ def update(setup, ms) -> int:
     np.logical_or.at(hit, b, loud[a])
     asleep = (speed < setup.sleep_speed) & ~hit
     ms.asleep = asleep[ms.component]
-    _hold(setup, ms)
+    hold(setup, ms)
     _restart(ms)
     return int(asleep.sum())
 
@@ -91,9 +105,9 @@ def _touching(setup, ms) -> tuple[np.ndarray, np.ndarray]:
     return ms.component[pairs[on, 0]], ms.component[pairs[on, 1]]
 
 
-def _hold(setup, ms) -> None:
-    """Weights and velocities of the current ``asleep`` flags: a particle sleeps when every
-    element it belongs to sleeps."""
+def hold(setup, ms) -> None:
+    """Weights (from ``ms.mass_p``, ``ms.mass_e``) and velocities of the current ``asleep``
+    flags: a particle sleeps when every element it belongs to sleeps."""
     w_p, w_q = weights(setup, ms)
     awake_p = np.zeros(setup.n_particles, dtype=bool)
     awake_p[setup.fp[~ms.asleep]] = True

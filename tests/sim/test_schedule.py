@@ -1,0 +1,115 @@
+"""The adaptive schedule (wooddecay.sim.schedule): mechanics runs when the rest data, integrity,
+masses or loads changed past the tolerances, when something fails, and then until the wood is
+quiet; a quiet model costs no substeps; resumed bakes decide as uninterrupted ones."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import wooddecay as wd
+from wooddecay.sim import schedule
+
+from ..conftest import sample
+from .helpers import digest
+
+
+def tiny(**overrides):
+    scene = wd.load_scene(sample("tiny")[0].path, overrides={"time.schedule": "adaptive", **overrides})
+    return wd.Simulation(wd.build_model(scene))
+
+
+def test_a_settled_model_is_quiet_and_runs_no_mechanics():
+    sim = tiny()
+    ms = sim.state.mech
+    assert ms.quiet[0]
+    t = ms.t_seconds
+    assert schedule.due(sim.model, sim.state, sim.model.time.tolerances) is None
+    assert ms.t_seconds == t
+
+
+@pytest.mark.parametrize("change, reason", [
+    ("rest_length", "strain"), ("rest_offset", "strain"), ("integrity", "integrity_mass"),
+    ("mass_e", "integrity_mass")])
+def test_each_change_past_its_tolerance_makes_mechanics_due(change, reason):
+    """Half the tolerance is not due, twice the tolerance is, for the strain of rest lengths
+    and offsets, for integrity and for relative masses."""
+    sim = tiny()
+    model, ms, tol = sim.model, sim.state.mech, sim.model.time.tolerances
+    base = getattr(ms, change).copy()
+    scale = {"rest_length": tol.strain * base[0], "rest_offset": tol.strain * model.mech.edge_length[0],
+             "integrity": tol.relative, "mass_e": tol.relative * base[0]}[change]
+    for factor, due in ((0.5, None), (2.0, reason)):
+        v = base.copy()
+        v[0] -= factor * scale
+        setattr(ms, change, v)
+        assert schedule.due(model, sim.state, tol) == due
+
+
+def test_moving_loads_and_failures_make_mechanics_due():
+    sim = tiny()
+    model, state, ms, tol = sim.model, sim.state, sim.state.mech, sim.model.time.tolerances
+    ms.quiet[0] = False
+    assert schedule.due(model, state, tol) == "moving"
+    ms.quiet[0] = True
+    loaded = replace(model, mech=replace(model.mech, loads=((1.0, 2.0, np.zeros((model.mech.n_particles, 3))),)))
+    state.t_days = 1.5
+    assert schedule.due(loaded, state, tol) == "load"
+    state.t_days = 0.0
+    e = np.flatnonzero(model.mech.inner)[0]
+    ms.limit_elem[e] = -np.inf
+    failures = ms.failures
+    assert schedule.due(model, state, tol) == "failure"
+    assert not ms.element_ok[e] and ms.failures > failures
+
+
+def test_a_solve_runs_until_the_wood_is_quiet():
+    """The tiny log lifted 2 cm falls, lands and comes to rest within one solve of several
+    chunks; a model at rest takes one chunk; max_mechanics caps a solve."""
+    sim = tiny()
+    model, state, ms, tol = sim.model, sim.state, sim.state.mech, sim.model.time.tolerances
+    rest_z = ms.x[:, 2].min()
+    assert schedule.solve(model, state, tol) == 1 and ms.quiet[0]
+    ms.x[:, 2] += 0.02
+    chunks = schedule.solve(model, state, tol)
+    chunk = model.time.N_mech * model.mech.dt
+    assert chunks * chunk > np.sqrt(2 * 0.02 / 9.81)  # at least the free fall
+    assert ms.quiet[0] and abs(ms.x[:, 2].min() - rest_z) < 1e-3
+    ms.x[:, 2] += 0.02
+    capped = replace(tol, max_seconds=3 * chunk)
+    assert schedule.solve(model, state, capped) == 3 and not ms.quiet[0]
+
+
+def test_a_quiet_year_runs_few_solves_and_ends_at_rest_with_the_same_breaks():
+    """The tiny log over 60 days: the adaptive schedule runs mechanics in a small share of the
+    macro steps, breaks as many connections as the fixed schedule and ends at rest (one more
+    chunk moves no particle faster than rest_speed). benchmarks/schedule.py compares the end
+    positions over a year of the samples."""
+    ends = {}
+    for kind in ("fixed", "adaptive"):
+        sim = tiny(**{"time.schedule": kind, "time.days": 60.0, "time.frames": 1})
+        ends[kind] = list(sim.run())[-1], sim.schedule_summary(), sim
+    (fixed, s_fixed, _), (adaptive, s_adaptive, sim) = ends["fixed"], ends["adaptive"]
+    assert s_fixed["chunks"] == s_fixed["macro_steps"] == 120
+    assert 0 < s_adaptive["chunks"] < 0.25 * s_fixed["chunks"]
+    assert (fixed.diagnostics["mechanics"]["broken_connections"]
+            == adaptive.diagnostics["mechanics"]["broken_connections"])
+    tol = sim.model.time.tolerances
+    assert schedule.solve(sim.model, sim.state, tol) == 1 and sim.state.mech.quiet[0]
+
+
+def test_resumed_adaptive_run_is_bit_identical(tmp_path):
+    """The schedule's state (the rest data of the last solve, the quiet flag) is checkpointed."""
+    over = {"time.days": 20.0, "time.frames": 3, "time.strain_tolerance": 1e-6}
+    sim = tiny(**over)
+    frames = list(sim.run())
+    whole = digest(sim.state.mech)
+    sim = tiny(**over)
+    run = sim.run()
+    next(run)
+    sim.save_checkpoint(tmp_path / "c.npz")
+    resumed = wd.Simulation.resume(sim.model, tmp_path / "c.npz")
+    assert len(list(resumed.run())) == len(frames) - 1
+    assert digest(resumed.state.mech) == whole
+    assert resumed.schedule_summary()["solves"] > 0

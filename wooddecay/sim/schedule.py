@@ -1,0 +1,130 @@
+"""The adaptive schedule: mechanics only when the wood has changed enough to matter, and then for
+as long as it moves (``time.schedule = "adaptive"``; ``"fixed"`` runs Algorithm 1's N_mech
+substeps in every macro step).
+
+Why (docs/decisions.md, "Adaptive schedule"): mechanics is 95-98% of a fixed-schedule iteration,
+yet in a quiet year the coupling moves rest lengths, integrity and masses by fractions of a
+percent per step and nothing fails, while a piece that does break loose needs 0.15 s of
+mechanics (60 fixed macro steps) to fall 10 cm.
+
+Rule, at the start of every macro step (:func:`due`), mechanics runs when, since its last solve
+(:func:`mark`):
+
+* a rest strain moved by more than ``time.strain_tolerance``: an element's |Delta l_r| / l_r
+  (Eq. 17) or a REG pair's |Delta dp| / max(dp_0, r_s) (Eq. 16), the strain the solve would
+  relax;
+* an integrity I_ij (Eq. 21) changed by more than ``time.tolerance``, or an element mass by more
+  than that fraction: the sag under gravity scales with mass over stiffness;
+* the set of active ``[[load]]``s changed;
+* the last solve ended with the wood still moving (it reached ``time.max_mechanics``);
+* a constraint fails at the current positions against the current rest data and limits
+  (:func:`failure.update`, the test every substep ends with): drying and decay lower the limits
+  and shorten the rest lengths of wood that holds still, and that cracks it.
+
+A solve (:func:`solve`) runs chunks of N_mech substeps (:func:`mechanics.macro_step`, sleeping
+included) until a chunk ends without a failure and with every particle's displacement over the
+chunk below ``time.rest_speed`` times its duration, or ``time.max_mechanics`` seconds have run.
+Skipped steps leave every rest-data change within the tolerances unrelaxed, so the failure test
+sees strains at most ``strain_tolerance`` early and a resting shape lags by at most ``tolerance``
+of its sag; ``benchmarks/schedule.py`` measures the difference to the fixed schedule.
+
+The reference rest data and the quiet flag live in the :class:`~wooddecay.sim.mechanics.MechState`
+(``solved_*``), so they are checkpointed and a resumed bake decides as the uninterrupted one.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import failure, sleep
+from . import mechanics as mech
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """The ``[time]`` keys of the adaptive schedule (module docstring)."""
+
+    strain: float  # strain_tolerance
+    relative: float  # tolerance: integrity and mass
+    rest_speed: float  # m/s
+    max_seconds: float  # max_mechanics, s per macro step
+
+
+def mark(model, ms: mech.MechState, t_days: float, quiet: bool) -> None:
+    """Take the current rest data of the awake elements and of the REG pairs with an awake end
+    as the state of the last solve, on day ``t_days``. A sleeping piece keeps the data it fell
+    asleep with, so its changes add up until they wake it (:func:`wake_changed`)."""
+    awake = ~ms.asleep
+    edges = model.mech.edges
+    pair_awake = awake[edges[:, 0]] | awake[edges[:, 1]]
+    ms.solved_rest_length[awake] = ms.rest_length[awake]
+    ms.solved_mass[awake] = ms.mass_e[awake]
+    ms.solved_rest_offset[pair_awake] = ms.rest_offset[pair_awake]
+    ms.solved_integrity[pair_awake] = ms.integrity[pair_awake]
+    ms.solved_day = np.array([t_days])
+    ms.quiet = np.array([quiet])
+
+
+def active_loads(setup: mech.MechSetup, t_days: float) -> tuple[bool, ...]:
+    """Which ``[[load]]``s act on ``t_days``."""
+    return tuple(d0 <= t_days < d1 for d0, d1, _ in setup.loads)
+
+
+def changed(model, ms: mech.MechState, tol: Tolerances) -> tuple[str | None, np.ndarray]:
+    """The elements whose rest data changed past the tolerances since the last solve (an element
+    of a REG pair that did counts), and the first reason found: "strain" (a rest strain moved
+    by more than ``tol.strain``), "integrity_mass" (an I_ij or a relative mass by more than
+    ``tol.relative``) or None."""
+    edges = model.mech.edges
+    strain_e = np.abs(ms.rest_length - ms.solved_rest_length) > tol.strain * ms.rest_length
+    strain_k = np.abs(ms.rest_offset - ms.solved_rest_offset) > tol.strain * model.mech.edge_length
+    rel_e = np.abs(ms.mass_e - ms.solved_mass) > tol.relative * ms.solved_mass
+    rel_k = np.abs(ms.integrity - ms.solved_integrity) > tol.relative
+    reason = "strain" if strain_e.any() or strain_k.any() else "integrity_mass" if rel_e.any() or rel_k.any() else None
+    over = strain_e | rel_e
+    over[edges[strain_k | rel_k].ravel()] = True
+    return reason, over
+
+
+def wake_changed(model, state, tol: Tolerances) -> str | None:
+    """Wake the sleeping pieces whose rest data changed past the tolerances (:func:`changed`);
+    returns the reason, or None."""
+    reason, over = changed(model, state.mech, tol)
+    if reason is not None:
+        sleep.wake(model.mech, state.mech, over)
+    return reason
+
+
+def due(model, state, tol: Tolerances) -> str | None:
+    """Why mechanics must run in the macro step starting at ``state.t_days``, or None (module
+    docstring); wakes the sleeping pieces that changed. The failure test runs last, only when
+    nothing else asks for a solve; failures it finds are kept and wake everything."""
+    ms, setup = state.mech, model.mech
+    if not ms.quiet[0]:
+        return "moving"
+    if active_loads(setup, state.t_days) != active_loads(setup, float(ms.solved_day[0])):
+        return "load"
+    reason = wake_changed(model, state, tol)
+    if reason is not None:
+        return reason
+    if failure.update(setup, ms):
+        sleep.wake_all(setup, ms)
+        return "failure"
+    return None
+
+
+def solve(model, state, tol: Tolerances) -> int:
+    """Chunks of N_mech substeps until the wood is quiet or ``tol.max_seconds`` have run (module
+    docstring); marks the result as solved. Returns the number of chunks."""
+    ms, n_sub = state.mech, model.time.N_mech
+    chunk_seconds = n_sub * model.mech.dt
+    chunks, quiet = 0, False
+    while not quiet and chunks * chunk_seconds < tol.max_seconds - 1e-12:
+        x0 = ms.x.copy()
+        new = mech.macro_step(model, state, n_sub)
+        chunks += 1
+        moved = float(np.sqrt(np.max(np.sum((ms.x - x0) ** 2, axis=1), initial=0.0)))
+        quiet = new == 0 and moved < tol.rest_speed * chunk_seconds
+    mark(model, ms, state.t_days, quiet)
+    return chunks
