@@ -12,6 +12,15 @@ ROOT = Path(__file__).resolve().parent.parent
 SAMPLES = ROOT / "samples"
 
 
+@pytest.fixture(autouse=True)
+def settle_cache(tmp_path, monkeypatch) -> Path:
+    """Each test bakes with its own empty settled-state cache (wooddecay.sim.settled), never the
+    user's."""
+    folder = tmp_path / "settled-cache"
+    monkeypatch.setenv("WOODDECAY_CACHE", str(folder))
+    return folder
+
+
 @cache
 def sample(name: str):
     """(scene, model) of ``samples/<name>.toml``, built once per session."""

@@ -271,10 +271,11 @@ def blender_user(tmp_path_factory, addon_zip) -> Path:
 
 @pytest.fixture(scope="module")
 def bake(tmp_path_factory):
-    """samples/tiny.toml, 4 days, 3 frames, coupled mechanics: .usdc of all frames and .glb of
-    the last, with the scene and frames."""
+    """samples/tiny.toml, 4 days, 3 frames, coupled mechanics on the fixed schedule (so the
+    points move every step): .usdc of all frames and .glb of the last, with the scene and frames."""
     out = tmp_path_factory.mktemp("tiny_bake")
-    scene = wd.load_scene(ROOT / "samples" / "tiny.toml", overrides={"time.days": 4, "time.frames": 3})
+    scene = wd.load_scene(ROOT / "samples" / "tiny.toml",
+                          overrides={"time.days": 4, "time.frames": 3, "time.schedule": "fixed"})
     model = wd.build_model(scene)
     frames = list(wd.Simulation(model).run())
     mesh = wd.build_meshlets(model)

@@ -6,7 +6,8 @@ into ``out``:
 
 * ``<name>.usdc`` (:func:`wooddecay.export.usd.export_usd`), ``<name>.glb`` (the last frame,
   :func:`wooddecay.export.gltf.export_gltf`) and ``summary.json`` (counts, seconds per stage, threads,
-  the schedule's macro steps, mechanics solves and seconds (:meth:`Simulation.schedule_summary`),
+  the schedule's macro steps, mechanics solves and seconds (:meth:`Simulation.schedule_summary`)
+  and whether the settled rods came from the cache (:mod:`wooddecay.sim.settled`),
   output sizes, and per frame the day, mass loss, moisture content ratio and crack statistics);
 * ``.bake/``: one small file per finished frame (fields and rod state) and the latest full
   simulation checkpoint. ``resume=True`` reloads the frames, continues the simulation from the
@@ -33,6 +34,7 @@ from .export.gltf import export_gltf
 from .export.usd import export_usd
 from .meshlets.sweep import build_meshlets
 from .model import build_model
+from .sim import settled
 from .sim.driver import Frame, Simulation
 from .sim.state import FIELDS
 from .sim.threads import ThreadChoice
@@ -106,7 +108,7 @@ def bake(scene, out, resume: bool = False, quality: str = "final", progress=None
     else:
         for stale in work.glob("*.npz"):
             stale.unlink()
-        sim = Simulation(model, mechanics=mechanics, threads=choice)
+        sim = Simulation(model, mechanics=mechanics, threads=choice, settle_cache=settled.default_folder())
     n_frames = int(scene.time.frames)
     for fr in sim.run():
         save_frame(work / f"frame_{fr.index:05d}.npz", fr)
@@ -128,7 +130,7 @@ def bake(scene, out, resume: bool = False, quality: str = "final", progress=None
     summary = {
         "wooddecay_version": __version__, "scene": scene.name, "seed": int(scene.seed),
         "scene_hash": scene.hash, "quality": quality, "threads": choice.summary(),
-        "schedule": sim.schedule_summary(),
+        "schedule": {**sim.schedule_summary(), "settled": sim.settled},
         "counts": {"strands": model.n_strands, "elements": model.n_elements, "reg_edges": model.n_edges,
                    "meshlets": mesh.count, "meshlet_faces": mesh.n_faces, "frames": len(frames)},
         "seconds": {k: round(v, 3) for k, v in seconds.items()},

@@ -48,11 +48,13 @@ def stage_rng(seed: int, stage: str) -> np.random.Generator:
 @dataclass(frozen=True)
 class SceneInfo:
     """What outputs record of the scene a model was built from (USD customLayerData, glTF
-    extras, checkpoints): its name, seed and the hash of the resolved scene."""
+    extras, checkpoints): its name, seed and the hash of the resolved scene, and the hash of the
+    part the settled rods depend on (the settled-state cache's key)."""
 
     name: str
     seed: int
     hash: str
+    settle_hash: str
 
 
 @dataclass(frozen=True)
@@ -320,7 +322,7 @@ def build_model(scene) -> WoodModel:
         cp_offsets=strands.offsets, cp_node=strands.node, cp_uv=cp_uv, cp_s=cp_s, particle_s=particle_s,
         skeleton=skel, topology=topo, r_s=float(st.r_s),
         materials=materials,
-        info=SceneInfo(name=str(scene.name), seed=int(scene.seed), hash=scene.hash),
+        info=SceneInfo(name=str(scene.name), seed=int(scene.seed), hash=scene.hash, settle_hash=scene.settle_hash),
         time=TimeSpec(days=float(scene.time.days), dt_bio=float(scene.time.dt_bio), frames=int(scene.time.frames),
                       fps=float(scene.time.fps), N_mech=int(scene.mechanics.N_mech),
                       settle=float(scene.mechanics.settle), settle_damping=float(scene.mechanics.settle_damping),

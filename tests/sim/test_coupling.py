@@ -35,3 +35,18 @@ def test_coupling_equations():
     np.testing.assert_allclose(ms.limit_elem[:, 0], mech.L_0_stretch * f * np.where(crosses, 1 - mech.k_c * 0.5, 1.0))
     assert coupling.limit_factor(np.array(0.05), 1.0, 0.1, 4.0) == 0.0
     assert coupling.limit_factor(np.array(1.5), 1.0, 0.1, 4.0) == 1.0
+
+
+def test_coupling_kernel_matches_its_numpy_twin():
+    """coupling.step (one numba pass over elements and one over pairs) against step_reference on
+    random moisture and health, below, inside and above [M_2, M_1] and M_0."""
+    _, model = sample("tiny")
+    state = initial_state(model, rods=True)
+    rng = np.random.default_rng(4)
+    n = model.n_elements
+    state.M[:] = rng.uniform(0.0, 1.2, n)
+    state.H_c[:] = rng.uniform(0.0, 1.0, n)
+    state.H_l[:] = rng.uniform(0.0, 1.0, n)
+    coupling.step(model, state)
+    for name, expect in coupling.step_reference(model, state).items():
+        np.testing.assert_allclose(getattr(state.mech, name), expect, rtol=1e-15, atol=0.0, err_msg=name)

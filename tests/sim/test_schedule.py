@@ -68,7 +68,8 @@ def test_a_solve_runs_until_the_wood_is_quiet():
     """The tiny log lifted 2 cm falls, lands and comes to rest within one solve of several
     chunks; a model at rest takes one chunk; max_mechanics caps a solve."""
     sim = tiny()
-    model, state, ms, tol = sim.model, sim.state, sim.state.mech, sim.model.time.tolerances
+    model, state, ms = sim.model, sim.state, sim.state.mech
+    tol = replace(model.time.tolerances, max_seconds=1.0)
     rest_z = ms.x[:, 2].min()
     assert schedule.solve(model, state, tol) == 1 and ms.quiet[0]
     ms.x[:, 2] += 0.02
@@ -81,22 +82,37 @@ def test_a_solve_runs_until_the_wood_is_quiet():
     assert schedule.solve(model, state, capped) == 3 and not ms.quiet[0]
 
 
-def test_a_quiet_year_runs_few_solves_and_ends_at_rest_with_the_same_breaks():
+def test_a_quiet_season_runs_few_solves_and_ends_at_rest():
     """The tiny log over 60 days: the adaptive schedule runs mechanics in a small share of the
-    macro steps, breaks as many connections as the fixed schedule and ends at rest (one more
-    chunk moves no particle faster than rest_speed). benchmarks/schedule.py compares the end
-    positions over a year of the samples."""
-    ends = {}
+    macro steps and ends at rest (one more chunk moves no particle faster than rest_speed)."""
+    sim = tiny(**{"time.days": 60.0, "time.frames": 1})
+    list(sim.run())
+    summary = sim.schedule_summary()
+    assert summary["macro_steps"] == 120 and 0 < summary["chunks"] < 30
+    assert schedule.solve(sim.model, sim.state, sim.model.time.tolerances) == 1 and sim.state.mech.quiet[0]
+
+
+@pytest.mark.slow
+def test_drying_cracks_as_many_connections_as_the_fixed_schedule():
+    """The tiny log drying in the open (test_fracture's recipe, S_R = S_T = 1) for 13 days: the failure
+    test on skipped steps and the solves it triggers break as many REG connections as the fixed
+    schedule, within 15%. Drying wood changes its rest strains past the tolerance in nearly
+    every step and spalls small pieces that get time to fall, so the schedule runs more chunks
+    than the fixed one (measured 415 / 130), but far from max_mechanics in every step: a crack's
+    swinging elements do not keep it going."""
+    from .test_fracture import DRYING
+
+    out = {}
     for kind in ("fixed", "adaptive"):
-        sim = tiny(**{"time.schedule": kind, "time.days": 60.0, "time.frames": 1})
-        ends[kind] = list(sim.run())[-1], sim.schedule_summary(), sim
-    (fixed, s_fixed, _), (adaptive, s_adaptive, sim) = ends["fixed"], ends["adaptive"]
-    assert s_fixed["chunks"] == s_fixed["macro_steps"] == 120
-    assert 0 < s_adaptive["chunks"] < 0.25 * s_fixed["chunks"]
-    assert (fixed.diagnostics["mechanics"]["broken_connections"]
-            == adaptive.diagnostics["mechanics"]["broken_connections"])
-    tol = sim.model.time.tolerances
-    assert schedule.solve(sim.model, sim.state, tol) == 1 and sim.state.mech.quiet[0]
+        sim = tiny(**{**DRYING, "time.days": 13.0, "time.schedule": kind, "mechanics.S_R": 1.0,
+                      "mechanics.S_T": 1.0})
+        list(sim.run())
+        out[kind] = np.count_nonzero(~sim.state.mech.edge_ok[:, 0]), sim.schedule_summary()["chunks"]
+    print(out)
+    (fixed, fixed_chunks), (adaptive, chunks) = out["fixed"], out["adaptive"]
+    assert fixed > 50
+    assert abs(adaptive - fixed) <= 0.15 * fixed
+    assert chunks < 0.25 * fixed_chunks * 20  # 20 chunks: max_mechanics
 
 
 def test_resumed_adaptive_run_is_bit_identical(tmp_path):

@@ -107,12 +107,14 @@ def test_only_the_pieces_that_changed_past_the_tolerances_wake():
 
 
 def test_a_coupled_run_sleeps():
-    """The coupling's new masses after every biology step wake nothing, so in a coupled run whose
-    macro steps are shorter than the sleep window the window still ends (here 0.1 s steps, a
-    0.2 s window, 0.3 s) and the quiet log falls asleep."""
+    """The coupling's new masses after every biology step wake nothing, and changes within the
+    schedule's tolerances (here 1) wake no piece, so in a coupled run whose macro steps are
+    shorter than the sleep window the window still ends (0.1 s steps, a 0.2 s window, 0.3 s)
+    and the quiet log falls asleep (limits of 10: no failure wakes it)."""
     scene = wd.load_scene(sample("tiny")[0].path, overrides={
         "mechanics.sleep_speed": 1.0, "mechanics.sleep_time": 0.2, "mechanics.N_mech": 1000,
-        "time.schedule": "fixed"})
+        "time.schedule": "fixed", "time.tolerance": 1.0, "time.strain_tolerance": 1.0,
+        **{f"mechanics.L_0_{k}": 10.0 for k in ("stretch", "shear", "bend", "twist", "bundle")}})
     sim = wd.Simulation(wd.build_model(scene))
     for _ in range(3):
         sim.macro_step(scene.time.dt_bio)

@@ -34,7 +34,7 @@ def test_initial_fields_follow_tissues():
     ({"kind": "end", "which": "tip", "depth": 0.1},
      lambda m, s: m.wood_coords[:, 2] >= m.wood_coords[:, 2].max() - 0.1),
     ({"kind": "node", "id": "mid", "radius": 0.08},
-     lambda m, s: np.linalg.norm(m.centers - [0.5, 0, 0.15], axis=1) <= 0.08),
+     lambda m, s: np.linalg.norm(m.centers - s.skeleton.positions[1], axis=1) <= 0.08),
     ({"kind": "wound", "position": [0.5, 0.0, 0.3], "radius": 0.1, "depth": 0.02},
      lambda m, s: (np.linalg.norm(m.centers - [0.5, 0, 0.3], axis=1) <= 0.1) & (m.bark_distance <= 0.02)),
 ])

@@ -26,7 +26,7 @@ def test_frames_orthonormal_right_handed_and_along_skeleton():
 
 
 def test_horizontal_log_frame_has_v_up():
-    skel = wd.load_scene(SAMPLES / "log.toml").skeleton
+    skel = wd.load_scene(SAMPLES / "tiny.toml").skeleton
     topo = build_topology(skel)
     np.testing.assert_allclose(topo.frames[:, 1], np.tile([0, 0, 1.0], (len(skel.ids), 1)), atol=1e-12)
     np.testing.assert_allclose(topo.up2d, np.tile([0, 1.0], (len(skel.ids), 1)), atol=1e-12)

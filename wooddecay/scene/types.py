@@ -178,12 +178,30 @@ class Scene:
     def hash(self) -> str:
         """sha256 (hex) of the canonical JSON of :meth:`to_dict` without paths (scene path,
         base directory, skeleton source file)."""
+        return _digest(self._hashed())
+
+    @cached_property
+    def settle_hash(self) -> str:
+        """:attr:`hash` without the keys the settled rods do not depend on: [time], [export] and
+        the scene's name and description (the key of the settled-state cache,
+        :mod:`wooddecay.sim.settled`)."""
+        d = self._hashed()
+        for key in ("time", "export"):
+            d.pop(key)
+        d["scene"] = {k: v for k, v in d["scene"].items() if k not in ("name", "description")}
+        return _digest(d)
+
+    def _hashed(self) -> dict:
         d = self.to_dict()
         d.pop("path", None)
         d.pop("base_dir", None)
         d["skeleton"].pop("source", None)
-        text = json.dumps(d, sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
-        return hashlib.sha256(text.encode("ascii")).hexdigest()
+        return d
+
+
+def _digest(d: dict) -> str:
+    text = json.dumps(d, sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
+    return hashlib.sha256(text.encode("ascii")).hexdigest()
 
 
 def _skeleton_dict(skel: Any) -> dict:

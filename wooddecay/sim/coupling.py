@@ -32,6 +32,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 
 from .biology import moisture_bounds
@@ -99,19 +100,62 @@ def integrity(k_c: np.ndarray, k_l: np.ndarray, H_c_pair: np.ndarray, H_l_pair: 
 def step(model, state) -> None:
     """Update the rods of ``state`` (``state.mech``: rest data, limits, integrity and masses)
     from its fields, with each tissue's [M_1, M_2] on the day ``state.t_days``. The coupling is
-    instantaneous, so unlike the other solvers it takes no dt."""
+    instantaneous, so unlike the other solvers it takes no dt. One parallel pass over elements
+    and one over REG pairs (:func:`_couple`; :func:`step_reference` is its numpy twin)."""
     cs, setup, ms = model.coupling, model.mech, state.mech
+    n, m = len(state.M), len(setup.edges)
+    out = (np.empty(n), np.empty(m), np.empty(m), np.empty((n, 2)), np.empty((m, 3)))
+    _couple(state.M, state.H_c, state.H_l, model.bio.tissue, moisture_bounds(model.bio, state.t_days),
+            setup.edges, cs.link_next, cs.M_0, cs.s, setup.rest_length0, cs.g_pair, cs.M_0_pair, setup.offset0,
+            cs.L_0, cs.p_l, cs.k_c, cs.k_l, cs.k_c_link, cs.k_l_link, np.empty((n, 5)), *out)
+    ms.rest_length, ms.rest_offset, ms.integrity, ms.limit_elem, ms.limit_edge = out
+    set_masses(setup, ms, state.M)
+
+
+@nb.njit(inline="always", cache=True)
+def _integrity(k_c, k_l, H_c_pair, H_l_pair):
+    return min(max((1.0 - k_c * (1.0 - H_c_pair)) * (1.0 - k_l * (1.0 - H_l_pair)), 0.0), 1.0)
+
+
+@nb.njit(parallel=True, cache=True)
+def _couple(M, H_c, H_l, tissue, M12, edges, link_next, M_0, s, rest_length0, g_pair, M_0_pair, offset0, L_0, p_l,
+            k_c, k_l, k_c_link, k_l_link, L, rest_length, rest_offset, integrity_out, limit_elem, limit_edge):
+    """:func:`step`'s arrays (module docstring): per element the rest length (Eq. 17), the limits
+    L(M) of Eq. 19 (into the scratch ``L``) and the strand-link-scaled stretch and shear limits;
+    per REG pair the rest offset (Eq. 16), I_ij (Eq. 21) and the pair limits. Each entry is
+    written by its own element or pair only."""
+    for e in nb.prange(len(M)):
+        t = tissue[e]
+        f = min(max((M[e] - M12[t, 1]) / (M12[t, 0] - M12[t, 1]), 0.0), 1.0)
+        for c in range(5):
+            L[e, c] = L_0[e, c] * f ** p_l[e, c]
+        rest_length[e] = rest_length0[e] * (1.0 - max(M_0[e] - M[e], 0.0) * s[e])
+        e1 = link_next[e]
+        link = _integrity(k_c_link[e], k_l_link[e], 0.5 * (H_c[e] + H_c[e1]), 0.5 * (H_l[e] + H_l[e1]))
+        limit_elem[e, 0] = L[e, 0] * link
+        limit_elem[e, 1] = L[e, 1] * link
+    for k in nb.prange(len(edges)):
+        i, j = edges[k, 0], edges[k, 1]
+        rest_offset[k] = offset0[k] * (1.0 - max(M_0_pair[k] - 0.5 * (M[i] + M[j]), 0.0) * g_pair[k])
+        I = _integrity(k_c[k], k_l[k], 0.5 * (H_c[i] + H_c[j]), 0.5 * (H_l[i] + H_l[j]))
+        integrity_out[k] = I
+        for c in range(3):
+            limit_edge[k, c] = 0.5 * (L[i, c + 2] + L[j, c + 2]) * I
+
+
+def step_reference(model, state) -> dict[str, np.ndarray]:
+    """Plain-numpy :func:`step`: the rest lengths, rest offsets, integrity and limits it sets."""
+    cs, setup = model.coupling, model.mech
     M12, tissue = moisture_bounds(model.bio, state.t_days), model.bio.tissue
     M = state.M
     i, j = setup.edges[:, 0], setup.edges[:, 1]
     M_pair = 0.5 * (M[i] + M[j])
-    ms.rest_offset = setup.offset0 * (1.0 - np.maximum(cs.M_0_pair - M_pair, 0.0) * cs.g_pair)
-    ms.rest_length = setup.rest_length0 * (1.0 - np.maximum(cs.M_0 - M, 0.0) * cs.s)
     f = limit_factor(M[:, None], M12[tissue, 0][:, None], M12[tissue, 1][:, None], cs.p_l)
     L = cs.L_0 * f
-    ms.integrity = integrity(cs.k_c, cs.k_l, 0.5 * (state.H_c[i] + state.H_c[j]), 0.5 * (state.H_l[i] + state.H_l[j]))
+    I = integrity(cs.k_c, cs.k_l, 0.5 * (state.H_c[i] + state.H_c[j]), 0.5 * (state.H_l[i] + state.H_l[j]))
     e1 = cs.link_next
     link = integrity(cs.k_c_link, cs.k_l_link, 0.5 * (state.H_c + state.H_c[e1]), 0.5 * (state.H_l + state.H_l[e1]))
-    ms.limit_elem = np.ascontiguousarray(L[:, :2] * link[:, None])
-    ms.limit_edge = np.ascontiguousarray(0.5 * (L[i, 2:] + L[j, 2:]) * ms.integrity[:, None])
-    set_masses(setup, ms, M)
+    return {"rest_offset": setup.offset0 * (1.0 - np.maximum(cs.M_0_pair - M_pair, 0.0) * cs.g_pair),
+            "rest_length": setup.rest_length0 * (1.0 - np.maximum(cs.M_0 - M, 0.0) * cs.s),
+            "integrity": I, "limit_elem": L[:, :2] * link[:, None],
+            "limit_edge": 0.5 * (L[i, 2:] + L[j, 2:]) * I[:, None]}

@@ -12,6 +12,12 @@ the shape ``solver(model, state, dt)``: the model holds everything static (``mod
 
 Settling: before the first step the rods settle under gravity (:func:`mechanics.settle`,
 ``model.time.settle`` seconds); failure strains are measured from the state they settle into.
+With ``settle_cache`` (a folder) the settled rods are loaded from it when the same wood settled
+before, and stored otherwise (:mod:`wooddecay.sim.settled`; the same bits either way).
+
+Schedule: ``model.time.schedule`` "fixed" runs N_mech substeps in every macro step (Algorithm
+1), "adaptive" only the chunks of them :mod:`wooddecay.sim.schedule` finds due; the history
+records per step the chunks run and why.
 
 Threads: with ``threads`` (a :class:`~wooddecay.sim.threads.ThreadChoice`) every macro step and
 every settling chunk runs through :meth:`ThreadChoice.run` (the count it gives, its wall time
@@ -32,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import biology, coupling, schedule
+from . import biology, coupling, schedule, settled
 from . import mechanics as mech
 from .diagnostics import diagnostics
 from .state import FIELDS, SimState, initial_state, inoculate
@@ -72,7 +78,7 @@ class Simulation:
     ``history`` collects the diagnostics at day 0 and after every macro step."""
 
     def __init__(self, model, mechanics: bool = True, checkpoint_dir=None, checkpoint_every: int = 0,
-                 settle: bool = True, threads: ThreadChoice | None = None):
+                 settle: bool = True, threads: ThreadChoice | None = None, settle_cache=None):
         self.model = model
         self.threads = threads
         self.state: SimState = initial_state(model, rods=mechanics)
@@ -80,11 +86,12 @@ class Simulation:
         self.checkpoint_dir = None if checkpoint_dir is None else Path(checkpoint_dir)
         self.checkpoint_every = int(checkpoint_every)
         self.last_frame = -1
+        self.settled = "no"  # "settled", or "cached" when loaded from ``settle_cache``
         if mechanics:
             coupling.step(model, self.state)
             if settle:
-                mech.settle(model, self.state, model.time.settle, model.time.settle_damping,
-                            run=None if threads is None else threads.run)
+                self.settled = settled.settle(model, self.state, settle_cache,
+                                              run=None if threads is None else threads.run)
             schedule.mark(model, self.state.mech, self.state.t_days, quiet=settle)
         self.history: list[dict] = [self._diagnostics()]
 

@@ -1,0 +1,55 @@
+"""The settled-state cache (wooddecay.sim.settled): keyed by the wood, not the days or outputs;
+loading gives the bits settling gives; a broken file is settled again."""
+from __future__ import annotations
+
+import numpy as np
+
+import wooddecay as wd
+from wooddecay.sim import settled
+
+from ..conftest import SAMPLES
+
+
+def model(**overrides):
+    return wd.build_model(wd.load_scene(SAMPLES / "tiny.toml", overrides=overrides))
+
+
+def arrays(sim) -> dict:
+    return {**sim.state.mech.arrays(), "t": np.array(sim.state.mech.t_seconds)}
+
+
+def test_a_cached_settle_gives_the_settled_bits(tmp_path):
+    first = wd.Simulation(model(), settle_cache=tmp_path)
+    assert first.settled == "settled" and len(list(tmp_path.glob("*.npz"))) == 1
+    again = wd.Simulation(model(**{"time.days": 3.0, "time.frames": 2, "scene.name": "other"}),
+                          settle_cache=tmp_path)
+    assert again.settled == "cached"
+    a, b = arrays(first), arrays(again)
+    assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+    bare = wd.Simulation(model())
+    assert bare.settled == "settled" and all(np.array_equal(arrays(bare)[k], a[k]) for k in a)
+
+
+def test_the_key_covers_the_wood_and_not_the_schedule():
+    base = model().info.settle_hash
+    assert model(**{"time.days": 9.0, "time.schedule": "fixed", "export.gltf": False}).info.settle_hash == base
+    assert model(**{"mechanics.E": 2e9}).info.settle_hash != base
+    assert model(**{"scene.seed": 2}).info.settle_hash != base
+
+
+def test_a_broken_cache_file_is_settled_again(tmp_path):
+    m = model()
+    path = tmp_path / f"{m.info.settle_hash}.npz"
+    path.write_bytes(b"not an npz")
+    assert wd.Simulation(m, settle_cache=tmp_path).settled == "settled"
+    assert wd.Simulation(m, settle_cache=tmp_path).settled == "cached"
+
+
+def test_the_cache_folder_follows_the_environment(monkeypatch, tmp_path):
+    monkeypatch.setenv(settled.ENV, "off")
+    assert settled.default_folder() is None
+    monkeypatch.setenv(settled.ENV, str(tmp_path))
+    assert settled.default_folder() == tmp_path
+    monkeypatch.delenv(settled.ENV)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    assert settled.default_folder() == tmp_path / "wooddecay" / "settled"
