@@ -152,3 +152,20 @@ def test_any_thread_count_bakes_the_same_stage_and_the_summary_says_which(tmp_pa
         assert diff.exit_code == 0, diff.output
     bad = run("bake", TINY, "-o", tmp_path / "bad", "--threads", "0")
     assert bad.exit_code == 2 and "--threads: must be" in bad.output and not (tmp_path / "bad").exists()
+
+
+def test_a_second_bake_loads_the_settled_rods_and_bakes_the_same_stage(tmp_path, settle_cache):
+    """summary.json says how the schedule ran and where the settled rods came from; the bake
+    that loads them from the cache writes the stage of the one that settled."""
+    summaries = []
+    for k in range(2):
+        res = run("bake", TINY, "-o", tmp_path / str(k), *SHORT)
+        assert res.exit_code == 0, res.output
+        summaries.append(json.loads((tmp_path / str(k) / "summary.json").read_text())["schedule"])
+    assert [s["settled"] for s in summaries] == ["settled", "cached"]
+    assert len(list(settle_cache.glob("*.npz"))) == 1
+    s = summaries[0]
+    assert s["schedule"] == "adaptive" and s["macro_steps"] == 4 and s["chunks"] >= s["solves"]
+    assert s["solves"] == sum(s["due"].values())
+    diff = run("diff", tmp_path / "0" / "tiny.usdc", tmp_path / "1" / "tiny.usdc", "--rtol", "0", "--atol", "0")
+    assert diff.exit_code == 0, diff.output
