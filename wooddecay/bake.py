@@ -130,7 +130,7 @@ def bake(scene, out, resume: bool = False, quality: str = "final", progress=None
     summary = {
         "wooddecay_version": __version__, "scene": scene.name, "seed": int(scene.seed),
         "scene_hash": scene.hash, "quality": quality, "threads": choice.summary(),
-        "schedule": {**sim.schedule_summary(), "settled": sim.settled},
+        "schedule": sim.schedule_summary(),
         "counts": {"strands": model.n_strands, "elements": model.n_elements, "reg_edges": model.n_edges,
                    "meshlets": mesh.count, "meshlet_faces": mesh.n_faces, "frames": len(frames)},
         "seconds": {k: round(v, 3) for k, v in seconds.items()},

@@ -143,7 +143,7 @@ class Simulation:
     def schedule_summary(self) -> dict:
         """The schedule and, over the macro steps run so far (``history``), how many ran
         mechanics, the chunks of N_mech substeps, the seconds of mechanics and the solves by
-        reason (:func:`schedule.due`)."""
+        reason (:func:`schedule.due`), and whether the rods settled or came from the cache."""
         steps = [h["mechanics"] for h in self.history[1:] if "chunks" in h.get("mechanics", {})]
         reasons: dict[str, int] = {}
         for h in steps:
@@ -151,7 +151,8 @@ class Simulation:
                 reasons[h["due"]] = reasons.get(h["due"], 0) + 1
         return {"schedule": self.model.time.schedule, "macro_steps": len(steps),
                 "solves": sum(reasons.values()), "chunks": sum(h["chunks"] for h in steps),
-                "mechanics_seconds": self.state.mech.t_seconds if self.mechanics else 0.0, "due": reasons}
+                "mechanics_seconds": self.state.mech.t_seconds if self.mechanics else 0.0, "due": reasons,
+                "settled": self.settled}
 
     def advance(self, days: float) -> None:
         """Advance by ``days`` in macro steps of at most ``time.dt_bio``, equal between the days
@@ -221,9 +222,7 @@ class Simulation:
             setattr(s, f, arrays[f"field_{f}"])
         s.t_days, s.clamp_count, s.applied = meta["t_days"], meta["clamp_count"], set(meta["applied"])
         if sim.mechanics:
-            for k in s.mech.arrays():
-                setattr(s.mech, k, arrays[f"mech_{k}"])
-            s.mech.t_seconds, s.mech.failures = meta["t_seconds"], meta["failures"]
+            s.mech.restore({k: arrays[f"mech_{k}"] for k in s.mech.arrays()}, meta["t_seconds"], meta["failures"])
         sim.history = meta["history"]
         sim.last_frame = meta["frame"]
         return sim

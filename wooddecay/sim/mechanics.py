@@ -207,6 +207,12 @@ class MechState:
         return MechState(**{f.name: (getattr(self, f.name).copy() if isinstance(getattr(self, f.name), np.ndarray)
                                      else getattr(self, f.name)) for f in fields(self)})
 
+    def restore(self, arrays: dict[str, np.ndarray], t_seconds: float, failures: int) -> None:
+        """Take the state saved as :meth:`arrays` and the clock and failure count."""
+        for k in self.arrays():
+            setattr(self, k, arrays[k])
+        self.t_seconds, self.failures = t_seconds, failures
+
     def arrays(self) -> dict[str, np.ndarray]:
         """The arrays a checkpoint needs (the contact list is rebuilt from them, the forces
         from the loads of the day)."""
@@ -321,11 +327,10 @@ def initial_state(model) -> MechState:
         component=np.zeros(n, dtype=np.int64), strain_ref_elem=np.zeros((n, 2)),
         strain_ref_edge=np.zeros((m, 3)), asleep=np.zeros(n, dtype=bool), sleep_x=np.zeros((P, 3)),
         sleep_t=np.zeros(1), force=np.zeros((P, 3)), torque=np.zeros((n, 3)),
-        solved_rest_length=setup.rest_length0.copy(), solved_rest_offset=setup.offset0.copy(),
-        solved_integrity=np.ones(m), solved_mass=np.zeros(n),
     )
     set_masses(setup, ms, np.zeros(n))
-    ms.solved_mass = ms.mass_e.copy()
+    ms.solved_rest_length, ms.solved_rest_offset = ms.rest_length.copy(), ms.rest_offset.copy()
+    ms.solved_integrity, ms.solved_mass = ms.integrity.copy(), ms.mass_e.copy()
     sleep.wake_all(setup, ms)  # the first sleep window starts at rest
     ms.component = failure.components(setup, ms)
     return ms

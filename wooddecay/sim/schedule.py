@@ -25,9 +25,10 @@ A solve (:func:`solve`) runs chunks of N_mech substeps (:func:`mechanics.macro_s
 included) until a chunk ends that split no piece and in which no piece's centre of mass moved
 faster than ``time.rest_speed``, on average or at its end (:func:`piece_speed`; a piece released
 from rest falls g T^2 / 2 in a chunk of T = 2.5 ms, a mean of 1.2 cm/s, but ends it at 2.5 cm/s),
-or ``time.max_mechanics`` seconds have run. Pieces, not particles: single elements next to a crack swing in place at ~8e-2 m/s (docs/decisions.md,
-"Open points") and kept every solve of a drying log running to its cap (4.4x the fixed
-schedule's substeps), while a piece that falls, rolls or rocks moves its centre of mass. A
+or ``time.max_mechanics`` seconds have run. Pieces, not particles: single elements next to a
+crack swing in place at ~8e-2 m/s (docs/decisions.md, "Open points") and kept every solve of a
+drying log running to its cap (4.4x the fixed schedule's substeps), while a piece that falls,
+rolls or rocks moves its centre of mass. A
 failure that splits no piece does not extend a solve: a crack that opens moves its piece.
 Skipped steps leave every rest-data change within the tolerances unrelaxed, so the failure test
 sees strains at most ``strain_tolerance`` early and a resting shape lags by at most ``tolerance``
@@ -131,7 +132,7 @@ def piece_speed(setup: mech.MechSetup, ms: mech.MechState, x0: np.ndarray, secon
 
     v = com(0.5 * (ms.v[fp] + ms.v[fp + 1]))
     mean = com(0.5 * (ms.x[fp] + ms.x[fp + 1] - x0[fp] - x0[fp + 1])) / seconds
-    return float(np.sqrt(max(np.max(np.sum(v**2, axis=1), initial=0.0), np.max(np.sum(mean**2, axis=1), initial=0.0))))
+    return float(np.sqrt(np.max(np.sum(np.concatenate([v, mean]) ** 2, axis=1), initial=0.0)))
 
 
 def solve(model, state, tol: Tolerances) -> int:

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..atomic import replace_with
+from ..errors import InputError
 from . import mechanics as mech
 
 VERSION = 1
@@ -59,20 +61,20 @@ def _load(path: Path, model, ms: mech.MechState) -> bool:
             or set(arrays) != set(own) or any(arrays[k].shape != own[k].shape or arrays[k].dtype != own[k].dtype
                                               for k in own)):
         return False
-    for k, v in arrays.items():
-        setattr(ms, k, v.copy())
-    ms.t_seconds, ms.failures = meta["t_seconds"], meta["failures"]
+    ms.restore({k: v.copy() for k, v in arrays.items()}, meta["t_seconds"], meta["failures"])
     return True
 
 
 def _save(path: Path, model, ms: mech.MechState) -> None:
     meta = {"version": VERSION, "settle_hash": model.info.settle_hash, "t_seconds": ms.t_seconds,
             "failures": ms.failures}
-    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
+
+    def write(tmp: Path) -> None:
         with open(tmp, "wb") as fh:
             np.savez(fh, meta=np.array(json.dumps(meta)), **ms.arrays())
-        os.replace(tmp, path)
-    except OSError:  # a cache that cannot be written only costs the next bake its settling
-        tmp.unlink(missing_ok=True)
+
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        replace_with(path, write, "settled-state cache")
+    except (OSError, InputError):
+        return  # a cache that cannot be written only costs the next bake its settling
