@@ -1,5 +1,5 @@
-"""Seconds per Algorithm 1 iteration (N_mech mechanics substeps + one biology step + coupling)
-on samples/tree.toml (or the scene given), split per stage, against this machine's memory
+"""Seconds per Algorithm 1 iteration (N_mech mechanics substeps + one biology step + coupling;
+the fixed schedule) on samples/tree.toml (or the scene given), split per stage, against this machine's memory
 bandwidth measured in the same run.
 
     python benchmarks/step.py [SCENE] [ITERATIONS]      (default samples/tree.toml, 7)
@@ -61,7 +61,7 @@ def _instrument(totals: dict) -> None:
 
 
 def main(path: str, iterations: int = 7) -> None:
-    scene = wd.load_scene(path)
+    scene = wd.load_scene(path, {"time.schedule": "fixed"})  # every macro step runs N_mech substeps
     model = wd.build_model(scene)
     sim = wd.Simulation(model)
     print(f"elements {model.n_elements} 1")
