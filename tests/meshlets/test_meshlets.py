@@ -151,14 +151,16 @@ def test_skinning_kernel_equals_reference_and_rest():
     link = skin.links(model, mesh)
     x, q, comp, ok = _rest_state(model)
     F = np.stack([model.ring_age, model.W], axis=1)
-    P, Fv = skin.skin(model, mesh, link, x, q, comp, ok, F)
+    eok = np.ones(model.n_elements, dtype=bool)
+    P, Fv = skin.skin(model, mesh, link, x, q, comp, ok, eok, F)
     assert np.abs(P - mesh.points).max() < 1e-12
     xb, qb = _bend(model, x, q, 0.5)
     rng = np.random.default_rng(3)
     ok[rng.random(model.n_edges) < 0.3, 0] = False
+    eok[rng.random(model.n_elements) < 0.2] = False
     comp = rng.integers(0, 3, model.n_elements)
-    P, Fv = skin.skin(model, mesh, link, xb, qb, comp, ok, F)
-    P2, F2 = skin.skin_reference(model, mesh, link, xb, qb, comp, ok, F)
+    P, Fv = skin.skin(model, mesh, link, xb, qb, comp, ok, eok, F)
+    P2, F2 = skin.skin_reference(model, mesh, link, xb, qb, comp, ok, eok, F)
     assert np.abs(P - P2).max() < 1e-12 and np.abs(Fv - F2).max() < 1e-12
 
 
@@ -168,7 +170,8 @@ def test_bent_intact_log_has_no_gap_and_a_broken_strand_separates_cleanly():
     link = skin.links(model, mesh)
     x, q, comp, ok = _rest_state(model)
     xb, qb = _bend(model, x, q, 0.4)
-    P, _ = skin.skin(model, mesh, link, xb, qb, comp, ok, model.W[:, None])
+    eok = np.ones(model.n_elements, dtype=bool)
+    P, _ = skin.skin(model, mesh, link, xb, qb, comp, ok, eok, model.W[:, None])
     order = np.argsort(mesh.vertex_shared, kind="stable")
     gid = mesh.vertex_shared[order]
     start = np.flatnonzero(np.r_[True, gid[1:] != gid[:-1]])
@@ -186,12 +189,27 @@ def test_bent_intact_log_has_no_gap_and_a_broken_strand_separates_cleanly():
     delta = np.array([0.0, 0.0, 0.05])
     x2 = x.copy()
     x2[np.repeat(np.arange(model.n_strands), np.diff(model.particle_offsets)) == k] += delta
-    P, _ = skin.skin(model, mesh, link, x2, q, comp, ok, model.W[:, None])
+    P, _ = skin.skin(model, mesh, link, x2, q, comp, ok, eok, model.W[:, None])
     own = mine[mesh.vertex_element]
     d = P - mesh.points
     assert np.abs(d[own] - delta).max() < 1e-12
     assert np.abs(d[~own]).max() < 1e-12
     assert own.sum() > 0 and np.isin(mesh.vertex_shared[own], mesh.vertex_shared[~own]).any()
+    # cut that strand after its middle element e (e fails): the part after e moves alone; e, placed
+    # rigidly from its first particle, stays with the part before it
+    els = np.flatnonzero(mine)
+    e = els[len(els) // 2]
+    eok[e] = False
+    after = mine & (np.arange(model.n_elements) > e)
+    comp = np.where(after, 2, comp)
+    p_after = np.arange(model.first_particle[e] + 1, model.first_particle[els[-1]] + 2)
+    x3 = x2.copy()
+    x3[p_after] += delta
+    P, _ = skin.skin(model, mesh, link, x3, q, comp, ok, eok, model.W[:, None])
+    d = P - mesh.points
+    moved_twice = after[mesh.vertex_element]
+    assert moved_twice.sum() > 0 and np.abs(d[moved_twice] - 2 * delta).max() < 1e-12
+    assert np.abs(d[own & ~moved_twice] - delta).max() < 1e-12
 
 
 def test_inspect_meshlets_json_and_usd(tmp_path):

@@ -23,7 +23,7 @@ def perturbed_state(name="tiny", seed=0):
     rng = np.random.default_rng(seed)
     ms.x += rng.normal(scale=1e-3, size=ms.x.shape) * (ms.w_p > 0)[:, None]
     ms.q = normalize_np(ms.q + rng.normal(scale=0.02, size=ms.q.shape) * (ms.w_q > 0)[:, None])
-    ms.integrity = rng.uniform(0.2, 1.0, len(setup.edges))
+    ms.integrity = rng.uniform(0.3, 1.0, len(setup.edges))  # above I_fail: no decay separation
     return model, state
 
 

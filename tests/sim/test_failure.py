@@ -42,7 +42,8 @@ def test_pair_strains_and_flags_equal_numpy_reference():
     limit = (pair - ref) * (1.0 + rng.choice([-1e-12, 1e-12], pair.shape))
     limit[rng.random(pair.shape) < 0.3] += 1.0  # far from failing: the atan2 is skipped
     ok = np.ones_like(ms.edge_ok)
-    new = failure._flag_edges(*args, ref, limit, ok)
+    m = len(ok)
+    new = failure._flag_edges(*args, ref, limit, np.ones(m), np.zeros(m), ok)
     over = pair - ref > limit
     np.testing.assert_array_equal(~ok[:, 0], over[:, 0])
     np.testing.assert_array_equal(ok[:, 1:], ~over[:, :1] & ~over[:, 1:])
@@ -66,3 +67,38 @@ def test_drift_is_the_largest_strain_change_over_the_limits():
     assert failure.drift(setup, ms, (e0, k0), (e1, k1), le, lk) == pytest.approx(2.0)  # edge 0 bundle
     lk[0, 0] = 1.0
     assert failure.drift(setup, ms, (e0, k0), (e1, k1), le, lk) == pytest.approx(0.3)  # element 1 shear
+
+
+@pytest.mark.parametrize("fungus", ["brown", "white"])
+def test_decay_below_I_fail_separates_bsp_blocks_or_frays(fungus):
+    """Separation from decay (woodstock §7.1, Eq. 21): carbohydrate loss (brown rot) takes the
+    integrity of the pairs and strand links across BSP cells below I_fail and leaves every cell
+    one piece; lignin loss (white rot) does so inside the cells as well, down to loose strand
+    pieces. No strain is involved (limits infinite). The cells are elongated 3x along the grain
+    (samples/log.toml) so that each spans more than one element: an element cuts only one of two
+    consecutive strand links."""
+    import wooddecay as wd
+    from wooddecay.sim import coupling
+    from wooddecay.sim.state import initial_state
+
+    from ..conftest import SAMPLES
+
+    model = wd.build_model(wd.load_scene(SAMPLES / "tiny.toml", {"bsp.elongation": 3.0}))
+    state = initial_state(model, rods=True)
+    field = "H_c" if fungus == "brown" else "H_l"
+    setattr(state, field, np.full(model.n_elements, 0.1))
+    coupling.step(model, state)
+    ms = state.mech
+    ms.limit_elem[:] = np.inf
+    ms.limit_edge[:] = np.inf
+    assert failure.update(model.mech, ms) > 0
+    leaf, piece = model.bsp_leaf, ms.component
+    same_leaf = leaf[model.reg_edges[:, 0]] == leaf[model.reg_edges[:, 1]]
+    if fungus == "brown":
+        # every broken connection crosses a cell boundary, every intact one inside a cell holds
+        assert ms.edge_ok[same_leaf, 0].all() and not ms.edge_ok[~same_leaf, 0].any()
+        pure = np.array([np.bincount(leaf[piece == p]).max() / np.sum(piece == p) for p in np.unique(piece)])
+        assert piece.max() + 1 >= len(np.unique(leaf)) and np.quantile(pure, 0.25) == 1.0
+    else:
+        assert not ms.edge_ok[:, 0].any()
+        assert piece.max() + 1 > 2 * len(np.unique(leaf))

@@ -7,11 +7,14 @@ At a frame, the copy owned by element o moves to
 
     x = sum_c w_c (c_c + R_c S_c l_c) / sum_c w_c,
 
-over the candidates still connected to o: o itself, its neighbours along the strand, the elements
-joined to o by an intact REG connection (``edge_ok[:, 0]``), and, where no REG edge joins the two,
-those in o's connected component. c_c is the element's current midpoint, R_c its rotation (the
-quaternion q), S_c = diag(1, 1, l_c / l_c0) stretches along the element with its segment (drying
-shrinkage, Eq. 17). Connected meshlets keep sharing their vertices (no gap); across a broken
+over the candidates still connected to o: o itself, its neighbours along the strand while the
+link between them holds (the lower of the two is intact, ``element_ok``), the elements joined to o
+by an intact REG connection (``edge_ok[:, 0]``), and, where no REG edge joins the two, those in o's
+connected component. c_c is the element's current midpoint, R_c its rotation (the quaternion q),
+S_c = diag(1, 1, l_c / l_c0) stretches along the element with its segment (drying shrinkage,
+Eq. 17). A failed element (stretch off) no longer spans its two particles, which may belong to
+different pieces: it is placed rigidly (S_c = 1) from its first particle, c_c = p_a + R_c (0, 0,
+l_c0 / 2), and so stays with the strand part before it, as its component does. Connected meshlets keep sharing their vertices (no gap); across a broken
 connection each side follows only its own elements, so the crack opens cleanly. Fields (H_c, H_l,
 M, ...) per element are interpolated with the same weights: smooth inside a piece, discontinuous
 across a crack.
@@ -29,17 +32,17 @@ from ..quaternion import rotate, rotate_np
 from ..sim.state import FIELDS
 
 #: link kinds of a (vertex, candidate) pair, besides a REG edge index >= 0
-ALWAYS, BY_COMPONENT = -1, -2
+ALWAYS, BY_COMPONENT, STRAND = -1, -2, -3
 
 
 def links(model, mesh) -> np.ndarray:
-    """Per skinning pair (``mesh.skin_element``): ALWAYS for the owner and its strand neighbours,
-    the REG edge joining owner and candidate, or BY_COMPONENT where none does."""
+    """Per skinning pair (``mesh.skin_element``): ALWAYS for the owner, STRAND for its strand
+    neighbours, the REG edge joining owner and candidate, or BY_COMPONENT where none does."""
     rows = np.repeat(np.arange(len(mesh.points)), np.diff(mesh.skin_indptr))
     o = mesh.vertex_element[rows]
     c = mesh.skin_element
     n = model.n_elements
-    same = (o == c) | ((model.strand[o] == model.strand[c]) & (np.abs(o - c) == 1))
+    strand = (model.strand[o] == model.strand[c]) & (np.abs(o - c) == 1)
     e = model.reg_edges
     keys = np.minimum(e[:, 0], e[:, 1]) * n + np.maximum(e[:, 0], e[:, 1])
     order = np.argsort(keys)
@@ -47,26 +50,29 @@ def links(model, mesh) -> np.ndarray:
     pos = np.clip(np.searchsorted(keys[order], q), 0, len(keys) - 1)
     found = keys[order][pos] == q
     out = np.where(found, order[pos], BY_COMPONENT)
-    return np.where(same, ALWAYS, out).astype(np.int64)
+    return np.where(o == c, ALWAYS, np.where(strand, STRAND, out)).astype(np.int64)
 
 
-def _accept(link, o, c, component, edge_ok):
-    return (link == ALWAYS) | ((link >= 0) & edge_ok[np.maximum(link, 0), 0]) | (
-        (link == BY_COMPONENT) & (component[c] == component[o]))
+def _accept(link, o, c, component, edge_ok, element_ok):
+    return ((link == ALWAYS) | ((link == STRAND) & element_ok[np.minimum(o, c)])
+            | ((link >= 0) & edge_ok[np.maximum(link, 0), 0]) | ((link == BY_COMPONENT) & (component[c] == component[o])))
 
 
-def skin_reference(model, mesh, link, x, q, component, edge_ok, fields):
+def skin_reference(model, mesh, link, x, q, component, edge_ok, element_ok, fields):
     """Plain-numpy twin of :func:`skin` (same maths, vectorised over skinning pairs)."""
     V = len(mesh.points)
     cnt = np.diff(mesh.skin_indptr)
     rows = np.repeat(np.arange(V), cnt)
     o, c = mesh.vertex_element[rows], mesh.skin_element
-    ok = _accept(link, o, c, component, edge_ok)
+    ok = _accept(link, o, c, component, edge_ok, element_ok)
     fp = model.first_particle[c]
     a, b = x[fp], x[fp + 1]
-    stretch = np.linalg.norm(b - a, axis=1) / model.rest_length[c]
+    intact = element_ok[c]
+    l0 = model.rest_length[c]
+    stretch = np.where(intact, np.linalg.norm(b - a, axis=1) / l0, 1.0)
     local = mesh.skin_local * np.stack([np.ones_like(stretch), np.ones_like(stretch), stretch], 1)
-    p = 0.5 * (a + b) + rotate_np(q[c], local)
+    local[:, 2] += np.where(intact, 0.0, 0.5 * l0)
+    p = np.where(intact[:, None], 0.5 * (a + b), a) + rotate_np(q[c], local)
     w = np.where(ok, mesh.skin_weight, 0.0)
     wsum = np.bincount(rows, weights=w, minlength=V)
     pts = np.stack([np.bincount(rows, weights=w * p[:, k], minlength=V) for k in range(3)], 1)
@@ -77,7 +83,7 @@ def skin_reference(model, mesh, link, x, q, component, edge_ok, fields):
 
 @nb.njit(parallel=True, cache=True)
 def _skin_kernel(indptr, owner, cand, weight, local, link, first_particle, rest_length, x, q,
-                 component, edge_ok, fields, out_p, out_f):
+                 component, edge_ok, element_ok, fields, out_p, out_f):
     for v in nb.prange(len(owner)):
         o = owner[v]
         px = py = pz = 0.0
@@ -89,6 +95,8 @@ def _skin_kernel(indptr, owner, cand, weight, local, link, first_particle, rest_
             lk = link[k]
             if lk == ALWAYS:
                 ok = True
+            elif lk == STRAND:
+                ok = element_ok[min(o, c)]
             elif lk >= 0:
                 ok = edge_ok[lk, 0]
             else:
@@ -99,11 +107,17 @@ def _skin_kernel(indptr, owner, cand, weight, local, link, first_particle, rest_
             f = first_particle[c]
             ax, ay, az = x[f, 0], x[f, 1], x[f, 2]
             bx, by, bz = x[f + 1, 0], x[f + 1, 1], x[f + 1, 2]
-            s = np.sqrt((bx - ax) ** 2 + (by - ay) ** 2 + (bz - az) ** 2) / rest_length[c]
-            rx, ry, rz = rotate(q[c, 0], q[c, 1], q[c, 2], q[c, 3], local[k, 0], local[k, 1], local[k, 2] * s)
-            px += w * (0.5 * (ax + bx) + rx)
-            py += w * (0.5 * (ay + by) + ry)
-            pz += w * (0.5 * (az + bz) + rz)
+            if element_ok[c]:
+                s = np.sqrt((bx - ax) ** 2 + (by - ay) ** 2 + (bz - az) ** 2) / rest_length[c]
+                lz = local[k, 2] * s
+                cx, cy, cz = 0.5 * (ax + bx), 0.5 * (ay + by), 0.5 * (az + bz)
+            else:
+                lz = local[k, 2] + 0.5 * rest_length[c]
+                cx, cy, cz = ax, ay, az
+            rx, ry, rz = rotate(q[c, 0], q[c, 1], q[c, 2], q[c, 3], local[k, 0], local[k, 1], lz)
+            px += w * (cx + rx)
+            py += w * (cy + ry)
+            pz += w * (cz + rz)
             for j in range(nf):
                 acc[j] += w * fields[c, j]
             wsum += w
@@ -114,15 +128,15 @@ def _skin_kernel(indptr, owner, cand, weight, local, link, first_particle, rest_
             out_f[v, j] = acc[j] / wsum
 
 
-def skin(model, mesh, link, x, q, component, edge_ok, fields):
+def skin(model, mesh, link, x, q, component, edge_ok, element_ok, fields):
     """Skinned vertex positions (V, 3) and fields (V, k) of per-element ``fields`` (n, k) for the
-    rod state (particles ``x``, quaternions ``q``, ``component``, ``edge_ok``)."""
+    rod state (particles ``x``, quaternions ``q``, ``component``, ``edge_ok``, ``element_ok``)."""
     fields = np.ascontiguousarray(fields, dtype=np.float64).reshape(model.n_elements, -1)
     out_p = np.empty((len(mesh.points), 3))
     out_f = np.empty((len(mesh.points), fields.shape[1]))
     _skin_kernel(mesh.skin_indptr, mesh.vertex_element, mesh.skin_element, mesh.skin_weight,
                  mesh.skin_local, link, model.first_particle, model.rest_length, x, q, component,
-                 edge_ok, fields, out_p, out_f)
+                 edge_ok, element_ok, fields, out_p, out_f)
     return out_p, out_f
 
 
@@ -132,7 +146,7 @@ def frame_arrays(model, mesh, link, frame):
     fields = np.stack([frame.fields[f] for f in FIELDS], axis=1)
     if frame.mech:
         m = frame.mech
-        return skin(model, mesh, link, m["x"], m["q"], m["component"], m["edge_ok"], fields)
+        return skin(model, mesh, link, m["x"], m["q"], m["component"], m["edge_ok"], m["element_ok"], fields)
     n = model.n_elements
     return skin(model, mesh, link, model.particles, model.rest_quat, np.zeros(n, dtype=np.int64),
-                np.ones((model.n_edges, 3), dtype=bool), fields)
+                np.ones((model.n_edges, 3), dtype=bool), np.ones(n, dtype=bool), fields)

@@ -23,7 +23,8 @@ After each biology step, with (x)^+ = max(x, 0):
   H_c, H_l) scales the stretch and shear limits of e, the element whose failure cuts that link
   (:mod:`wooddecay.sim.failure`). Without it decay never weakened a strand, and brown rot could
   break the REG across a BSP boundary but not the strands running through it, so no cubical
-  pieces came loose (Figs. 7, 12);
+  pieces came loose (Figs. 7, 12). Both integrities are kept (``integrity``, ``link_integrity``): a pair or
+  link below ``I_fail`` fails (:mod:`wooddecay.sim.failure`, separation from decay);
 * the element masses rho_dry (1 + M) pi r^2 l (SPEC §2).
 
 Pair quantities (M, H_c, H_l and the per-tissue parameters) are the mean of the two elements.
@@ -104,11 +105,11 @@ def step(model, state) -> None:
     and one over REG pairs (:func:`_couple`; :func:`step_reference` is its numpy twin)."""
     cs, setup, ms = model.coupling, model.mech, state.mech
     n, m = len(state.M), len(setup.edges)
-    out = (np.empty(n), np.empty(m), np.empty(m), np.empty((n, 2)), np.empty((m, 3)))
+    out = (np.empty(n), np.empty(m), np.empty(m), np.empty(n), np.empty((n, 2)), np.empty((m, 3)))
     _couple(state.M, state.H_c, state.H_l, model.bio.tissue, moisture_bounds(model.bio, state.t_days),
             setup.edges, cs.link_next, cs.M_0, cs.s, setup.rest_length0, cs.g_pair, cs.M_0_pair, setup.offset0,
             cs.L_0, cs.p_l, cs.k_c, cs.k_l, cs.k_c_link, cs.k_l_link, np.empty((n, 5)), *out)
-    ms.rest_length, ms.rest_offset, ms.integrity, ms.limit_elem, ms.limit_edge = out
+    ms.rest_length, ms.rest_offset, ms.integrity, ms.link_integrity, ms.limit_elem, ms.limit_edge = out
     set_masses(setup, ms, state.M)
 
 
@@ -119,9 +120,9 @@ def _integrity(k_c, k_l, H_c_pair, H_l_pair):
 
 @nb.njit(parallel=True, cache=True)
 def _couple(M, H_c, H_l, tissue, M12, edges, link_next, M_0, s, rest_length0, g_pair, M_0_pair, offset0, L_0, p_l,
-            k_c, k_l, k_c_link, k_l_link, L, rest_length, rest_offset, integrity_out, limit_elem, limit_edge):
+            k_c, k_l, k_c_link, k_l_link, L, rest_length, rest_offset, integrity_out, link_out, limit_elem, limit_edge):
     """:func:`step`'s arrays (module docstring): per element the rest length (Eq. 17), the limits
-    L(M) of Eq. 19 (into the scratch ``L``) and the strand-link-scaled stretch and shear limits;
+    L(M) of Eq. 19 (into the scratch ``L``), the strand link's I and the stretch and shear limits it scales;
     per REG pair the rest offset (Eq. 16), I_ij (Eq. 21) and the pair limits. Each entry is
     written by its own element or pair only."""
     for e in nb.prange(len(M)):
@@ -132,6 +133,7 @@ def _couple(M, H_c, H_l, tissue, M12, edges, link_next, M_0, s, rest_length0, g_
         rest_length[e] = rest_length0[e] * (1.0 - max(M_0[e] - M[e], 0.0) * s[e])
         e1 = link_next[e]
         link = _integrity(k_c_link[e], k_l_link[e], 0.5 * (H_c[e] + H_c[e1]), 0.5 * (H_l[e] + H_l[e1]))
+        link_out[e] = link
         limit_elem[e, 0] = L[e, 0] * link
         limit_elem[e, 1] = L[e, 1] * link
     for k in nb.prange(len(edges)):
@@ -157,5 +159,5 @@ def step_reference(model, state) -> dict[str, np.ndarray]:
     link = integrity(cs.k_c_link, cs.k_l_link, 0.5 * (state.H_c + state.H_c[e1]), 0.5 * (state.H_l + state.H_l[e1]))
     return {"rest_offset": setup.offset0 * (1.0 - np.maximum(cs.M_0_pair - M_pair, 0.0) * cs.g_pair),
             "rest_length": setup.rest_length0 * (1.0 - np.maximum(cs.M_0 - M, 0.0) * cs.s),
-            "integrity": I, "limit_elem": L[:, :2] * link[:, None],
+            "integrity": I, "link_integrity": link, "limit_elem": L[:, :2] * link[:, None],
             "limit_edge": 0.5 * (L[i, 2:] + L[j, 2:]) * I[:, None]}

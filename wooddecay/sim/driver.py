@@ -44,7 +44,7 @@ from .diagnostics import diagnostics
 from .state import FIELDS, SimState, initial_state, inoculate
 from .threads import ThreadChoice
 
-CHECKPOINT_VERSION = 4
+CHECKPOINT_VERSION = 5
 
 
 @dataclass(frozen=True, eq=False)

@@ -17,7 +17,12 @@ Strains are measured after every substep, as the change since the settled refere
 * pair (REG edge) bundle strain (|c_j - c_i| - dp) / max(dp_0, r_s) (tension), bend and twist angles of the
   relative rotation conj(Omega_0) conj(q_i) q_j (bend: about axes across the grain, twist: about
   d3), against the pair's limits. Bend or twist over its limit clears that flag; bundle over its
-  limit clears all three, since a separated pair transmits no moment.
+  limit clears all three, since a separated pair transmits no moment;
+* separation from decay (woodstock §7.1, Eq. 21): a pair whose integrity I_ij fell below
+  ``I_fail`` clears all three flags, and an element whose strand link e, e + 1 did
+  (``ms.link_integrity``) fails as if over its limit. With theta_ij brown rot's carbohydrate loss
+  reaches I_fail on the BSP cell boundaries only, so the cells come apart as blocks; white rot's
+  lignin loss lowers every pair alike.
 
 Flags never come back. After a substep with a new element or connection failure the connected
 components (strand links of unbroken elements plus intact REG connections) are recomputed;
@@ -99,23 +104,25 @@ def pair_strains(edges, fp, x, q, rest_offset, edge_length, edge_rest):
 
 
 @nb.njit(cache=True)
-def _flag_elements(strain, limit, inner, element_ok):
+def _flag_elements(strain, limit, link_integrity, I_fail, inner, element_ok):
     """New element failures, in element order (serial, so deterministic): an element over its
-    limit cuts its strand only where that separates something, i.e. it is ``inner`` (a neighbour
-    on both sides in its strand) and both neighbours are intact (module docstring)."""
+    limit, or whose strand link has decayed below ``I_fail``, cuts its strand only where that
+    separates something, i.e. it is ``inner`` (a neighbour on both sides in its strand) and both
+    neighbours are intact (module docstring)."""
     n = len(strain)
     new = np.zeros(n, dtype=np.bool_)
     for e in range(n):
         if (element_ok[e] and inner[e] and element_ok[e - 1] and element_ok[e + 1]
-                and (strain[e, 0] > limit[e, 0] or strain[e, 1] > limit[e, 1])):
+                and (strain[e, 0] > limit[e, 0] or strain[e, 1] > limit[e, 1] or link_integrity[e] < I_fail[e])):
             element_ok[e] = False
             new[e] = True
     return new
 
 
 @nb.njit(parallel=True, cache=True)
-def _flag_edges(edges, fp, x, q, rest_offset, edge_length, edge_rest, strain_ref, limit, edge_ok):
-    """New failures per edge: 0 none, 1 bend / twist only, 2 connection (all flags). The strains
+def _flag_edges(edges, fp, x, q, rest_offset, edge_length, edge_rest, strain_ref, limit, integrity, I_fail, edge_ok):
+    """New failures per edge: 0 none, 1 bend / twist only, 2 connection (all flags: over the
+    bundle limit, or decayed below ``I_fail``). The strains
     (:func:`pair_strains`) are measured on intact edges only, in the same pass as the test. The
     angles 2 atan(v / r0) (v / |v|) are bounded by 2 v / r0 (atan z <= z); where that bound, with
     a margin far above rounding, is within the limit the edge cannot fail and the atan2 is
@@ -125,7 +132,8 @@ def _flag_edges(edges, fp, x, q, rest_offset, edge_length, edge_rest, strain_ref
     for k in nb.prange(m):
         if not edge_ok[k, 0]:
             continue
-        if _pair_bundle(k, edges, fp, x, rest_offset, edge_length) - strain_ref[k, 0] > limit[k, 0]:
+        if (integrity[k] < I_fail[k]
+                or _pair_bundle(k, edges, fp, x, rest_offset, edge_length) - strain_ref[k, 0] > limit[k, 0]):
             edge_ok[k, 0] = edge_ok[k, 1] = edge_ok[k, 2] = False
             new[k] = 2
             continue
@@ -214,9 +222,10 @@ def update(setup, ms) -> int:
     :func:`mechanics.settle`) exceeds their limit; recompute components if anything separated.
     Returns the number of new failures (elements plus edges)."""
     elem = element_strains(setup.fp, ms.x, ms.q, ms.rest_length)
-    new_e = _flag_elements(elem - ms.strain_ref_elem, ms.limit_elem, setup.inner, ms.element_ok)
+    new_e = _flag_elements(elem - ms.strain_ref_elem, ms.limit_elem, ms.link_integrity, setup.I_fail_elem,
+                           setup.inner, ms.element_ok)
     new_k = _flag_edges(setup.edges, setup.fp, ms.x, ms.q, ms.rest_offset, setup.edge_length, setup.edge_rest,
-                        ms.strain_ref_edge, ms.limit_edge, ms.edge_ok)
+                        ms.strain_ref_edge, ms.limit_edge, ms.integrity, setup.I_fail_edge, ms.edge_ok)
     count = int(new_e.sum()) + int(np.count_nonzero(new_k))
     if new_e.any() or (new_k == 2).any():
         before = ms.component

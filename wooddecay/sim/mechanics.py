@@ -145,6 +145,8 @@ class MechSetup:
     epsilon: float
     loads: tuple  # of (day0, day1, (P, 3) particle forces)
     radius_p: np.ndarray = None  # (P,) particle radius (collider clearance)
+    I_fail_elem: np.ndarray = None  # (n,) integrity below which the strand link e, e + 1 fails
+    I_fail_edge: np.ndarray = None  # (m,) integrity below which a REG connection fails
     sleep_speed: float = 0.0  # :mod:`~wooddecay.sim.sleep` (0: never)
     sleep_time: float = 0.2
 
@@ -169,6 +171,7 @@ class MechState:
     rest_length: np.ndarray  # (n,) l_r (Eq. 17)
     rest_offset: np.ndarray  # (m,) dp (Eq. 16)
     integrity: np.ndarray  # (m,) I_ij (Eq. 21)
+    link_integrity: np.ndarray  # (n,) I of the strand link e, e + 1 (Eq. 21; 1 at a strand end)
     limit_elem: np.ndarray  # (n, 2) stretch, shear limits L(M) (Eq. 18)
     limit_edge: np.ndarray  # (m, 3) bundle, bend, twist limits
     element_ok: np.ndarray  # (n,) bool: stretch / shear intact
@@ -273,6 +276,7 @@ def prepare(model, config: MechConfig, colliders: np.ndarray, loads: tuple[Load,
     Em, Gm = 0.5 * (E[ij[:, 0]] + E[ij[:, 1]]), 0.5 * (G[ij[:, 0]] + G[ij[:, 1]])
     lm = 0.5 * (l0[ij[:, 0]] + l0[ij[:, 1]])
     rho = per_element("rho_dry")
+    I_fail = per_element("I_fail")
     anchored_p = np.zeros(P, dtype=bool)
     anchored_p[fp[model.anchored]] = True
     anchored_p[fp[model.anchored] + 1] = True
@@ -306,6 +310,7 @@ def prepare(model, config: MechConfig, colliders: np.ndarray, loads: tuple[Load,
         v_depenetration=float(mech.v_depenetration), mu_f=float(mech.mu_f), epsilon=float(mech.epsilon),
         loads=tuple(load_forces),
         sleep_speed=float(mech.sleep_speed), sleep_time=float(mech.sleep_time),
+        I_fail_elem=I_fail, I_fail_edge=0.5 * (I_fail[ij[:, 0]] + I_fail[ij[:, 1]]),
     )
 
 
@@ -322,7 +327,7 @@ def initial_state(model) -> MechState:
         x=model.particles.astype(np.float64).copy(), v=np.zeros((P, 3)), q=model.rest_quat.copy(),
         omega=np.zeros((n, 3)), w_p=np.zeros(P), mass_p=np.zeros(P), w_q=np.zeros(n), mass_e=np.zeros(n),
         rest_length=setup.rest_length0.copy(), rest_offset=setup.offset0.copy(), integrity=np.ones(m),
-        limit_elem=np.full((n, 2), np.inf), limit_edge=np.full((m, 3), np.inf),
+        link_integrity=np.ones(n), limit_elem=np.full((n, 2), np.inf), limit_edge=np.full((m, 3), np.inf),
         element_ok=np.ones(n, dtype=bool), edge_ok=np.ones((m, 3), dtype=bool),
         component=np.zeros(n, dtype=np.int64), strain_ref_elem=np.zeros((n, 2)),
         strain_ref_edge=np.zeros((m, 3)), asleep=np.zeros(n, dtype=bool), sleep_x=np.zeros((P, 3)),

@@ -21,7 +21,7 @@ from ..atomic import replace_with
 from ..errors import InputError
 from . import mechanics as mech
 
-VERSION = 1
+VERSION = 2
 #: environment variable naming the cache folder ("" or "off": no cache)
 ENV = "WOODDECAY_CACHE"
 
