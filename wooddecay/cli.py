@@ -200,7 +200,8 @@ def _meshlets_report(model, usd_path: Path | None) -> dict:
 @click.argument("scene_path", metavar="SCENE", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", "out", type=click.Path(file_okay=False), default=None,
               help="Output folder (default: bake/<scene name>).")
-@click.option("--days", type=float, default=None, help="Simulated days (overrides time.days).")
+@click.option("--days", type=float, default=None, help="Simulated days (overrides time.days and time.years).")
+@click.option("--years", type=float, default=None, help="Simulated years of 365.25 days (overrides time.days and time.years).")
 @click.option("--frames", type=int, default=None, help="Output frames (overrides time.frames).")
 @click.option("--quality", type=click.Choice(["draft", "final"]), default="final", show_default=True,
               help="final: coupled mechanics (cracks, debris); draft: biology only, fast preview.")
@@ -209,15 +210,18 @@ def _meshlets_report(model, usd_path: Path | None) -> dict:
               help="Threads of the simulation kernels (default $WOODDECAY_THREADS, else auto: the faster of "
                    "one and all, measured while baking). Results are identical for any count.")
 @click.option("--set", "set_items", multiple=True, metavar="KEY=VALUE", help="Override a scene key (repeatable).")
-def bake(scene_path: str, out: str | None, days: float | None, frames: int | None, quality: str,
-         resume: bool, threads: str | None, set_items: tuple[str, ...]) -> None:
+def bake(scene_path: str, out: str | None, days: float | None, years: float | None, frames: int | None,
+         quality: str, resume: bool, threads: str | None, set_items: tuple[str, ...]) -> None:
     """Simulate SCENE and write DIR/<name>.usdc, DIR/<name>.glb and DIR/summary.json."""
     from .bake import bake as run_bake
     from .sim.threads import requested_threads
 
     n_threads = requested_threads(threads)
 
-    extra = tuple(f"time.{k}={v}" for k, v in (("days", days), ("frames", frames)) if v is not None)
+    if days is not None and years is not None:
+        raise InputError("--years", "", "give one of --days and --years")
+    extra = tuple(f"time.{k}={v!r}" for k, v in (("days", days), ("years", years), ("frames", frames))
+                  if v is not None)
     scene = _load(scene_path, set_items + extra)
     out_dir = Path(out) if out else Path("bake") / scene.name
     tty = sys.stderr.isatty()

@@ -134,6 +134,20 @@ def test_connect_radius_default():
     assert parse().strands.connect_radius == pytest.approx(2.5 * 0.006)
 
 
+def test_duration_in_days_or_years():
+    """time.years sets time.days (365.25 days a year); a file may give both only if they agree;
+    an override of one replaces the file's other."""
+    from .conftest import error
+
+    assert parse("[time]\nyears = 2").time.days == pytest.approx(730.5)
+    assert parse("[time]\ndays = 730.5\nyears = 2").time.days == pytest.approx(730.5)
+    assert parse().time.days == 365.0
+    e = error("[time]\ndays = 100\nyears = 2")
+    assert e.key == "time.days" and "give one of the two" in str(e)
+    assert parse("[time]\nyears = 2", overrides={"time.days": 10}).time.days == 10
+    assert parse("[time]\ndays = 10", overrides={"time.years": 0.5}).time.days == pytest.approx(182.625)
+
+
 def test_quality_draft_scales_strands():
     final = parse()
     draft = parse("[scene]\nquality = 'draft'")

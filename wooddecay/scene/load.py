@@ -23,6 +23,7 @@ tomllib's line and column. No other exception type escapes for any input.
 from __future__ import annotations
 
 import copy
+import math
 import os
 import tomllib
 from collections.abc import Mapping, Sequence
@@ -33,6 +34,7 @@ from wooddecay.errors import InputError, did_you_mean, format_value, type_name
 from wooddecay.scene.schema import (
     ARRAY_TABLES,
     CONNECT_FACTOR,
+    DAYS_PER_YEAR,
     DRAFT_SCALE,
     PARAMS,
     SECTIONS,
@@ -188,6 +190,10 @@ def _resolve_data(data: dict, label: str, base_dir: Path, path: Path | None,
     return _resolve(data, ctx, base_dir, path, default_name)
 
 
+#: the two ways to give the simulated time: overriding one drops the other from the scene file
+DURATION_KEYS = {"time.days": "time.years", "time.years": "time.days"}
+
+
 def _apply_overrides(data: dict, overrides: Mapping[str, Any], ctx: _Ctx) -> None:
     src = getattr(overrides, "source", "<overrides>")
     if not isinstance(overrides, Mapping):
@@ -230,6 +236,9 @@ def _apply_overrides(data: dict, overrides: Mapping[str, Any], ctx: _Ctx) -> Non
             raise InputError(ctx.file, head, f"expected a table [{head}], got {type_name(table)}")
         table[name] = value
         ctx.origin[key] = src
+        other = DURATION_KEYS.get(f"{head}.{name}")
+        if other is not None and other not in overrides:
+            table.pop(other.partition(".")[2], None)  # an override of the duration replaces the file's
 
 
 def _resolve(data: dict, ctx: _Ctx, base_dir: Path, path: Path | None, default_name: str) -> Scene:
@@ -263,6 +272,14 @@ def _resolve(data: dict, ctx: _Ctx, base_dir: Path, path: Path | None, default_n
     else:
         check_connect_radius(strands, ctx.src)
     check_moisture(values["fungi"], values["moisture"], ctx.src, prefix="", given=None)
+    time = values["time"]
+    if time["years"] > 0.0:
+        days = time["years"] * DAYS_PER_YEAR
+        if "days" in data.get("time", {}) and not math.isclose(time["days"], days, rel_tol=1e-9):
+            raise InputError(ctx.src("time.days", "time.years"), "time.days",
+                             f"{format_value(time['days'])} days disagrees with time.years = "
+                             f"{format_value(time['years'])} ({format_value(days)} days); give one of the two")
+        time["days"] = days
 
     # -- skeleton
     if "skeleton" not in data:

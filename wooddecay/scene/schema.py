@@ -85,6 +85,8 @@ class Table:
 # "enum:a|b", "vec3", "list", "interval", "region", "node_id".
 # ---------------------------------------------------------------------------------------------
 _T3 = "woodstock Table 3"
+#: days of a year of ``time.years``
+DAYS_PER_YEAR = 365.25
 _SCHEMA: dict[str, list[tuple]] = {
     "scene": [
         ("name", None, "", "", "Scene name used for output files and the USD prim; default: the scene file stem.", "str"),
@@ -210,6 +212,7 @@ _SCHEMA: dict[str, list[tuple]] = {
     ],
     "time": [
         ("days", 365.0, "day", "[0, 1e6]", "Simulated biological time."),
+        ("years", 0.0, "year", "[0, 2700]", f"Simulated time in years of {DAYS_PER_YEAR} days; when > 0 it sets days (a scene gives one of the two, or both equal)."),
         ("dt_bio", 0.5, "day", "(0, 1e4]", f"Biophysics macro step dt_bio (Algorithm 1; {_T3} typical 0.5)."),
         ("frames", 24, "", "[1, 100000]", "Number of output frames over the simulated time."),
         ("fps", 24.0, "1/s", "(0, 1000]", "Playback frame rate of the exported animation (USD timeCodesPerSecond)."),

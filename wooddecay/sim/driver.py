@@ -41,6 +41,7 @@ import numpy as np
 from . import biology, coupling, schedule, settled
 from . import mechanics as mech
 from .diagnostics import diagnostics
+from .signature import signature
 from .state import FIELDS, SimState, initial_state, inoculate
 from .threads import ThreadChoice
 
@@ -173,9 +174,11 @@ class Simulation:
         if self.mechanics:
             ms = self.state.mech
             rods = {k: getattr(ms, k).copy() for k in ("x", "q", "component", "element_ok", "edge_ok", "integrity")}
+        d = self._diagnostics()
+        if self.mechanics:
+            d["signature"] = signature(self.model, self.state)
         return Frame(index=index, t_days=self.state.t_days,
-                     fields={f: getattr(self.state, f).copy() for f in FIELDS}, mech=rods,
-                     diagnostics=self._diagnostics())
+                     fields={f: getattr(self.state, f).copy() for f in FIELDS}, mech=rods, diagnostics=d)
 
     def run(self):
         """Yield a frame at every frame time after the last one yielded (module docstring)."""

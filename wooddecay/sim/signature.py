@@ -1,0 +1,73 @@
+"""What a frame shows, in numbers (the visible-decay signature of ``summary.json``
+``frames[i].signature``; woodstock Figs. 7-8, 12-15).
+
+Of a state with rods (element volumes V from the transport operator, pieces = connected
+components):
+
+* ``mass_loss``: 1 - (H_l + k H_c) / (1 + k), volume-weighted (:mod:`~wooddecay.sim.diagnostics`);
+* ``pieces``: pieces of at least ``MIN_PIECE`` elements; ``largest_piece_fraction``: the largest
+  piece's share of the wood's volume;
+* ``block_purity``: per piece of at least ``MIN_PIECE`` elements, the share of its elements in
+  its most common BSP cell; the median over those pieces (1: every piece is one cell, a cube of
+  brown rot's pattern, Fig. 7; low: fibres that run through many cells, Fig. 8). 1 for a single
+  piece that is the whole wood is not a block, so with fewer than two such pieces it is 0;
+* ``crack_orientation``: the shares (r, t, l) of the broken REG connections by the squared
+  components of their rest direction in the local frame (``model.reg_dir_weights``), failed strand
+  links counted as l: radial cracks (Fig. 6c) break tangential connections, delamination
+  (Fig. 6a) radial ones, checks across the grain (Fig. 15) longitudinal ones; zeros with none;
+* ``debris_footprint_m2``: the area of the convex hull of the element centres seen from above;
+  ``debris_height_m``: from the lowest to the highest point of the wood (centre -+ radius): a
+  log lying intact keeps its diameter, a pile is lower and wider.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+from .biology import K_H
+from .diagnostics import mass_remaining
+
+#: pieces smaller than this (loose fibres, crumbs) are not counted as pieces
+MIN_PIECE = 5
+
+
+def signature(model, state) -> dict:
+    """The signature of ``state`` (module docstring); ``state.mech`` must hold the rods."""
+    ms, V = state.mech, model.bio.op.volume
+    k = model.bio.P[model.bio.tissue, K_H]
+    mass_loss = float(np.sum(V * (1.0 - mass_remaining(state, k))) / np.sum(V))
+    comp = ms.component
+    size = np.bincount(comp)
+    big = np.flatnonzero(size >= MIN_PIECE)
+    volume = np.bincount(comp, weights=V)
+    leaf = model.bsp_leaf
+    purity = 0.0
+    if len(big) >= 2:
+        keys, counts = np.unique(comp * (int(leaf.max()) + 1) + leaf, return_counts=True)
+        main = np.zeros(len(size))
+        np.maximum.at(main, keys // (int(leaf.max()) + 1), counts)
+        purity = float(np.median(main[big] / size[big]))
+    broken = ~ms.edge_ok[:, 0]
+    rtl = model.reg_dir_weights[broken].sum(axis=0)
+    rtl[2] += np.count_nonzero(~ms.element_ok)
+    total = rtl.sum()
+    fp = model.mech.fp
+    c = 0.5 * (ms.x[fp] + ms.x[fp + 1])
+    r = model.mech.radius
+    return {
+        "mass_loss": mass_loss,
+        "pieces": int(len(big)),
+        "largest_piece_fraction": float(volume.max() / volume.sum()),
+        "block_purity": purity,
+        "crack_orientation": [float(v) for v in (rtl / total if total > 0 else np.zeros(3))],
+        "debris_footprint_m2": _hull_area(c[:, :2]),
+        "debris_height_m": float(np.max(c[:, 2] + r) - np.min(c[:, 2] - r)),
+    }
+
+
+def _hull_area(xy: np.ndarray) -> float:
+    """Area of the convex hull of the points ``xy`` (0 when they span no area)."""
+    try:
+        return float(ConvexHull(xy).volume)
+    except (QhullError, ValueError):
+        return 0.0
