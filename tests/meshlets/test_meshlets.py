@@ -152,15 +152,17 @@ def test_skinning_kernel_equals_reference_and_rest():
     x, q, comp, ok = _rest_state(model)
     F = np.stack([model.ring_age, model.W], axis=1)
     eok = np.ones(model.n_elements, dtype=bool)
-    P, Fv = skin.skin(model, mesh, link, x, q, comp, ok, eok, F)
+    one = np.ones(model.n_elements)
+    P, Fv = skin.skin(model, mesh, link, x, q, comp, ok, eok, one, F)
     assert np.abs(P - mesh.points).max() < 1e-12
     xb, qb = _bend(model, x, q, 0.5)
     rng = np.random.default_rng(3)
     ok[rng.random(model.n_edges) < 0.3, 0] = False
     eok[rng.random(model.n_elements) < 0.2] = False
     comp = rng.integers(0, 3, model.n_elements)
-    P, Fv = skin.skin(model, mesh, link, xb, qb, comp, ok, eok, F)
-    P2, F2 = skin.skin_reference(model, mesh, link, xb, qb, comp, ok, eok, F)
+    scale = np.clip(rng.uniform(-0.5, 1.5, model.n_elements), 0.0, 1.0)
+    P, Fv = skin.skin(model, mesh, link, xb, qb, comp, ok, eok, scale, F)
+    P2, F2 = skin.skin_reference(model, mesh, link, xb, qb, comp, ok, eok, scale, F)
     assert np.abs(P - P2).max() < 1e-12 and np.abs(Fv - F2).max() < 1e-12
 
 
@@ -171,7 +173,8 @@ def test_bent_intact_log_has_no_gap_and_a_broken_strand_separates_cleanly():
     x, q, comp, ok = _rest_state(model)
     xb, qb = _bend(model, x, q, 0.4)
     eok = np.ones(model.n_elements, dtype=bool)
-    P, _ = skin.skin(model, mesh, link, xb, qb, comp, ok, eok, model.W[:, None])
+    one = np.ones(model.n_elements)
+    P, _ = skin.skin(model, mesh, link, xb, qb, comp, ok, eok, one, model.W[:, None])
     order = np.argsort(mesh.vertex_shared, kind="stable")
     gid = mesh.vertex_shared[order]
     start = np.flatnonzero(np.r_[True, gid[1:] != gid[:-1]])
@@ -189,7 +192,7 @@ def test_bent_intact_log_has_no_gap_and_a_broken_strand_separates_cleanly():
     delta = np.array([0.0, 0.0, 0.05])
     x2 = x.copy()
     x2[np.repeat(np.arange(model.n_strands), np.diff(model.particle_offsets)) == k] += delta
-    P, _ = skin.skin(model, mesh, link, x2, q, comp, ok, eok, model.W[:, None])
+    P, _ = skin.skin(model, mesh, link, x2, q, comp, ok, eok, one, model.W[:, None])
     own = mine[mesh.vertex_element]
     d = P - mesh.points
     assert np.abs(d[own] - delta).max() < 1e-12
@@ -205,11 +208,20 @@ def test_bent_intact_log_has_no_gap_and_a_broken_strand_separates_cleanly():
     p_after = np.arange(model.first_particle[e] + 1, model.first_particle[els[-1]] + 2)
     x3 = x2.copy()
     x3[p_after] += delta
-    P, _ = skin.skin(model, mesh, link, x3, q, comp, ok, eok, model.W[:, None])
+    P, _ = skin.skin(model, mesh, link, x3, q, comp, ok, eok, one, model.W[:, None])
     d = P - mesh.points
     moved_twice = after[mesh.vertex_element]
     assert moved_twice.sum() > 0 and np.abs(d[moved_twice] - 2 * delta).max() < 1e-12
     assert np.abs(d[own & ~moved_twice] - delta).max() < 1e-12
+    # a crumbled element (scale 0) draws its own vertex copies into its centre; the rest stay
+    gone = np.zeros(model.n_elements)
+    gone[:] = 1.0
+    gone[els[1]] = 0.0
+    P0, _ = skin.skin(model, mesh, link, x3, q, comp, ok, eok, gone, model.W[:, None])
+    mine0 = mesh.vertex_element == els[1]
+    fp = model.first_particle[els[1]]
+    assert np.abs(P0[mine0] - 0.5 * (x3[fp] + x3[fp + 1])).max() < 1e-12
+    assert np.abs(P0[~mine0] - P[~mine0]).max() == 0.0
 
 
 def test_inspect_meshlets_json_and_usd(tmp_path):

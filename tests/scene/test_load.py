@@ -297,3 +297,17 @@ def test_parse_scene_takes_the_parsed_toml_mapping(tmp_path):
     data["strands"]["r_s"] = -1.0
     with pytest.raises(InputError, match="strands.r_s"):
         parse_scene(data, source="built")
+
+
+def test_overrides_reach_entry_tables():
+    """``inoculation.<i>.<key>`` and ``inoculation.<i>.region.<key>`` edit an entry of the file;
+    a missing index, a malformed key and a bad value are one-line errors naming the override."""
+    extra = '[[inoculation]]\nfungus = "brown"\nregion = { kind = "sphere", center = [0, 0, 0.5], radius = 0.05 }\n'
+    s = parse(extra, overrides={"inoculation.0.fungus": "white", "inoculation.0.region.radius": 0.1})
+    assert s.inoculations[0]["fungus"] == "white" and s.inoculations[0]["region"]["radius"] == 0.1
+    for key, value, words in (("inoculation.1.fungus", "white", "no index 1"),
+                              ("inoculation.x.fungus", "white", "inoculation.<index>.<key>"),
+                              ("inoculation.0.fungus", "green", "is not one of")):
+        with pytest.raises(InputError) as info:
+            parse(extra, overrides={key: value})
+        assert info.value.file == "<overrides>" and words in str(info.value), str(info.value)

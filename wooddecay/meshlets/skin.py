@@ -14,7 +14,10 @@ connected component. c_c is the element's current midpoint, R_c its rotation (th
 S_c = diag(1, 1, l_c / l_c0) stretches along the element with its segment (drying shrinkage,
 Eq. 17). A failed element (stretch off) no longer spans its two particles, which may belong to
 different pieces: it is placed rigidly (S_c = 1) from its first particle, c_c = p_a + R_c (0, 0,
-l_c0 / 2), and so stays with the strand part before it, as its component does. Connected meshlets keep sharing their vertices (no gap); across a broken
+l_c0 / 2), and so stays with the strand part before it, as its component does. Consumed wood
+dwindles: the copies owned by o are finally drawn towards o's own centre, x <- c_o + s_o (x - c_o),
+with s_o = ``scale`` (:func:`wooddecay.sim.coupling.crumble_scale`: 0 once o crumbled), so a
+crumbled element's meshlet is gone and its neighbours' faces around it are the cavity's walls. Connected meshlets keep sharing their vertices (no gap); across a broken
 connection each side follows only its own elements, so the crack opens cleanly. Fields (H_c, H_l,
 M, ...) per element are interpolated with the same weights: smooth inside a piece, discontinuous
 across a crack.
@@ -29,6 +32,7 @@ import numba as nb
 import numpy as np
 
 from ..quaternion import rotate, rotate_np
+from ..sim.coupling import crumble_scale
 from ..sim.state import FIELDS
 
 #: link kinds of a (vertex, candidate) pair, besides a REG edge index >= 0
@@ -58,7 +62,16 @@ def _accept(link, o, c, component, edge_ok, element_ok):
             | ((link >= 0) & edge_ok[np.maximum(link, 0), 0]) | ((link == BY_COMPONENT) & (component[c] == component[o])))
 
 
-def skin_reference(model, mesh, link, x, q, component, edge_ok, element_ok, fields):
+def _centres(model, x, q, element_ok):
+    """Per element the centre its meshlet is placed about: the midpoint of its particles, or for a
+    failed element p_a + R (0, 0, l_0 / 2) (module docstring)."""
+    fp, l0 = model.first_particle, model.rest_length
+    a, b = x[fp], x[fp + 1]
+    rigid = a + rotate_np(q, np.stack([np.zeros_like(l0), np.zeros_like(l0), 0.5 * l0], 1))
+    return np.where(element_ok[:, None], 0.5 * (a + b), rigid)
+
+
+def skin_reference(model, mesh, link, x, q, component, edge_ok, element_ok, scale, fields):
     """Plain-numpy twin of :func:`skin` (same maths, vectorised over skinning pairs)."""
     V = len(mesh.points)
     cnt = np.diff(mesh.skin_indptr)
@@ -78,12 +91,14 @@ def skin_reference(model, mesh, link, x, q, component, edge_ok, element_ok, fiel
     pts = np.stack([np.bincount(rows, weights=w * p[:, k], minlength=V) for k in range(3)], 1)
     f = np.stack([np.bincount(rows, weights=w * fields[c, k], minlength=V)
                   for k in range(fields.shape[1])], 1)
-    return pts / wsum[:, None], f / wsum[:, None]
+    own = mesh.vertex_element
+    centre = _centres(model, x, q, element_ok)[own]
+    return centre + scale[own, None] * (pts / wsum[:, None] - centre), f / wsum[:, None]
 
 
 @nb.njit(parallel=True, cache=True)
 def _skin_kernel(indptr, owner, cand, weight, local, link, first_particle, rest_length, x, q,
-                 component, edge_ok, element_ok, fields, out_p, out_f):
+                 component, edge_ok, element_ok, scale, fields, out_p, out_f):
     for v in nb.prange(len(owner)):
         o = owner[v]
         px = py = pz = 0.0
@@ -121,32 +136,41 @@ def _skin_kernel(indptr, owner, cand, weight, local, link, first_particle, rest_
             for j in range(nf):
                 acc[j] += w * fields[c, j]
             wsum += w
-        out_p[v, 0] = px / wsum
-        out_p[v, 1] = py / wsum
-        out_p[v, 2] = pz / wsum
+        f = first_particle[o]
+        if element_ok[o]:
+            ox, oy, oz = 0.5 * (x[f, 0] + x[f + 1, 0]), 0.5 * (x[f, 1] + x[f + 1, 1]), 0.5 * (x[f, 2] + x[f + 1, 2])
+        else:
+            rx, ry, rz = rotate(q[o, 0], q[o, 1], q[o, 2], q[o, 3], 0.0, 0.0, 0.5 * rest_length[o])
+            ox, oy, oz = x[f, 0] + rx, x[f, 1] + ry, x[f, 2] + rz
+        s = scale[o]
+        out_p[v, 0] = ox + s * (px / wsum - ox)
+        out_p[v, 1] = oy + s * (py / wsum - oy)
+        out_p[v, 2] = oz + s * (pz / wsum - oz)
         for j in range(nf):
             out_f[v, j] = acc[j] / wsum
 
 
-def skin(model, mesh, link, x, q, component, edge_ok, element_ok, fields):
+def skin(model, mesh, link, x, q, component, edge_ok, element_ok, scale, fields):
     """Skinned vertex positions (V, 3) and fields (V, k) of per-element ``fields`` (n, k) for the
-    rod state (particles ``x``, quaternions ``q``, ``component``, ``edge_ok``, ``element_ok``)."""
+    rod state (particles ``x``, quaternions ``q``, ``component``, ``edge_ok``, ``element_ok``) and
+    the meshlet sizes ``scale`` (n,)."""
     fields = np.ascontiguousarray(fields, dtype=np.float64).reshape(model.n_elements, -1)
     out_p = np.empty((len(mesh.points), 3))
     out_f = np.empty((len(mesh.points), fields.shape[1]))
     _skin_kernel(mesh.skin_indptr, mesh.vertex_element, mesh.skin_element, mesh.skin_weight,
                  mesh.skin_local, link, model.first_particle, model.rest_length, x, q, component,
-                 edge_ok, element_ok, fields, out_p, out_f)
+                 edge_ok, element_ok, np.ascontiguousarray(scale, dtype=np.float64), fields, out_p, out_f)
     return out_p, out_f
 
 
 def frame_arrays(model, mesh, link, frame):
     """Skinned points (V, 3) and fields (V, 6, in the order of ``FIELDS``) of one frame; without
-    mechanics (empty ``frame.mech``) the rest pose."""
+    mechanics (empty ``frame.mech``) the rest pose. Crumbled wood dwindles in both."""
     fields = np.stack([frame.fields[f] for f in FIELDS], axis=1)
+    scale = crumble_scale(model.coupling, frame.fields["H_c"], frame.fields["H_l"])
     if frame.mech:
         m = frame.mech
-        return skin(model, mesh, link, m["x"], m["q"], m["component"], m["edge_ok"], m["element_ok"], fields)
+        return skin(model, mesh, link, m["x"], m["q"], m["component"], m["edge_ok"], m["element_ok"], scale, fields)
     n = model.n_elements
     return skin(model, mesh, link, model.particles, model.rest_quat, np.zeros(n, dtype=np.int64),
-                np.ones((model.n_edges, 3), dtype=bool), np.ones(n, dtype=bool), fields)
+                np.ones((model.n_edges, 3), dtype=bool), np.ones(n, dtype=bool), scale, fields)

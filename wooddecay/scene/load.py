@@ -190,6 +190,29 @@ def _resolve_data(data: dict, label: str, base_dir: Path, path: Path | None,
     return _resolve(data, ctx, base_dir, path, default_name)
 
 
+def _override_entry(data: dict, parts: list[str], key: str, value: Any, src: str) -> None:
+    """``<table>.<index>.<key>[.<key>]`` (``inoculation.0.fungus``, ``load.1.region.radius``): set a
+    key of an existing entry of an array table or of its region; the entry is validated with the
+    rest of the scene."""
+    head = parts[0]
+    entries = data.get(head, [])
+    if len(parts) not in (3, 4) or not parts[1].isdigit():
+        raise InputError(src, key, f"entries are overridden as {head}.<index>.<key> or {head}.<index>.region.<key>, "
+                         f"e.g. {head}.0.{'fungus' if head == 'inoculation' else 'region.radius'}")
+    index = int(parts[1])
+    if not isinstance(entries, list) or index >= len(entries):
+        count = len(entries) if isinstance(entries, list) else 0
+        raise InputError(src, key, f"the scene has {count} [[{head}]] entr{'y' if count == 1 else 'ies'}"
+                         f"{f' (indices 0 to {count - 1})' if count else ''}, no index {index}")
+    table = entries[index]
+    if len(parts) == 4:
+        table = table.get(parts[2]) if isinstance(table, dict) else None
+        if not isinstance(table, dict):
+            raise InputError(src, key, f"[[{head}]] entry {index} has no table {format_value(parts[2])}")
+    if isinstance(table, dict):
+        table[parts[-1]] = value
+
+
 #: the two ways to give the simulated time: overriding one drops the other from the scene file
 DURATION_KEYS = {"time.days": "time.years", "time.years": "time.days"}
 
@@ -223,9 +246,14 @@ def _apply_overrides(data: dict, overrides: Mapping[str, Any], ctx: _Ctx) -> Non
             table[name] = value
             ctx.origin[key] = src
             continue
+        if head in ARRAY_TABLES:
+            _override_entry(data, parts, key, value, src)
+            ctx.origin[f"{head}[{parts[1]}]." + ".".join(parts[2:])] = src
+            continue
         if head not in PARAMS:
+            names = tuple(SECTIONS) + ("tissue",) + ARRAY_TABLES
             raise InputError(src, key, f"unknown section {format_value(head)}; overridable sections are "
-                             f"{', '.join(SECTIONS)} and tissue{did_you_mean(head, tuple(SECTIONS) + ('tissue',))}")
+                             f"{', '.join(SECTIONS)}, tissue and {', '.join(ARRAY_TABLES)}{did_you_mean(head, names)}")
         if len(parts) != 2:
             raise InputError(src, key, f"expected {head}.<key>")
         name = parts[1]
@@ -356,4 +384,5 @@ def _resolve_list(data: dict, name: str, ctx: _Ctx, node_ids: Sequence[str]) -> 
     if not isinstance(raw, list) or not all(isinstance(x, dict) for x in raw):
         raise InputError(ctx.file, name, f"expected an array of tables [[{name}]], got {type_name(raw)} "
                          f"{format_value(raw)}")
-    return tuple(validate_table(TABLES[name], item, ctx.file, f"{name}[{i}]", node_ids) for i, item in enumerate(raw))
+    return tuple(validate_table(TABLES[name], item, ctx.src(*(k for k in ctx.origin if k.startswith(f"{name}[{i}]."))),
+                                f"{name}[{i}]", node_ids) for i, item in enumerate(raw))

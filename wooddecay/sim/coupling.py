@@ -25,6 +25,10 @@ After each biology step, with (x)^+ = max(x, 0):
   break the REG across a BSP boundary but not the strands running through it, so no cubical
   pieces came loose (Figs. 7, 12). Both integrities are kept (``integrity``, ``link_integrity``): a pair or
   link below ``I_fail`` fails (:mod:`wooddecay.sim.failure`, separation from decay);
+* crumbling: an element whose remaining mass fraction (H_l + k H_c) / (1 + k) (k = k_H, §9.4)
+  is below ``m_crumble`` is consumed (``crumbled``): its pairs and both its strand links get
+  integrity 0, so they fail (:mod:`wooddecay.sim.failure`), and the element itself fails whatever
+  its neighbours; its meshlet dwindles (:func:`crumble_scale`, :mod:`wooddecay.meshlets.skin`);
 * the element masses rho_dry (1 + M) pi r^2 l (SPEC §2).
 
 Pair quantities (M, H_c, H_l and the per-tissue parameters) are the mean of the two elements.
@@ -59,6 +63,8 @@ class CouplingSetup:
     link_next: np.ndarray  # (n,) e + 1, or e for the last element of a strand
     k_c_link: np.ndarray  # (n,) theta k_c of the link e, e + 1 (pair mean; 0 at a strand end)
     k_l_link: np.ndarray  # (n,)
+    k_H: np.ndarray  # (n,) carbohydrate weight of the remaining mass (§9.4)
+    m_crumble: np.ndarray  # (n,)
 
 
 def prepare(model) -> CouplingSetup:
@@ -84,12 +90,25 @@ def prepare(model) -> CouplingSetup:
         p_l=np.stack([per_element(f"p_l_{k}") for k in LIMIT_TYPES], axis=1),
         k_c=model.reg_theta * pair("k_c"), k_l=pair("k_l"), link_next=nxt,
         k_c_link=(leaf != leaf[nxt]) * 0.5 * (k_c_e + k_c_e[nxt]), k_l_link=0.5 * (k_l_e + k_l_e[nxt]),
+        k_H=per_element("k_H"), m_crumble=per_element("m_crumble"),
     )
 
 
 def limit_factor(M: np.ndarray, M_1: np.ndarray, M_2: np.ndarray, p_l: np.ndarray) -> np.ndarray:
     """f(M - M_2) of Eq. 19: 0 at or below M_2, 1 at or above M_1, a power p_l between."""
     return np.clip((M - M_2) / (M_1 - M_2), 0.0, 1.0) ** p_l
+
+
+def remaining(H_c: np.ndarray, H_l: np.ndarray, k_H: np.ndarray) -> np.ndarray:
+    """Remaining mass fraction (H_l + k H_c) / (1 + k) (§9.4)."""
+    return (H_l + k_H * H_c) / (1.0 + k_H)
+
+
+def crumble_scale(cs: CouplingSetup, H_c: np.ndarray, H_l: np.ndarray) -> np.ndarray:
+    """Size of each element's meshlet: 1 down to a remaining mass of 2 m_crumble, then linearly to
+    0 at m_crumble (crumbled); 1 everywhere with m_crumble = 0."""
+    m = cs.m_crumble
+    return np.where(m > 0.0, np.clip((remaining(H_c, H_l, cs.k_H) - m) / np.where(m > 0.0, m, 1.0), 0.0, 1.0), 1.0)
 
 
 def integrity(k_c: np.ndarray, k_l: np.ndarray, H_c_pair: np.ndarray, H_l_pair: np.ndarray) -> np.ndarray:
@@ -105,12 +124,18 @@ def step(model, state) -> None:
     and one over REG pairs (:func:`_couple`; :func:`step_reference` is its numpy twin)."""
     cs, setup, ms = model.coupling, model.mech, state.mech
     n, m = len(state.M), len(setup.edges)
-    out = (np.empty(n), np.empty(m), np.empty(m), np.empty(n), np.empty((n, 2)), np.empty((m, 3)))
+    out = (np.empty(n), np.empty(m), np.empty(m), np.empty(n), np.empty(n, dtype=np.bool_), np.empty((n, 2)),
+           np.empty((m, 3)))
     _couple(state.M, state.H_c, state.H_l, model.bio.tissue, moisture_bounds(model.bio, state.t_days),
             setup.edges, cs.link_next, cs.M_0, cs.s, setup.rest_length0, cs.g_pair, cs.M_0_pair, setup.offset0,
-            cs.L_0, cs.p_l, cs.k_c, cs.k_l, cs.k_c_link, cs.k_l_link, np.empty((n, 5)), *out)
-    ms.rest_length, ms.rest_offset, ms.integrity, ms.link_integrity, ms.limit_elem, ms.limit_edge = out
+            cs.L_0, cs.p_l, cs.k_c, cs.k_l, cs.k_c_link, cs.k_l_link, cs.k_H, cs.m_crumble, np.empty((n, 5)), *out)
+    ms.rest_length, ms.rest_offset, ms.integrity, ms.link_integrity, ms.crumbled, ms.limit_elem, ms.limit_edge = out
     set_masses(setup, ms, state.M)
+
+
+@nb.njit(inline="always", cache=True)
+def _crumbled(e, H_c, H_l, k_H, m_crumble):
+    return (H_l[e] + k_H[e] * H_c[e]) / (1.0 + k_H[e]) < m_crumble[e]
 
 
 @nb.njit(inline="always", cache=True)
@@ -120,7 +145,8 @@ def _integrity(k_c, k_l, H_c_pair, H_l_pair):
 
 @nb.njit(parallel=True, cache=True)
 def _couple(M, H_c, H_l, tissue, M12, edges, link_next, M_0, s, rest_length0, g_pair, M_0_pair, offset0, L_0, p_l,
-            k_c, k_l, k_c_link, k_l_link, L, rest_length, rest_offset, integrity_out, link_out, limit_elem, limit_edge):
+            k_c, k_l, k_c_link, k_l_link, k_H, m_crumble, L, rest_length, rest_offset, integrity_out, link_out, crumbled,
+            limit_elem, limit_edge):
     """:func:`step`'s arrays (module docstring): per element the rest length (Eq. 17), the limits
     L(M) of Eq. 19 (into the scratch ``L``), the strand link's I and the stretch and shear limits it scales;
     per REG pair the rest offset (Eq. 16), I_ij (Eq. 21) and the pair limits. Each entry is
@@ -133,6 +159,9 @@ def _couple(M, H_c, H_l, tissue, M12, edges, link_next, M_0, s, rest_length0, g_
         rest_length[e] = rest_length0[e] * (1.0 - max(M_0[e] - M[e], 0.0) * s[e])
         e1 = link_next[e]
         link = _integrity(k_c_link[e], k_l_link[e], 0.5 * (H_c[e] + H_c[e1]), 0.5 * (H_l[e] + H_l[e1]))
+        crumbled[e] = _crumbled(e, H_c, H_l, k_H, m_crumble)
+        if crumbled[e] or _crumbled(e1, H_c, H_l, k_H, m_crumble):
+            link = 0.0
         link_out[e] = link
         limit_elem[e, 0] = L[e, 0] * link
         limit_elem[e, 1] = L[e, 1] * link
@@ -140,6 +169,8 @@ def _couple(M, H_c, H_l, tissue, M12, edges, link_next, M_0, s, rest_length0, g_
         i, j = edges[k, 0], edges[k, 1]
         rest_offset[k] = offset0[k] * (1.0 - max(M_0_pair[k] - 0.5 * (M[i] + M[j]), 0.0) * g_pair[k])
         I = _integrity(k_c[k], k_l[k], 0.5 * (H_c[i] + H_c[j]), 0.5 * (H_l[i] + H_l[j]))
+        if _crumbled(i, H_c, H_l, k_H, m_crumble) or _crumbled(j, H_c, H_l, k_H, m_crumble):
+            I = 0.0
         integrity_out[k] = I
         for c in range(3):
             limit_edge[k, c] = 0.5 * (L[i, c + 2] + L[j, c + 2]) * I
@@ -154,10 +185,13 @@ def step_reference(model, state) -> dict[str, np.ndarray]:
     M_pair = 0.5 * (M[i] + M[j])
     f = limit_factor(M[:, None], M12[tissue, 0][:, None], M12[tissue, 1][:, None], cs.p_l)
     L = cs.L_0 * f
+    crumbled = remaining(state.H_c, state.H_l, cs.k_H) < cs.m_crumble
     I = integrity(cs.k_c, cs.k_l, 0.5 * (state.H_c[i] + state.H_c[j]), 0.5 * (state.H_l[i] + state.H_l[j]))
+    I = np.where(crumbled[i] | crumbled[j], 0.0, I)
     e1 = cs.link_next
     link = integrity(cs.k_c_link, cs.k_l_link, 0.5 * (state.H_c + state.H_c[e1]), 0.5 * (state.H_l + state.H_l[e1]))
+    link = np.where(crumbled | crumbled[e1], 0.0, link)
     return {"rest_offset": setup.offset0 * (1.0 - np.maximum(cs.M_0_pair - M_pair, 0.0) * cs.g_pair),
             "rest_length": setup.rest_length0 * (1.0 - np.maximum(cs.M_0 - M, 0.0) * cs.s),
-            "integrity": I, "link_integrity": link, "limit_elem": L[:, :2] * link[:, None],
+            "integrity": I, "link_integrity": link, "crumbled": crumbled, "limit_elem": L[:, :2] * link[:, None],
             "limit_edge": 0.5 * (L[i, 2:] + L[j, 2:]) * I[:, None]}

@@ -22,7 +22,8 @@ Strains are measured after every substep, as the change since the settled refere
   ``I_fail`` clears all three flags, and an element whose strand link e, e + 1 did
   (``ms.link_integrity``) fails as if over its limit. With theta_ij brown rot's carbohydrate loss
   reaches I_fail on the BSP cell boundaries only, so the cells come apart as blocks; white rot's
-  lignin loss lowers every pair alike.
+  lignin loss lowers every pair alike. A crumbled element (consumed, ``ms.crumbled``) fails
+  whatever its neighbours, and its pairs and links have integrity 0: it leaves the mechanics.
 
 Flags never come back. After a substep with a new element or connection failure the connected
 components (strand links of unbroken elements plus intact REG connections) are recomputed;
@@ -104,15 +105,18 @@ def pair_strains(edges, fp, x, q, rest_offset, edge_length, edge_rest):
 
 
 @nb.njit(cache=True)
-def _flag_elements(strain, limit, link_integrity, I_fail, inner, element_ok):
-    """New element failures, in element order (serial, so deterministic): an element over its
-    limit, or whose strand link has decayed below ``I_fail``, cuts its strand only where that
-    separates something, i.e. it is ``inner`` (a neighbour on both sides in its strand) and both
-    neighbours are intact (module docstring)."""
+def _flag_elements(strain, limit, link_integrity, I_fail, crumbled, inner, element_ok):
+    """New element failures, in element order (serial, so deterministic): a crumbled element
+    fails; an element over its limit, or whose strand link has decayed below ``I_fail``, cuts its
+    strand only where that separates something, i.e. it is ``inner`` (a neighbour on both sides in
+    its strand) and both neighbours are intact (module docstring)."""
     n = len(strain)
     new = np.zeros(n, dtype=np.bool_)
     for e in range(n):
-        if (element_ok[e] and inner[e] and element_ok[e - 1] and element_ok[e + 1]
+        if element_ok[e] and crumbled[e]:
+            element_ok[e] = False
+            new[e] = True
+        elif (element_ok[e] and inner[e] and element_ok[e - 1] and element_ok[e + 1]
                 and (strain[e, 0] > limit[e, 0] or strain[e, 1] > limit[e, 1] or link_integrity[e] < I_fail[e])):
             element_ok[e] = False
             new[e] = True
@@ -223,7 +227,7 @@ def update(setup, ms) -> int:
     Returns the number of new failures (elements plus edges)."""
     elem = element_strains(setup.fp, ms.x, ms.q, ms.rest_length)
     new_e = _flag_elements(elem - ms.strain_ref_elem, ms.limit_elem, ms.link_integrity, setup.I_fail_elem,
-                           setup.inner, ms.element_ok)
+                           ms.crumbled, setup.inner, ms.element_ok)
     new_k = _flag_edges(setup.edges, setup.fp, ms.x, ms.q, ms.rest_offset, setup.edge_length, setup.edge_rest,
                         ms.strain_ref_edge, ms.limit_edge, ms.integrity, setup.I_fail_edge, ms.edge_ok)
     count = int(new_e.sum()) + int(np.count_nonzero(new_k))

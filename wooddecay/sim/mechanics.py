@@ -172,6 +172,7 @@ class MechState:
     rest_offset: np.ndarray  # (m,) dp (Eq. 16)
     integrity: np.ndarray  # (m,) I_ij (Eq. 21)
     link_integrity: np.ndarray  # (n,) I of the strand link e, e + 1 (Eq. 21; 1 at a strand end)
+    crumbled: np.ndarray  # (n,) bool: remaining mass below m_crumble (:mod:`~wooddecay.sim.coupling`)
     limit_elem: np.ndarray  # (n, 2) stretch, shear limits L(M) (Eq. 18)
     limit_edge: np.ndarray  # (m, 3) bundle, bend, twist limits
     element_ok: np.ndarray  # (n,) bool: stretch / shear intact
@@ -327,7 +328,7 @@ def initial_state(model) -> MechState:
         x=model.particles.astype(np.float64).copy(), v=np.zeros((P, 3)), q=model.rest_quat.copy(),
         omega=np.zeros((n, 3)), w_p=np.zeros(P), mass_p=np.zeros(P), w_q=np.zeros(n), mass_e=np.zeros(n),
         rest_length=setup.rest_length0.copy(), rest_offset=setup.offset0.copy(), integrity=np.ones(m),
-        link_integrity=np.ones(n), limit_elem=np.full((n, 2), np.inf), limit_edge=np.full((m, 3), np.inf),
+        link_integrity=np.ones(n), crumbled=np.zeros(n, dtype=bool), limit_elem=np.full((n, 2), np.inf), limit_edge=np.full((m, 3), np.inf),
         element_ok=np.ones(n, dtype=bool), edge_ok=np.ones((m, 3), dtype=bool),
         component=np.zeros(n, dtype=np.int64), strain_ref_elem=np.zeros((n, 2)),
         strain_ref_edge=np.zeros((m, 3)), asleep=np.zeros(n, dtype=bool), sleep_x=np.zeros((P, 3)),

@@ -13,8 +13,11 @@ components):
   piece that is the whole wood is not a block, so with fewer than two such pieces it is 0;
 * ``crack_orientation``: the shares (r, t, l) of the broken REG connections by the squared
   components of their rest direction in the local frame (``model.reg_dir_weights``), failed strand
-  links counted as l: radial cracks (Fig. 6c) break tangential connections, delamination
+  links counted as l, those of crumbled elements left out (consumed, not cracked): radial cracks (Fig. 6c) break tangential connections, delamination
   (Fig. 6a) radial ones, checks across the grain (Fig. 15) longitudinal ones; zeros with none;
+* ``crumbled_elements``: elements consumed (:mod:`~wooddecay.sim.coupling`, ``m_crumble``);
+  ``hollow_fraction``: the crumbled share of the heartwood's volume (0 without heartwood): white
+  rot's hollow (Fig. 14);
 * ``debris_footprint_m2``: the area of the convex hull of the element centres seen from above;
   ``debris_height_m``: from the lowest to the highest point of the wood (centre -+ radius): a
   log lying intact keeps its diameter, a pile is lower and wider.
@@ -24,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
+from ..strands.rings import TISSUES
 from .biology import K_H
 from .diagnostics import mass_remaining
 
@@ -47,10 +51,13 @@ def signature(model, state) -> dict:
         main = np.zeros(len(size))
         np.maximum.at(main, keys // (int(leaf.max()) + 1), counts)
         purity = float(np.median(main[big] / size[big]))
-    broken = ~ms.edge_ok[:, 0]
+    i, j = model.reg_edges[:, 0], model.reg_edges[:, 1]
+    broken = ~ms.edge_ok[:, 0] & ~ms.crumbled[i] & ~ms.crumbled[j]
     rtl = model.reg_dir_weights[broken].sum(axis=0)
-    rtl[2] += np.count_nonzero(~ms.element_ok)
+    rtl[2] += np.count_nonzero(~ms.element_ok & ~ms.crumbled)
     total = rtl.sum()
+    heart = model.tissue == TISSUES.index("heartwood")
+    hollow = float(V[heart & ms.crumbled].sum() / V[heart].sum()) if heart.any() else 0.0
     fp = model.mech.fp
     c = 0.5 * (ms.x[fp] + ms.x[fp + 1])
     r = model.mech.radius
@@ -60,6 +67,8 @@ def signature(model, state) -> dict:
         "largest_piece_fraction": float(volume.max() / volume.sum()),
         "block_purity": purity,
         "crack_orientation": [float(v) for v in (rtl / total if total > 0 else np.zeros(3))],
+        "crumbled_elements": int(np.count_nonzero(ms.crumbled)),
+        "hollow_fraction": hollow,
         "debris_footprint_m2": _hull_area(c[:, :2]),
         "debris_height_m": float(np.max(c[:, 2] + r) - np.min(c[:, 2] - r)),
     }
