@@ -111,6 +111,26 @@ def _print_report(rep: dict) -> None:
     click.echo("\n".join(lines))
 
 
+def _inspect_bake(folder: Path, as_json: bool) -> None:
+    """The per-frame signatures of the bake in ``folder`` (``summary.json``)."""
+    path = folder / "summary.json"
+    try:
+        frames = json.loads(path.read_text())["frames"]
+        rows = [{"frame": f["frame"], "t_days": f["t_days"], **f["signature"]} for f in frames]
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        what = "no summary.json" if isinstance(err, FileNotFoundError) else f"not a bake summary ({type(err).__name__}: {err})"
+        raise InputError(str(path), "", f"{what}; give a scene file or a folder written by wooddecay bake") from None
+    if as_json:
+        click.echo(json.dumps(rows, indent=2))
+        return
+    click.echo("frame      day  mass_loss  pieces  largest  purity  hollow  crumbled  height_m  footprint_m2  cracks r/t/l")
+    for r in rows:
+        click.echo(f"{r['frame']:5d} {r['t_days']:8.1f} {r['mass_loss']:10.3f} {r['pieces']:7d} {r['largest_piece_fraction']:8.2f}"
+                   f" {r['block_purity']:7.2f} {r['hollow_fraction']:7.2f} {r['crumbled_elements']:9d}"
+                   f" {r['debris_height_m']:9.3f} {r['debris_footprint_m2']:13.3f}  "
+                   + "/".join(f"{c:.2f}" for c in r["crack_orientation"]))
+
+
 def _usd_path(ctx: click.Context, param: click.Parameter, value: str | None) -> Path | None:
     """Check ``--strands-usd`` (suffix, existing folder) before the model is built."""
     if value is None:
@@ -130,7 +150,7 @@ def _meshlets_usd_path(ctx: click.Context, param: click.Parameter, value: str | 
 
 
 @main.command()
-@click.argument("scene_path", metavar="SCENE", type=click.Path(dir_okay=False))
+@click.argument("scene_path", metavar="SCENE|BAKE_DIR", type=click.Path())
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @click.option("--strands-usd", type=click.Path(dir_okay=False), callback=_usd_path,
               help="Write the strands as USD BasisCurves (.usda, .usdc or .usd, in an existing folder).")
@@ -142,9 +162,13 @@ def _meshlets_usd_path(ctx: click.Context, param: click.Parameter, value: str | 
 def inspect(scene_path: str, as_json: bool, strands_usd: Path | None, with_meshlets: bool,
             meshlets_usd: Path | None, set_items: tuple[str, ...]) -> None:
     """Build the wood model of SCENE and report its size, tissues, build time and the biology's
-    explicit-step stability bound (and its meshlets with --meshlets)."""
+    explicit-step stability bound (and its meshlets with --meshlets); of a BAKE_DIR, print the
+    visible-decay signature of every frame (summary.json)."""
     from .model import build_model
 
+    if Path(scene_path).is_dir():
+        _inspect_bake(Path(scene_path), as_json)
+        return
     scene = _load(scene_path, set_items)
     model = build_model(scene)
     rep = inspect_report(model)

@@ -305,6 +305,33 @@ _TABLE_SCHEMA: dict[str, dict[str, list[tuple]]] = {
 TISSUE_SECTIONS: tuple[str, ...] = ("fungi", "moisture", "mechanics", "transport", "wood")
 
 
+@dataclass(frozen=True)
+class TissueDefault:
+    """A tissue's own default of a parameter: ``value`` times the section's value when
+    ``relative`` (so a scene that scales a rate scales it in every tissue), else ``value``
+    itself. A ``[tissue.<name>]`` key replaces it."""
+
+    value: float
+    relative: bool
+    why: str
+
+
+#: Where the tissues differ by default (woodstock §6, Figs. 13-14): sapwood holds the
+#: carbohydrates (starch and sugars of the living ray cells) that brown rot feeds on; heartwood
+#: holds extractives that defend it and a lignin-rich wall that white rot, the heart rot of
+#: standing trees, consumes (docs/decisions.md, "Tissue defaults").
+TISSUE_DEFAULTS: dict[str, dict[str, TissueDefault]] = {
+    "sapwood": {
+        "alpha_b0": TissueDefault(2.0, True, "brown rot grows twice as fast in carbohydrate-rich sapwood"),
+    },
+    "heartwood": {
+        "alpha_w0": TissueDefault(2.0, True, "white rot grows twice as fast in heartwood (heart rot)"),
+        "C_init": TissueDefault(0.3, False, "extractives: defence efficacy C starts at 0.3"),
+        "beta_b": TissueDefault(3.0, True, "extractives inhibit brown rot three times more strongly"),
+    },
+}
+
+
 def _parse_range(text: str) -> tuple[float | None, float | None, bool, bool]:
     text = text.strip()
     if text in ("", "any"):
@@ -456,4 +483,9 @@ def describe() -> str:
                 default = format_value(p.default)
             lines.append(f"| `{p.name}` | {default} | {format_range(p)} | {p.doc} |")
         lines.append("")
+    lines += ["### Tissue defaults", "", "| tissue | key | default | why |", "|---|---|---|---|"]
+    for tissue, table in TISSUE_DEFAULTS.items():
+        for name, d in table.items():
+            lines.append(f"| {tissue} | `{name}` | {'x ' if d.relative else ''}{_num(d.value)} | {d.why} |")
+    lines.append("")
     return "\n".join(lines)

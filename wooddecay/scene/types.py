@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any, Iterator
 
 from wooddecay.errors import did_you_mean
-from wooddecay.scene.schema import SECTIONS, TISSUE_KEYS
+from wooddecay.scene.schema import SECTIONS, TISSUE_DEFAULTS, TISSUE_KEYS
 from wooddecay.strands.rings import TISSUES
 
 
@@ -144,7 +144,7 @@ class Scene:
 
     def tissue_param(self, tissue: str, name: str) -> Any:
         """Value of ``name`` (``alpha_w0`` or ``fungi.alpha_w0``) in ``tissue``: its override,
-        else the section value."""
+        else the section value, with the tissue's default (:data:`TISSUE_DEFAULTS`) applied."""
         if tissue not in self.tissues:
             raise KeyError(f"unknown tissue {tissue!r}; tissues are {', '.join(TISSUES)}")
         section, dot, bare = name.rpartition(".")
@@ -153,7 +153,11 @@ class Scene:
         over = self.tissues[tissue]
         if bare in over:
             return over[bare]
-        return getattr(self, TISSUE_KEYS[bare].section)[bare]
+        value = getattr(self, TISSUE_KEYS[bare].section)[bare]
+        default = TISSUE_DEFAULTS.get(tissue, {}).get(bare)
+        if default is None:
+            return value
+        return value * default.value if default.relative else default.value
 
     def to_dict(self) -> dict:
         """The resolved scene as plain JSON-able data (values after the quality preset; not meant

@@ -18,14 +18,21 @@ Rule, at the start of every macro step (:func:`due`), mechanics runs when, since
 * the set of active ``[[load]]``s changed;
 * the last solve ended with the wood still moving (it reached ``time.max_mechanics``);
 * a constraint fails at the current positions against the current rest data and limits
-  (:func:`failure.update`, the test every substep ends with): drying and decay lower the limits
-  and shorten the rest lengths of wood that holds still, and that cracks it.
+  (:func:`failure.update`, the test every substep ends with) and that splits a piece (pieces
+  count from ``MIN_PIECE`` elements here and below, :func:`big_pieces`): drying and
+  decay lower the limits and shorten the rest lengths of wood that holds still, and that cracks
+  it; decay separates BSP cells (``mechanics.I_fail``). A failure inside a piece is kept but
+  starts no solve: the piece moves only once it splits or its rest data moved past the
+  tolerances (a decaying log fails some connections on most macro steps, and solving each
+  cost a chunk of N_mech substeps per step).
 
 A solve (:func:`solve`) runs chunks of N_mech substeps (:func:`mechanics.macro_step`, sleeping
-included) until a chunk ends that split no piece and in which no piece's centre of mass moved
-faster than ``time.rest_speed``, on average or at its end (:func:`piece_speed`; a piece released
-from rest falls g T^2 / 2 in a chunk of T = 2.5 ms, a mean of 1.2 cm/s, but ends it at 2.5 cm/s),
-or ``time.max_mechanics`` seconds have run. Pieces, not particles: single elements next to a
+included) until a chunk ends that split no piece and in which no piece is moving
+(:func:`moving`): none whose centre of mass, faster than ``time.rest_speed`` on average or at its
+end, is gaining speed (a piece released from rest falls g T^2 / 2 in a chunk of T = 2.5 ms, a mean
+of 1.2 cm/s, but ends it at 2.5 cm/s) or carries a kinetic energy share m_piece / m_wood v^2 above
+rest_speed^2 (a block that landed and rolls on at a few cm/s does not keep the solve going: it
+held the collapsing log's solves at their cap), or ``time.max_mechanics`` seconds have run. Pieces, not particles: single elements next to a
 crack swing in place at ~8e-2 m/s (docs/decisions.md, "Open points") and kept every solve of a
 drying log running to its cap (4.4x the fixed schedule's substeps), while a piece that falls,
 rolls or rocks moves its centre of mass. A
@@ -45,6 +52,7 @@ import numpy as np
 
 from . import failure, sleep
 from . import mechanics as mech
+from .signature import MIN_PIECE
 
 
 @dataclass(frozen=True)
@@ -114,25 +122,41 @@ def due(model, state, tol: Tolerances) -> str | None:
     reason = wake_changed(model, state, tol)
     if reason is not None:
         return reason
-    if failure.update(setup, ms):
+    pieces = big_pieces(ms)
+    if failure.update(setup, ms) and big_pieces(ms) != pieces:
         sleep.wake_all(setup, ms)
         return "failure"
     return None
 
 
-def piece_speed(setup: mech.MechSetup, ms: mech.MechState, x0: np.ndarray, seconds: float) -> float:
-    """The largest speed of a piece's centre of mass (element centres weighted by mass): its
-    velocity now, or its mean velocity since the positions ``x0``, ``seconds`` ago."""
+def big_pieces(ms: mech.MechState) -> int:
+    """Pieces of at least ``MIN_PIECE`` elements: a split that only frees a loose bit changes
+    nothing the schedule waits for."""
+    return int(np.count_nonzero(np.bincount(ms.component) >= MIN_PIECE))
+
+
+def moving(setup: mech.MechSetup, ms: mech.MechState, x0: np.ndarray, seconds: float, rest_speed: float) -> bool:
+    """Whether a piece of at least ``MIN_PIECE`` elements still moves (module docstring): its
+    centre of mass (intact element centres weighted by mass) is gaining speed above
+    ``rest_speed`` (its velocity now exceeds its mean velocity since the positions ``x0``,
+    ``seconds`` ago: falling, tipping, sliding off), or it carries a kinetic energy share
+    m_piece / m_wood v^2 above ``rest_speed``^2, v the larger of the two. A small piece that rolls
+    or rocks where it landed stops holding the solve open; a large one does as soon as it is
+    slower than ``rest_speed``."""
     fp, n = setup.fp, int(ms.component.max(initial=-1)) + 1
-    mass = np.bincount(ms.component, weights=ms.mass_e, minlength=n)
+    m_e = ms.mass_e * ms.element_ok
+    mass = np.bincount(ms.component, weights=m_e, minlength=n)
+    big = (np.bincount(ms.component, minlength=n) >= MIN_PIECE) & (mass > 0.0)
 
-    def com(a):
-        return np.stack([np.bincount(ms.component, weights=ms.mass_e * a[:, c], minlength=n)
-                         for c in range(3)], axis=1) / mass[:, None]
+    def com_speed(a):
+        v = np.stack([np.bincount(ms.component, weights=m_e * a[:, c], minlength=n)[big] for c in range(3)], axis=1)
+        return np.linalg.norm(v, axis=1) / mass[big]
 
-    v = com(0.5 * (ms.v[fp] + ms.v[fp + 1]))
-    mean = com(0.5 * (ms.x[fp] + ms.x[fp + 1] - x0[fp] - x0[fp + 1])) / seconds
-    return float(np.sqrt(np.max(np.sum(np.concatenate([v, mean]) ** 2, axis=1), initial=0.0)))
+    v_now = com_speed(0.5 * (ms.v[fp] + ms.v[fp + 1]))
+    v_mean = com_speed(0.5 * (ms.x[fp] + ms.x[fp + 1] - x0[fp] - x0[fp + 1])) / seconds
+    v = np.maximum(v_now, v_mean)
+    share = mass[big] / mass.sum()
+    return bool(np.any((v > rest_speed) & ((v_now > v_mean) | (share * v * v > rest_speed * rest_speed))))
 
 
 def solve(model, state, tol: Tolerances) -> int:
@@ -143,10 +167,9 @@ def solve(model, state, tol: Tolerances) -> int:
     chunks, quiet = 0, False
     while not quiet and chunks * chunk_seconds < tol.max_seconds - 1e-12:
         x0 = ms.x.copy()
-        pieces = ms.component.max(initial=-1)
+        pieces = big_pieces(ms)
         mech.macro_step(model, state, n_sub)
         chunks += 1
-        quiet = (ms.component.max(initial=-1) == pieces
-                 and piece_speed(model.mech, ms, x0, chunk_seconds) < tol.rest_speed)
+        quiet = big_pieces(ms) == pieces and not moving(model.mech, ms, x0, chunk_seconds, tol.rest_speed)
     mark(model, ms, state.t_days, quiet)
     return chunks
