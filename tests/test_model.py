@@ -13,7 +13,7 @@ import wooddecay as wd
 from wooddecay.strands.reg import segment_distance_reference
 from wooddecay.strands.rings import BARK, HEARTWOOD, PITH, SAPWOOD
 
-from .conftest import ROOT, SAMPLES
+from .conftest import ROOT, SAMPLES, sample
 
 
 def _arrays(model):
@@ -45,7 +45,7 @@ def test_model_arrays_are_read_only(tiny_model):
 
 
 def test_rest_lengths_staggered(log_model):
-    m, L = log_model, 0.04
+    m, L = log_model, sample("log")[0].strands.rod_length
     assert np.all(m.rest_length > 0.5 * L * 0.99) and np.all(m.rest_length < 1.5 * L * 1.01)
     # random phase: the first element boundaries of different strands do not line up
     first_len = m.rest_length[m.element_offsets[:-1]]

@@ -157,10 +157,11 @@ def test_brown_rot_breaks_bsp_boundaries_into_blocks_white_rot_does_not_and_wet_
     often as the REG as a whole, and the log frays into many small fragments instead. Fig. 16: the
     same brown-rotting log in a wetter environment (M_1 / M_2 = 0.6 / 0.4) breaks far fewer
     connections by day 10."""
-    brown, brown10 = _run_with_snapshot(_scene(tmp_path, "brown", fungi__gamma_cb=0.1), 22.0, 10.0)
-    white, white10 = _run_with_snapshot(_scene(tmp_path, "white", fungi__gamma_lw=0.1, fungi__gamma_cw=0.02),
+    cells = {"bsp__elongation": 3.0}  # cells longer than an element along the grain (samples/log.toml)
+    brown, brown10 = _run_with_snapshot(_scene(tmp_path, "brown", fungi__gamma_cb=0.1, **cells), 22.0, 10.0)
+    white, white10 = _run_with_snapshot(_scene(tmp_path, "white", fungi__gamma_lw=0.1, fungi__gamma_cw=0.02, **cells),
                                         22.0, 10.0)
-    wet = _run(_scene(tmp_path, "brown", fungi__gamma_cb=0.1, moisture__M_2=0.4), 10.0)
+    wet = _run(_scene(tmp_path, "brown", fungi__gamma_cb=0.1, moisture__M_2=0.4, **cells), 10.0)
     theta = brown.model.reg_theta.astype(bool)
     base = theta.mean()
     frac = {"brown": theta[brown10].mean(), "white": theta[white10].mean()}

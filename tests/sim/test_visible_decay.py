@@ -1,5 +1,5 @@
 """Brown rot's blocks come apart, fall and come to rest within one adaptive solve (woodstock
-Figs. 7, 12; issue: visible decay), on the tiny log with its upper half decayed by hand. The
+Figs. 7, 12; issue: visible decay), on the tiny log with its carbohydrates gone by hand. The
 year-long bakes of the samples are measured in the closing notes and docs/decisions.md; this is
 their mechanism at CI size."""
 from __future__ import annotations
@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
 import wooddecay as wd
 from wooddecay.sim import coupling, schedule
@@ -15,13 +16,13 @@ from wooddecay.sim.signature import signature
 from ..conftest import SAMPLES
 
 
+@pytest.mark.slow
 def test_decayed_blocks_separate_fall_and_rest():
     model = wd.build_model(wd.load_scene(SAMPLES / "tiny.toml", {"bsp.elongation": 3.0}))
     sim = wd.Simulation(model)
     st, ms = sim.state, sim.state.mech
     before = signature(model, st)
-    top = model.centers[:, 2] > np.median(model.centers[:, 2])
-    st.H_c[top] = 0.1  # brown rot consumed the carbohydrates of the upper half
+    st.H_c[:] = 0.1  # brown rot consumed the carbohydrates
     coupling.step(model, st)
     tol = replace(model.time.tolerances, max_seconds=3.0)
     assert schedule.due(model, st, tol) is not None
@@ -31,9 +32,13 @@ def test_decayed_blocks_separate_fall_and_rest():
     z = 0.5 * (ms.x[model.mech.fp, 2] + ms.x[model.mech.fp + 1, 2])
     print(f"{chunks} chunks ({ms.t_seconds:.2f} s of mechanics): {after}")
     assert bool(ms.quiet[0]) and chunks * model.time.N_mech * model.mech.dt < 3.0  # came to rest
-    assert after["pieces"] >= 5 and after["block_purity"] >= 0.8 and after["largest_piece_fraction"] < 0.8
+    assert after["pieces"] >= 20 and after["block_purity"] >= 0.8 and after["largest_piece_fraction"] < 0.2
     assert 0.9 < sum(after["crack_orientation"]) < 1.1
-    # the blocks fell off the top: the wood is lower and spread wider than the intact log
-    assert after["debris_height_m"] < before["debris_height_m"] - 0.01
+    # blocks, not fibres: few elements in bits of fewer than 5, few connections inside cells broken
+    size = np.bincount(ms.component)[ms.component]
+    same = model.bsp_leaf[model.reg_edges[:, 0]] == model.bsp_leaf[model.reg_edges[:, 1]]
+    assert np.mean(size < 5) < 0.1 and np.mean(~ms.edge_ok[same, 0]) < 0.1
+    # blocks slid off the sides: the wood is lower and spread wider than the intact log
+    assert after["debris_height_m"] < before["debris_height_m"] - 0.002
     assert after["debris_footprint_m2"] > before["debris_footprint_m2"]
-    assert np.median(z[top] - z0[top]) < -0.01 and np.abs(np.median(z[~top] - z0[~top])) < 0.005
+    assert (z - z0).min() < -0.02

@@ -6,6 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from wooddecay.scene.schema import CONNECT_FACTOR
 from wooddecay.strands import bsp, profiles, rings
 from wooddecay.strands.elements import (
     arc_positions,
@@ -55,7 +56,8 @@ def test_segment_distance_parallel_and_crossing():
 
 
 def test_segment_pairs_numba_equals_reference(tiny_model, log_model):
-    for m, radius in ((tiny_model, 0.015), (log_model, 0.015)):
+    for m in (tiny_model, log_model):
+        radius = CONNECT_FACTOR * m.r_s  # the samples' default connect_radius
         pa = m.particles[m.first_particle]
         pb = m.particles[m.first_particle + 1]
         np.testing.assert_array_equal(segment_pairs(pa, pb, m.strand, radius),

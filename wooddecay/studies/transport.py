@@ -16,6 +16,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..model import build_model
+from ..scene.schema import TISSUE_DEFAULTS, TISSUE_KEYS
 from ..sim import biology
 from ..sim.state import initial_state
 from ..sim.transport import assemble
@@ -38,8 +39,12 @@ def block_scene(length, width, thickness, rod, alpha=1.0, D=1e-3):
     profile = {"kind": "polygon", "points": [[u0, v0], [u1, v0], [u1, v1], [u0, v1]]}
     nodes = [{"id": "a", "position": [0.0, 0.0, 0.0], "profile": profile},
              {"id": "b", "position": [length, 0.0, 0.0], "parent": "a", "profile": profile}]
-    return scene_template("transport", {"strands.rod_length": rod, "fungi.alpha_b0": alpha, "fungi.D_b": D,
-                                        "fungi.D_w": D, "fungi.D_C": D, "moisture.D_M0": D}, nodes)
+    values = {"strands.rod_length": rod, "fungi.alpha_b0": alpha, "fungi.D_b": D, "fungi.D_w": D, "fungi.D_C": D,
+              "moisture.D_M0": D}
+    # every tissue alike (the tissue defaults off), so the block is one homogeneous medium
+    alike = {f"tissue.{t}.{k}": values.get(TISSUE_KEYS[k].key, TISSUE_KEYS[k].default)
+             for t, table in TISSUE_DEFAULTS.items() for k in table}
+    return scene_template("transport", {**values, **alike}, nodes)
 
 
 def block(length, width, thickness, rod, alpha=1.0, D=1e-3):
