@@ -3,8 +3,8 @@
 Usage (a separate interpreter from wooddecay's own USD code: ``bpy`` bundles its own ``pxr``,
 so usd-core's ``pxr`` must never be imported in this process)::
 
-    wooddecay bake samples/log.toml -o /tmp/decay_bake --quality draft --days 1500 --frames 2
-    python scripts/render_bake.py /tmp/decay_bake/log.usdc docs/images/decayed-log.png
+    wooddecay bake samples/log.toml -o /tmp/log_bake
+    python scripts/render_bake.py /tmp/log_bake/log.usdc docs/images/log-late.png --frame 23
 
 The add-on is used as Blender users get it: its extension zip is built from ``blender_addon/``
 (``wooddecay.addon.build``, Blender's extension builder) and installed with Blender's
