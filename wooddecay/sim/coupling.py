@@ -41,6 +41,7 @@ import numba as nb
 import numpy as np
 
 from .biology import moisture_bounds
+from .diagnostics import mass_remaining
 from .mechanics import set_masses
 
 #: constraint types of L_0 and p_l, in column order (elements: 0, 1; pairs: 2, 3, 4)
@@ -99,16 +100,11 @@ def limit_factor(M: np.ndarray, M_1: np.ndarray, M_2: np.ndarray, p_l: np.ndarra
     return np.clip((M - M_2) / (M_1 - M_2), 0.0, 1.0) ** p_l
 
 
-def remaining(H_c: np.ndarray, H_l: np.ndarray, k_H: np.ndarray) -> np.ndarray:
-    """Remaining mass fraction (H_l + k H_c) / (1 + k) (§9.4)."""
-    return (H_l + k_H * H_c) / (1.0 + k_H)
-
-
 def crumble_scale(cs: CouplingSetup, H_c: np.ndarray, H_l: np.ndarray) -> np.ndarray:
     """Size of each element's meshlet: 1 down to a remaining mass of 2 m_crumble, then linearly to
     0 at m_crumble (crumbled); 1 everywhere with m_crumble = 0."""
     m = cs.m_crumble
-    return np.where(m > 0.0, np.clip((remaining(H_c, H_l, cs.k_H) - m) / np.where(m > 0.0, m, 1.0), 0.0, 1.0), 1.0)
+    return np.where(m > 0.0, np.clip((mass_remaining(H_c, H_l, cs.k_H) - m) / np.where(m > 0.0, m, 1.0), 0.0, 1.0), 1.0)
 
 
 def integrity(k_c: np.ndarray, k_l: np.ndarray, H_c_pair: np.ndarray, H_l_pair: np.ndarray) -> np.ndarray:
@@ -169,7 +165,7 @@ def _couple(M, H_c, H_l, tissue, M12, edges, link_next, M_0, s, rest_length0, g_
         i, j = edges[k, 0], edges[k, 1]
         rest_offset[k] = offset0[k] * (1.0 - max(M_0_pair[k] - 0.5 * (M[i] + M[j]), 0.0) * g_pair[k])
         I = _integrity(k_c[k], k_l[k], 0.5 * (H_c[i] + H_c[j]), 0.5 * (H_l[i] + H_l[j]))
-        if _crumbled(i, H_c, H_l, k_H, m_crumble) or _crumbled(j, H_c, H_l, k_H, m_crumble):
+        if crumbled[i] or crumbled[j]:  # written by the element loop, which has ended
             I = 0.0
         integrity_out[k] = I
         for c in range(3):
@@ -185,7 +181,7 @@ def step_reference(model, state) -> dict[str, np.ndarray]:
     M_pair = 0.5 * (M[i] + M[j])
     f = limit_factor(M[:, None], M12[tissue, 0][:, None], M12[tissue, 1][:, None], cs.p_l)
     L = cs.L_0 * f
-    crumbled = remaining(state.H_c, state.H_l, cs.k_H) < cs.m_crumble
+    crumbled = mass_remaining(state.H_c, state.H_l, cs.k_H) < cs.m_crumble
     I = integrity(cs.k_c, cs.k_l, 0.5 * (state.H_c[i] + state.H_c[j]), 0.5 * (state.H_l[i] + state.H_l[j]))
     I = np.where(crumbled[i] | crumbled[j], 0.0, I)
     e1 = cs.link_next

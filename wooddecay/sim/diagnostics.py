@@ -14,9 +14,15 @@ from .biology import K_H, moisture_bounds
 from .state import FIELDS, SimState
 
 
-def mass_remaining(state: SimState, k: np.ndarray) -> np.ndarray:
+def mass_remaining(H_c: np.ndarray, H_l: np.ndarray, k: np.ndarray) -> np.ndarray:
     """(H_l + k H_c) / (1 + k) per element."""
-    return (state.H_l + k * state.H_c) / (1.0 + k)
+    return (H_l + k * H_c) / (1.0 + k)
+
+
+def mass_loss(model, state: SimState) -> float:
+    """1 - the remaining mass, volume-weighted over the wood."""
+    V, k = model.bio.op.volume, model.bio.P[model.bio.tissue, K_H]
+    return float(np.sum(V * (1.0 - mass_remaining(state.H_c, state.H_l, k))) / np.sum(V))
 
 
 def diagnostics(model, state: SimState) -> dict:
@@ -24,13 +30,13 @@ def diagnostics(model, state: SimState) -> dict:
     setup = model.bio
     V = setup.op.volume
     k = setup.P[setup.tissue, K_H]
-    remaining = mass_remaining(state, k)
+    remaining = mass_remaining(state.H_c, state.H_l, k)
     M12 = moisture_bounds(setup, state.t_days)[setup.tissue]
     alive = remaining > 1e-9
     ratio = (state.M - M12[:, 1]) * (1.0 + k) / ((M12[:, 0] - M12[:, 1]) * np.where(alive, remaining * (1.0 + k), 1.0))
     out = {
         "t_days": float(state.t_days),
-        "mass_loss": float(np.sum(V * (1.0 - remaining)) / np.sum(V)),
+        "mass_loss": mass_loss(model, state),
         "moisture_content_ratio": float(np.sum((V * ratio)[alive]) / max(np.sum(V[alive]), 1e-300)),
         "clamp_count": int(state.clamp_count),
         "tissue_means": {},

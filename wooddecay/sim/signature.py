@@ -28,8 +28,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from ..strands.rings import TISSUES
-from .biology import K_H
-from .diagnostics import mass_remaining
+from .diagnostics import mass_loss
 
 #: pieces smaller than this (loose fibres, crumbs) are not counted as pieces
 MIN_PIECE = 5
@@ -38,8 +37,6 @@ MIN_PIECE = 5
 def signature(model, state) -> dict:
     """The signature of ``state`` (module docstring); ``state.mech`` must hold the rods."""
     ms, V = state.mech, model.bio.op.volume
-    k = model.bio.P[model.bio.tissue, K_H]
-    mass_loss = float(np.sum(V * (1.0 - mass_remaining(state, k))) / np.sum(V))
     comp = ms.component
     size = np.bincount(comp)
     big = np.flatnonzero(size >= MIN_PIECE)
@@ -62,7 +59,7 @@ def signature(model, state) -> dict:
     c = 0.5 * (ms.x[fp] + ms.x[fp + 1])
     r = model.mech.radius
     return {
-        "mass_loss": mass_loss,
+        "mass_loss": mass_loss(model, state),
         "pieces": int(len(big)),
         "largest_piece_fraction": float(volume.max() / volume.sum()),
         "block_purity": purity,
