@@ -123,11 +123,11 @@ def _inspect_bake(folder: Path, as_json: bool) -> None:
     if as_json:
         click.echo(json.dumps(rows, indent=2))
         return
-    click.echo("frame      day  mass_loss  pieces  largest  purity  hollow  crumbled  height_m  footprint_m2  cracks r/t/l")
+    click.echo("frame      day  mass_loss  pieces  largest  purity  hollow  crumbled  height_m  footprint_m2  cracks  r/t/l")
     for r in rows:
         click.echo(f"{r['frame']:5d} {r['t_days']:8.1f} {r['mass_loss']:10.3f} {r['pieces']:7d} {r['largest_piece_fraction']:8.2f}"
                    f" {r['block_purity']:7.2f} {r['hollow_fraction']:7.2f} {r['crumbled_elements']:9d}"
-                   f" {r['debris_height_m']:9.3f} {r['debris_footprint_m2']:13.3f}  "
+                   f" {r['debris_height_m']:9.3f} {r['debris_footprint_m2']:13.3f} {r['crack_clusters']:7d}  "
                    + "/".join(f"{c:.2f}" for c in r["crack_orientation"]))
 
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from .arrays import group_rows
 from .scene import TISSUE_KEYS
-from .sim import biology, contact, coupling, mechanics
+from .sim import biology, climate, contact, coupling, mechanics
 from .sim.biology import BioSetup
 from .sim.coupling import CouplingSetup
 from .sim.mechanics import Load, MechConfig, MechSetup
@@ -133,6 +133,7 @@ class WoodModel:
     skeleton: Skeleton
     topology: Topology
     r_s: float
+    bark_thickness: float  # 0: the wood has no bark (a board), its outer faces are wood
     # the scene's identity and schedule
     info: SceneInfo
     time: TimeSpec
@@ -320,7 +321,7 @@ def build_model(scene) -> WoodModel:
         transport_kind=t_kind, transport_indptr=t_indptr, transport_indices=t_indices,
         transport_edge_of=t_edge_of,
         cp_offsets=strands.offsets, cp_node=strands.node, cp_uv=cp_uv, cp_s=cp_s, particle_s=particle_s,
-        skeleton=skel, topology=topo, r_s=float(st.r_s),
+        skeleton=skel, topology=topo, r_s=float(st.r_s), bark_thickness=float(rg.bark_thickness),
         materials=materials,
         info=SceneInfo(name=str(scene.name), seed=int(scene.seed), hash=scene.hash, settle_hash=scene.settle_hash),
         time=TimeSpec(days=float(scene.time.days), dt_bio=float(scene.time.dt_bio), frames=int(scene.time.frames),
@@ -337,7 +338,8 @@ def build_model(scene) -> WoodModel:
         model = replace(model, inoculations=tuple(
             Inoculation(day=float(ino["day"]), fungus=str(ino["fungus"]), activity=float(ino["activity"]),
                         mask=region_mask(model, ino["region"])) for ino in scene.inoculations))
-        bio = biology.prepare(model, phi_pack=float(st.phi_pack), k_W=float(scene.weakpoints.k_W))
+        bio = biology.prepare(model, phi_pack=float(st.phi_pack), k_W=float(scene.weakpoints.k_W),
+                              climate=climate.from_scene(scene))
         config = MechConfig(**{f.name: scene.mechanics[f.name] for f in fields(MechConfig)})
         loads = tuple(Load(day0=ld["days"][0], day1=ld["days"][1], force=tuple(ld["force"]),
                            mask=region_mask(model, ld["region"])) for ld in scene.loads)

@@ -13,10 +13,12 @@ import pytest
 import trimesh
 from click.testing import CliRunner
 
+import wooddecay as wd
 from wooddecay.cli import main
 from wooddecay.meshlets import checks, skin
 from wooddecay.meshlets.sweep import BARK, CAP, SIDE, build_meshlets
 from wooddecay.quaternion import mul_np
+from wooddecay.strands.rings import BARK as BARK_TISSUE
 from wooddecay.strands.profiles import signed_distance
 
 from ..conftest import SAMPLES, sample
@@ -83,7 +85,7 @@ def test_meshlets_partition_the_wood(name):
     assert worst < 5e-3
 
 
-@pytest.mark.parametrize("name", ["board", "log"])
+@pytest.mark.parametrize("name", ["tiny", "log"])
 def test_bark_stays_within_r_s_of_the_profile(name):
     scene, model, mesh = meshed(name)
     skel = scene.skeleton
@@ -104,6 +106,20 @@ def test_bark_stays_within_r_s_of_the_profile(name):
     print(f"{name}: {len(bark)} bark vertices, distance to the profile max {np.abs(sd).max():.2e} m, "
           f"r_s {scene.strands.r_s} m, t in [{t.min():.2f}, {t.max():.2f}]")
     assert np.abs(sd).max() < scene.strands.r_s
+
+
+def test_faces_are_bark_only_where_there_is_bark():
+    """The board has no bark (bark_thickness 0): its outer faces are wood (side, no neighbour),
+    the very faces that are bark when the same board is given bark."""
+    _, model, mesh = meshed("board")
+    assert model.bark_thickness == 0.0 and (model.tissue != BARK_TISSUE).all()
+    barked = build_meshlets(wd.build_model(wd.load_scene(SAMPLES / "board.toml",
+                                                         overrides={"rings.bark_thickness": 0.004})))
+    np.testing.assert_array_equal(barked.faces, mesh.faces)
+    outer = barked.face_kind == BARK
+    assert (mesh.face_kind != BARK).all() and outer.sum() > 1000
+    assert (mesh.face_kind[outer] == SIDE).all() and (mesh.face_neighbour[outer] == -1).all()
+    np.testing.assert_array_equal(mesh.face_kind[~outer], barked.face_kind[~outer])
 
 
 def test_side_faces_are_shared_with_their_tagged_neighbour():

@@ -58,3 +58,21 @@ def test_consumed_heartwood_crumbles_into_a_hollow():
     s = signature(model, state)
     assert s["hollow_fraction"] == 1.0 and s["crumbled_elements"] == hw.sum()
     assert s["crack_orientation"] == [0.0, 0.0, 0.0]  # consumed, not cracked
+
+
+def test_a_check_along_the_fibre_is_one_crack():
+    """Connections broken across the plane y = 0 over a length of the log form one crack (they
+    join along the strands on either side of it); the same plane with a 10 cm gap, two; scattered
+    single breaks, none."""
+    from wooddecay.sim.signature import crack_clusters
+
+    model = wd.build_model(wd.load_scene(SAMPLES / "tiny.toml"))
+    c = model.centers
+    i, j = model.reg_edges[:, 0], model.reg_edges[:, 1]
+    across = (c[i, 1] < 0) != (c[j, 1] < 0)
+    x = 0.5 * (c[i, 0] + c[j, 0])
+    assert crack_clusters(model, across) == 1
+    assert crack_clusters(model, across & ((x < 0.1) | (x > 0.2))) == 2
+    scattered = np.zeros(len(i), dtype=bool)
+    scattered[np.random.default_rng(0).choice(np.flatnonzero(across), 4, replace=False)] = True
+    assert crack_clusters(model, scattered) == 0

@@ -105,7 +105,7 @@ def test_moisture_box_is_one_envelope_over_tissues():
     push M out of it (each update is a convex combination of values inside)."""
     scene = wd.load_scene(SAMPLES / "tiny.toml", overrides={
         "tissue.bark.M_1": 0.4, "tissue.bark.M_init": 0.35, "fungi.D_w": 0.0,
-        "moisture.D_M0": 1e-3, "moisture.k_in0": 0.0, "moisture.k_out0": 0.0})
+        "moisture.D_M0": 1e-3, "moisture.k_in0": 0.0, "moisture.k_out0": 0.0, "climate.k_ground": 0.0})
     model = wd.build_model(scene)
     setup = model.bio
     np.testing.assert_allclose(setup.box_M, np.tile([0.1, 1.0], (4, 1)))

@@ -20,7 +20,7 @@ def test_operator_symmetric_nonnegative(log_model):
 def test_pure_diffusion_conserves_volume_weighted_sum():
     scene = wd.load_scene(SAMPLES / "log.toml", overrides={
         "fungi.alpha_w0": 0.0, "fungi.beta_w": 0.0, "fungi.D_w": 1e-4, "moisture.k_in0": 0.0, "moisture.k_out0": 0.0,
-        "moisture.D_M0": 1e-4, "moisture.k_DM": 2.0})
+        "moisture.D_M0": 1e-4, "moisture.k_DM": 2.0, "climate.k_ground": 0.0})
     model = wd.build_model(scene)
     s = initial_state(model)
     rng = np.random.default_rng(2)

@@ -23,7 +23,8 @@ over [a, b] is the sweep of site i's Voronoi cell over [a, b]:
   changed triangles carry the horizontal junction from the old to the new vertex. The strand's own
   element gets its cap.
 * Bark: faces between a real and a ghost site (the cell ends at the bisector with its mirror, the
-  tangent of the profile).
+  tangent of the profile). Without bark (``model.bark_thickness`` 0: a sawn board) they are wood
+  surface, tagged side with no neighbour.
 * Caps close each element at its two ends: the cell polygon at d_t = a (facing -d) and at b (+d).
 
 Forks: an element that straddles a fork belongs to the branch of its midpoint (``model.branch``)
@@ -552,6 +553,8 @@ def build_meshlets(model) -> Meshlets:
         skin_local=skin_local, stats=counts,
     )
     mesh = hull_repair(mesh)
+    if model.bark_thickness == 0.0:
+        mesh = replace(mesh, face_kind=np.where(mesh.face_kind == BARK, SIDE, mesh.face_kind).astype(mesh.face_kind.dtype))
     counts["seconds"] = time.perf_counter() - t0
     return mesh
 

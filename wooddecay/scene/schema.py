@@ -37,7 +37,7 @@ class Param:
 
     ``lo``/``hi`` are ``None`` when unbounded; ``lo_open``/``hi_open`` say whether the bound itself
     is excluded. ``kind`` is one of ``float``, ``int``, ``bool``, ``str``, ``enum``, ``vec3``,
-    ``list`` (the moisture schedule), ``interval`` (``[start, end]`` days), ``region`` (a nested
+    ``list`` (the moisture schedule), ``seasons`` (the climate's keyframes), ``interval`` (``[start, end]`` days), ``region`` (a nested
     region table) or ``node_id`` (a skeleton node); ``choices`` lists the values of an ``enum``.
     ``default`` is ``None`` for a derived default in a scalar section (``scene.name``: the scene
     file stem; ``strands.connect_radius``: ``2.5 * r_s``) and for a required key of an entry table.
@@ -165,6 +165,13 @@ _SCHEMA: dict[str, list[tuple]] = {
         ("k_r_out", 0.5, "", "[0, 100]", "Reduction of moisture loss by carbohydrate health k_r_out (Eq. 15)."),
         ("bd_0", 0.05, "m", "[0, 100]", f"Bark-distance depth of moisture loss bd_0 (Eq. 15; {_T3} bd(x))."),
         ("schedule", [], "", "", "Seasonal keyframes [[day, M_1, M_2], ...] replacing M_1, M_2 over time (SPEC §3); days strictly increasing, M_2 < M_1.", "list"),
+    ],
+    "climate": [
+        ("preset", "temperate", "", "", "Climate that wets and dries the wood through Eq. 15 (sim/climate.py): 'temperate' (wet winters, summers that dry the surface below M_0), 'dry' (the wood dries out), 'wet-ground' (a forest floor), 'constant' (Table 3's Eq. 15 unchanged, no ground wetting).", "enum:temperate|dry|wet-ground|constant"),
+        ("seasons", [], "", "", "Keyframes [[day_of_year, w_in, w_out, w_ground], ...] replacing the preset's: factors on k_in0, k_out0 and k_ground, linear between keyframes and repeated every year (day 0 = 1 January).", "seasons"),
+        ("start_day", 0.0, "day", "[0, 365.25)", "Day of the year on which the bake begins (0 = 1 January): a log felled in winter starts wet, a board sawn in May dries through its first summer."),
+        ("k_ground", 0.05, "1/day", "[0, 100]", "Uptake towards M_1 where the wood touches the ground (Eq. 15's k_in gains w_ground k_ground there): logs rot from below."),
+        ("ground_depth", 0.01, "m", "[0, 10]", "An element touches the ground when its lowest point is within this of the ground plane ([mechanics] ground_height), at the rods' current positions."),
     ],
     "wood": [
         ("H_c_init", 1.0, "", "[0, 1]", f"Initial carbohydrate health H_c ({_T3})."),
@@ -367,7 +374,7 @@ def _param(section: str, row: tuple) -> Param:
     lo, hi, lo_open, hi_open = _parse_range(rng)
     if kind == "vec3" and default is not None:
         default = tuple(float(x) for x in default)
-    elif kind == "list" and default is not None:
+    elif kind in ("list", "seasons") and default is not None:
         default = tuple(default)
     return Param(section, name, default, unit, lo, hi, lo_open, hi_open, kind, doc, choices)
 
@@ -450,6 +457,8 @@ def format_range(p: Param) -> str:
         return f"a list of 3 finite numbers [x, y, z]{unit}"
     if p.kind == "list":
         return "a list of [day, M_1, M_2] rows (days >= 0 strictly increasing, M_2 < M_1) in day, kg/kg"
+    if p.kind == "seasons":
+        return "a list of [day_of_year, w_in, w_out, w_ground] rows (days in [0, 365.25) strictly increasing, factors in [0, 100])"
     if p.kind == "interval":
         return "[start, end] in days with 0 <= start < end"
     if p.kind == "region":
@@ -477,7 +486,7 @@ def describe() -> str:
                 default = "2.5 * r_s" if p.name == "connect_radius" else "file stem"
             elif p.kind == "vec3":
                 default = "[" + ", ".join(_num(c) for c in p.default) + "]"
-            elif p.kind == "list":
+            elif p.kind in ("list", "seasons"):
                 default = "[]"
             else:
                 default = format_value(p.default)

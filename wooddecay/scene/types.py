@@ -116,6 +116,7 @@ class Scene:
     transport: Section
     fungi: Section
     moisture: Section
+    climate: Section
     wood: Section
     mechanics: Section
     time: Section
@@ -186,11 +187,11 @@ class Scene:
 
     @cached_property
     def settle_hash(self) -> str:
-        """:attr:`hash` without the keys the settled rods do not depend on: [time], [export] and
+        """:attr:`hash` without the keys the settled rods do not depend on: [time], [export], [climate] and
         the scene's name and description (the key of the settled-state cache,
         :mod:`wooddecay.sim.settled`)."""
         d = self._hashed()
-        for key in ("time", "export"):
+        for key in ("time", "export", "climate"):
             d.pop(key)
         d["scene"] = {k: v for k, v in d["scene"].items() if k not in ("name", "description")}
         return _digest(d)

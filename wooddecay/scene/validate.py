@@ -23,7 +23,7 @@ from dataclasses import replace
 from typing import Any
 
 from wooddecay.errors import InputError, did_you_mean, format_value, type_name
-from wooddecay.scene.schema import CONNECT_MIN_FACTOR, PARAMS, TABLES, Param, Table, format_range
+from wooddecay.scene.schema import CONNECT_MIN_FACTOR, DAYS_PER_YEAR, PARAMS, TABLES, Param, Table, format_range
 from wooddecay.scene.types import FrozenMap
 
 #: ``src(*keys)``: the file (or overrides source) the first of ``keys`` that was set came from.
@@ -130,6 +130,31 @@ def _check_schedule(p: Param, v: Any, file: str, key: str) -> tuple[tuple[float,
     return tuple(rows)
 
 
+def _check_seasons(p: Param, v: Any, file: str, key: str) -> tuple[tuple[float, float, float, float], ...]:
+    """The climate's keyframes: rows [day_of_year, w_in, w_out, w_ground], days in
+    [0, DAYS_PER_YEAR) strictly increasing, factors in [0, 100]."""
+    rng = format_range(p)
+    if not isinstance(v, (list, tuple)):
+        raise InputError(file, key, f"expected {rng}, got {type_name(v)} {format_value(v)}")
+    rows: list[tuple[float, float, float, float]] = []
+    for i, row in enumerate(v):
+        rkey = f"{key}[{i}]"
+        if not isinstance(row, (list, tuple)) or len(row) != 4 or not all(
+                _is_number(c) and _to_float(c) is not None for c in row):
+            raise InputError(file, rkey, f"expected finite numbers [day_of_year, w_in, w_out, w_ground], "
+                             f"got {type_name(row)} {format_value(row)}")
+        day, *w = (float(c) for c in row)
+        if not 0.0 <= day < DAYS_PER_YEAR:
+            raise InputError(file, rkey, f"day {format_value(day)} is outside [0, {DAYS_PER_YEAR}) day of the year")
+        if rows and day <= rows[-1][0]:
+            raise InputError(file, rkey, f"day {format_value(day)} must be greater than the previous keyframe's day {format_value(rows[-1][0])} (days strictly increasing)")
+        for name, f in zip(("w_in", "w_out", "w_ground"), w):
+            if not 0.0 <= f <= 100.0:
+                raise InputError(file, rkey, f"{name} {format_value(f)} is outside [0, 100]")
+        rows.append((day, *w))
+    return tuple(rows)
+
+
 def _check_interval(p: Param, v: Any, file: str, key: str) -> tuple[float, float]:
     """``[start, end]``, each in ``p``'s range, start < end (a load's days)."""
     if not isinstance(v, list) or len(v) != 2:
@@ -177,6 +202,8 @@ def validate_value(p: Param, v: Any, file: str, key: str | None = None) -> Any:
         return _check_vec3(v, file, key, format_range(p))
     if kind == "list":
         return _check_schedule(p, v, file, key)
+    if kind == "seasons":
+        return _check_seasons(p, v, file, key)
     if kind == "interval":
         return _check_interval(p, v, file, key)
     raise AssertionError(f"unknown kind {kind!r}")  # pragma: no cover

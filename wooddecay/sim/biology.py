@@ -10,12 +10,14 @@ newest values of the fields before it (explicit forward Euler):
     H_l  (Eq. 13)  -gamma_lw R_w H_l + rho_l (1 - H_l) C
     C    (Eq. 14)  kappa (R_w + R_b) H_c H_l (1 - C) - delta C + div(D_C grad C)
     M    (Eq. 15)  div(D_M grad M) + (M_1 - M) k_in - (M - M_2) k_out,
-                   k_in = k_in0 max(0, 1 - k_r_in bd) H_c,
-                   k_out = k_out0 max(0, 1 - k_r_out H_c) max(0, bd_0 - bd),
+                   k_in = w_in k_in0 max(0, 1 - k_r_in bd) H_c + w_ground k_ground g,
+                   k_out = w_out k_out0 max(0, 1 - k_r_out H_c) max(0, bd_0 - bd),
                    D_M = D_M0 (1 + k_DM (1 - H)),  H = (H_l + k_H H_c) / (1 + k_H)   (Eq. 20)
 
 with alpha(M) = alpha_0 psi((M - M_min) / s_t) psi((M_max - M) / s_t) (Eqs. 10, 11). The weak-point
-field scales growth and transport by 1 + k_W (2 W - 1) (SPEC §3). Diffusion uses the anisotropic
+field scales growth and transport by 1 + k_W (2 W - 1) (SPEC §3). The climate's seasonal factors
+w_in, w_out, w_ground, the exposed-surface distance bd (bark or cut end) and the ground contact g
+are those of :mod:`wooddecay.sim.climate`. Diffusion uses the anisotropic
 graph Laplacian of :mod:`wooddecay.sim.transport`. Every parameter may differ per tissue.
 
 Stability: an explicit step keeps every field in its box [0, 1] / [M_2, M_1] (Appendix A)
@@ -39,6 +41,8 @@ import numba as nb
 import numpy as np
 
 from ..strands.rings import TISSUES
+from . import climate as climate_mod
+from .climate import Climate
 from .state import SimState
 from .transport import TransportOperator, assemble
 
@@ -64,10 +68,11 @@ class BioSetup:
     P: np.ndarray  # (n_tissues, n_params) parameters per tissue, columns BIO_PARAMS
     tissue: np.ndarray  # (n,) int64
     wfac: np.ndarray  # (n,) 1 + k_W (2 W - 1)
-    bd: np.ndarray  # (n,) bark distance
+    bd: np.ndarray  # (n,) distance to the nearest exposed surface, bark or cut end (climate.exposure_distance)
     kappa: np.ndarray  # (n, 3) diffusivities of R_w, R_b, C (with wfac)
     schedules: tuple  # per tissue: (days, M_1, M_2) arrays, or constants as 1-row arrays
     box_M: np.ndarray  # (n_tissues, 2) the envelope [min M_2, max M_1] over tissues and schedules
+    climate: Climate  # seasons and ground wetting of Eq. 15
     bound: float  # explicit-step stability bound in days (stability_bound)
 
 
@@ -86,10 +91,10 @@ def moisture_bounds(setup: BioSetup, t_days: float) -> np.ndarray:
     return np.array([[np.interp(t_days, d, m1), np.interp(t_days, d, m2)] for d, m1, m2 in setup.schedules])
 
 
-def prepare(model, phi_pack: float, k_W: float) -> BioSetup:
+def prepare(model, phi_pack: float, k_W: float, climate: Climate) -> BioSetup:
     """Transport operator, per-tissue parameters (``model.materials``) and static per-element
     factors; ``phi_pack`` is the strands' packing fraction (an element's volume is
-    pi r_s^2 l / phi_pack) and ``k_W`` the weak-point gain."""
+    pi r_s^2 l / phi_pack), ``k_W`` the weak-point gain and ``climate`` the environment."""
     tissue = model.tissue.astype(np.int64)
     mat = model.materials
     aniso = mat.table(("a_r", "a_t", "a_l"))[tissue]
@@ -106,8 +111,9 @@ def prepare(model, phi_pack: float, k_W: float) -> BioSetup:
     # common box makes each explicit update a convex combination of values inside it
     envelope = [min(m2.min() for _, _, m2 in schedules), max(m1.max() for _, m1, _ in schedules)]
     box_M = np.tile(envelope, (len(schedules), 1))
-    setup = BioSetup(op=op, P=P, tissue=tissue, wfac=wfac, bd=model.bark_distance.copy(),
-                     kappa=np.ascontiguousarray(kappa), schedules=schedules, box_M=box_M, bound=0.0)
+    setup = BioSetup(op=op, P=P, tissue=tissue, wfac=wfac, bd=climate_mod.exposure_distance(model),
+                     kappa=np.ascontiguousarray(kappa), schedules=schedules, box_M=box_M,
+                     climate=climate, bound=0.0)
     return replace(setup, bound=stability_bound(setup))
 
 
@@ -117,8 +123,9 @@ def stability_bound(setup: BioSetup) -> float:
     bd = setup.bd
     kappa_M = P[t, D_M0] * (1.0 + P[t, K_DM]) * w  # worst case H = 0
     growth_w = P[t, ALPHA_W] * w * (P[t, LAMBDA_L] + P[t, LAMBDA_C]) / (1.0 + P[t, K_C])
-    k_in = P[t, K_IN0] * np.maximum(0.0, 1.0 - P[t, K_R_IN] * bd)
-    k_out = P[t, K_OUT0] * np.maximum(0.0, P[t, BD_0] - bd)
+    w_in, w_out, w_ground = setup.climate.w_max
+    k_in = w_in * P[t, K_IN0] * np.maximum(0.0, 1.0 - P[t, K_R_IN] * bd) + w_ground * setup.climate.k_ground
+    k_out = w_out * P[t, K_OUT0] * np.maximum(0.0, P[t, BD_0] - bd)
     rates = np.stack([
         setup.op.row_sums(setup.kappa[:, 0]) + growth_w + P[t, BETA_W],
         setup.op.row_sums(setup.kappa[:, 1]) + P[t, ALPHA_B] * w + P[t, BETA_B],
@@ -179,9 +186,10 @@ def _clamp(v, lo, hi, clamp, i):
     return v
 
 
-def _substep_py(h, indptr, indices, weight, volume, tissue, P, wfac, bd, kappa, M12, box_M,
+def _substep_py(h, indptr, indices, weight, volume, tissue, P, wfac, bd, kappa, M12, box_M, w, k_g,
              R_w, R_b, H_c, H_l, C, M, buf, kappa_M, clamp):
-    """One forward-Euler substep of all six fields in the paper's order (module docstring)."""
+    """One forward-Euler substep of all six fields in the paper's order (module docstring);
+    ``w``: the climate's (w_in, w_out), ``k_g``: w_ground k_ground g per element."""
     n = len(R_w)
     kw = kappa[:, 0]
     kb = kappa[:, 1]
@@ -223,8 +231,8 @@ def _substep_py(h, indptr, indices, weight, volume, tissue, P, wfac, bd, kappa, 
         t = tissue[i]
         p = P[t]
         m = M[i]
-        k_in = p[K_IN0] * max(0.0, 1.0 - p[K_R_IN] * bd[i]) * H_c[i]
-        k_out = p[K_OUT0] * max(0.0, 1.0 - p[K_R_OUT] * H_c[i]) * max(0.0, p[BD_0] - bd[i])
+        k_in = w[0] * p[K_IN0] * max(0.0, 1.0 - p[K_R_IN] * bd[i]) * H_c[i] + k_g[i]
+        k_out = w[1] * p[K_OUT0] * max(0.0, 1.0 - p[K_R_OUT] * H_c[i]) * max(0.0, p[BD_0] - bd[i])
         f = (M12[t, 0] - m) * k_in - (m - M12[t, 1]) * k_out
         buf[i] = _clamp(m + h * (f + _lap(i, M, kappa_M, indptr, indices, weight, volume)),
                         box_M[t, 0], box_M[t, 1], clamp, i)
@@ -248,21 +256,26 @@ _substep_serial = _build(parallel=False)
 PARALLEL_MIN_ELEMENTS = 20_000
 
 
-def _advance(setup: BioSetup, state: SimState, dt: float, n_sub: int, kernel) -> None:
+def _advance(model, state: SimState, dt: float, n_sub: int, kernel) -> None:
+    setup = model.bio
     h = dt / n_sub
+    x = model.particles if state.mech is None else state.mech.x
+    g = climate_mod.ground_contact(model, setup.climate, x)
     for k in range(n_sub):
-        M12 = moisture_bounds(setup, state.t_days + k * h)
-        kernel(setup, state, h, M12)
+        t = state.t_days + k * h
+        w = setup.climate.factors(t)
+        kernel(setup, state, h, moisture_bounds(setup, t), w[:2].copy(), w[2] * setup.climate.k_ground * g)
     state.t_days += dt
 
 
-def _numba_kernel(setup: BioSetup, state: SimState, h: float, M12: np.ndarray) -> None:
+def _numba_kernel(setup: BioSetup, state: SimState, h: float, M12: np.ndarray, w: np.ndarray,
+                  k_g: np.ndarray) -> None:
     op = setup.op
     n = len(state.R_w)
     clamp = np.zeros(n, dtype=np.int64)
     kernel = _substep_parallel if n >= PARALLEL_MIN_ELEMENTS else _substep_serial
     kernel(h, op.indptr, op.indices, op.weight, op.volume, setup.tissue, setup.P, setup.wfac,
-             setup.bd, setup.kappa, M12, setup.box_M, state.R_w, state.R_b, state.H_c, state.H_l,
+             setup.bd, setup.kappa, M12, setup.box_M, w, k_g, state.R_w, state.R_b, state.H_c, state.H_l,
              state.C, state.M, np.empty(n), np.empty(n), clamp)
     state.clamp_count += int(clamp.sum())
 
@@ -272,7 +285,7 @@ def step(model, state: SimState, dt: float, n_sub: int | None = None) -> int:
     ``n_sub`` if given (tests of the unstable regime), else the fewest that respect the stability
     bound. Returns the number of substeps taken."""
     n_sub = n_sub or substeps(dt, model.bio.bound)
-    _advance(model.bio, state, dt, n_sub, _numba_kernel)
+    _advance(model, state, dt, n_sub, _numba_kernel)
     return n_sub
 
 
@@ -290,7 +303,8 @@ def _clamp_np(v, lo, hi, state: SimState):
     return out
 
 
-def _reference_kernel(setup: BioSetup, s: SimState, h: float, M12: np.ndarray) -> None:
+def _reference_kernel(setup: BioSetup, s: SimState, h: float, M12: np.ndarray, w_env: np.ndarray,
+                      k_g: np.ndarray) -> None:
     """Plain numpy version of :func:`_substep_py` (same order, same formulas)."""
     P = setup.P[setup.tissue]
     col = dict(zip(BIO_PARAMS, P.T))
@@ -312,8 +326,8 @@ def _reference_kernel(setup: BioSetup, s: SimState, h: float, M12: np.ndarray) -
     s.C = _clamp_np(s.C + h * (f + op.apply(s.C, setup.kappa[:, 2])), 0.0, 1.0, s)
     H = (s.H_l + col["k_H"] * s.H_c) / (1 + col["k_H"])
     kappa_M = col["D_M0"] * (1 + col["k_DM"] * (1 - H)) * w
-    k_in = col["k_in0"] * np.maximum(0, 1 - col["k_r_in"] * bd) * s.H_c
-    k_out = col["k_out0"] * np.maximum(0, 1 - col["k_r_out"] * s.H_c) * np.maximum(0, col["bd_0"] - bd)
+    k_in = w_env[0] * col["k_in0"] * np.maximum(0, 1 - col["k_r_in"] * bd) * s.H_c + k_g
+    k_out = w_env[1] * col["k_out0"] * np.maximum(0, 1 - col["k_r_out"] * s.H_c) * np.maximum(0, col["bd_0"] - bd)
     m12 = M12[setup.tissue]
     f = (m12[:, 0] - s.M) * k_in - (s.M - m12[:, 1]) * k_out
     box = setup.box_M[setup.tissue]
@@ -323,5 +337,5 @@ def _reference_kernel(setup: BioSetup, s: SimState, h: float, M12: np.ndarray) -
 def step_reference(model, state: SimState, dt: float, n_sub: int | None = None) -> int:
     """Plain numpy reference of :func:`step` (without inoculation)."""
     n_sub = n_sub or substeps(dt, model.bio.bound)
-    _advance(model.bio, state, dt, n_sub, _reference_kernel)
+    _advance(model, state, dt, n_sub, _reference_kernel)
     return n_sub

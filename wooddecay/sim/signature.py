@@ -14,7 +14,10 @@ components):
 * ``crack_orientation``: the shares (r, t, l) of the broken REG connections by the squared
   components of their rest direction in the local frame (``model.reg_dir_weights``), failed strand
   links counted as l, those of crumbled elements left out (consumed, not cracked): radial cracks (Fig. 6c) break tangential connections, delamination
-  (Fig. 6a) radial ones, checks across the grain (Fig. 15) longitudinal ones; zeros with none;
+  (Fig. 6a) radial ones, checks along the fibre (Fig. 15) both; zeros with none;
+* ``crack_clusters``: the cracks, groups of at least ``MIN_CRACK`` broken REG connections (not of
+  crumbled elements) joined where they share an element or touch consecutive elements of one
+  strand, so a check that runs along the fibre between two strands is one crack;
 * ``crumbled_elements``: elements consumed (:mod:`~wooddecay.sim.coupling`, ``m_crumble``);
   ``hollow_fraction``: the crumbled share of the heartwood's volume (0 without heartwood): white
   rot's hollow (Fig. 14);
@@ -25,6 +28,8 @@ components):
 from __future__ import annotations
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, QhullError
 
 from ..strands.rings import TISSUES
@@ -32,6 +37,8 @@ from .diagnostics import mass_loss
 
 #: pieces smaller than this (loose fibres, crumbs) are not counted as pieces
 MIN_PIECE = 5
+#: cracks of fewer broken connections than this are not counted
+MIN_CRACK = 5
 
 
 def signature(model, state) -> dict:
@@ -64,11 +71,28 @@ def signature(model, state) -> dict:
         "largest_piece_fraction": float(volume.max() / volume.sum()),
         "block_purity": purity,
         "crack_orientation": [float(v) for v in (rtl / total if total > 0 else np.zeros(3))],
+        "crack_clusters": crack_clusters(model, broken),
         "crumbled_elements": int(np.count_nonzero(ms.crumbled)),
         "hollow_fraction": hollow,
         "debris_footprint_m2": _hull_area(c[:, :2]),
         "debris_height_m": float(np.max(c[:, 2] + r) - np.min(c[:, 2] - r)),
     }
+
+
+def crack_clusters(model, broken: np.ndarray) -> int:
+    """Cracks of at least MIN_CRACK of the ``broken`` REG connections (module docstring)."""
+    n = model.n_elements
+    i, j = model.reg_edges[broken, 0], model.reg_edges[broken, 1]
+    if len(i) < MIN_CRACK:
+        return 0
+    touched = np.zeros(n, dtype=bool)
+    touched[i] = touched[j] = True
+    e = np.flatnonzero(touched[:-1] & touched[1:] & (model.strand[:-1] == model.strand[1:]))
+    a, b = np.concatenate([i, e]), np.concatenate([j, e + 1])
+    graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    per_crack = np.bincount(label[i], minlength=n)
+    return int(np.count_nonzero(per_crack >= MIN_CRACK))
 
 
 def _hull_area(xy: np.ndarray) -> float:
