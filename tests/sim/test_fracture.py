@@ -25,7 +25,7 @@ from ..conftest import SAMPLES
 DRYING = {
     "moisture.k_in0": 0.0, "moisture.k_out0": 2.0, "moisture.M_1": 0.6, "moisture.M_2": 0.2,
     "moisture.M_init": 0.6, "moisture.D_M0": 1e-4, "mechanics.M_0": 0.5, "time.dt_bio": 0.1,
-    "time.days": 20, "time.frames": 1, "time.schedule": "fixed",
+    "time.days": 20, "time.frames": 1, "time.schedule": "fixed", "climate.preset": "constant",
 }
 EVERYWHERE = '{ kind = "box", min = [-1.0, -1.0, -1.0], max = [1.0, 1.0, 1.0] }'
 
