@@ -99,27 +99,37 @@ def _check_vec3(v: Any, file: str, key: str, what: str) -> tuple[float, float, f
     return (out[0], out[1], out[2])
 
 
-def _check_schedule(p: Param, v: Any, file: str, key: str) -> tuple[tuple[float, float, float], ...]:
-    rng = format_range(p)
+def _keyframes(p: Param, v: Any, file: str, key: str, columns: str, day_max: float, days: str):
+    """Rows of a keyframe list (the moisture schedule, the climate's seasons): yields each row's
+    key and its finite values ``[day, ...]`` (``columns`` names them), days in [0, ``day_max``)
+    (``days`` says so in words) and strictly increasing."""
     if not isinstance(v, (list, tuple)):
-        raise InputError(file, key, f"expected {rng}, got {type_name(v)} {format_value(v)}")
+        raise InputError(file, key, f"expected {format_range(p)}, got {type_name(v)} {format_value(v)}")
+    width = columns.count(",") + 1
+    previous = None
+    for i, row in enumerate(v):
+        rkey = f"{key}[{i}]"
+        if not isinstance(row, (list, tuple)) or len(row) != width:
+            raise InputError(file, rkey, f"expected a row [{columns}], got {type_name(row)} {format_value(row)}")
+        for j, c in enumerate(row):
+            if not _is_number(c) or _to_float(c) is None:
+                raise InputError(file, rkey, f"expected finite numbers [{columns}], item {j} is {type_name(c)} {format_value(c)}")
+        vals = [float(c) for c in row]
+        day = vals[0]
+        if not 0.0 <= day < day_max:
+            raise InputError(file, rkey, f"day {format_value(day)} is outside {days}")
+        if previous is not None and day <= previous:
+            raise InputError(file, rkey, f"day {format_value(day)} must be greater than the previous keyframe's day {format_value(previous)} (days strictly increasing)")
+        previous = day
+        yield rkey, vals
+
+
+def _check_schedule(p: Param, v: Any, file: str, key: str) -> tuple[tuple[float, float, float], ...]:
+    """The moisture schedule: rows [day, M_1, M_2], M_2 < M_1, each in its parameter's range."""
     m1 = PARAMS["moisture"]["M_1"]
     m2 = PARAMS["moisture"]["M_2"]
     rows: list[tuple[float, float, float]] = []
-    for i, row in enumerate(v):
-        rkey = f"{key}[{i}]"
-        if not isinstance(row, (list, tuple)) or len(row) != 3:
-            raise InputError(file, rkey, f"expected a row [day, M_1, M_2], got {type_name(row)} {format_value(row)}")
-        vals = []
-        for j, c in enumerate(row):
-            if not _is_number(c) or _to_float(c) is None:
-                raise InputError(file, rkey, f"expected finite numbers [day, M_1, M_2], item {j} is {type_name(c)} {format_value(c)}")
-            vals.append(float(c))
-        day, hi, lo = vals
-        if day < 0:
-            raise InputError(file, rkey, f"day {format_value(day)} is outside [0, inf) day")
-        if rows and day <= rows[-1][0]:
-            raise InputError(file, rkey, f"day {format_value(day)} must be greater than the previous keyframe's day {format_value(rows[-1][0])} (days strictly increasing)")
+    for rkey, (day, hi, lo) in _keyframes(p, v, file, key, "day, M_1, M_2", math.inf, "[0, inf) day"):
         if not _in_range(m1, hi):
             raise InputError(file, rkey, f"M_1 {format_value(hi)} is outside {format_range(m1)}")
         if not _in_range(m2, lo):
@@ -132,22 +142,10 @@ def _check_schedule(p: Param, v: Any, file: str, key: str) -> tuple[tuple[float,
 
 def _check_seasons(p: Param, v: Any, file: str, key: str) -> tuple[tuple[float, float, float, float], ...]:
     """The climate's keyframes: rows [day_of_year, w_in, w_out, w_ground], days in
-    [0, DAYS_PER_YEAR) strictly increasing, factors in [0, 100]."""
-    rng = format_range(p)
-    if not isinstance(v, (list, tuple)):
-        raise InputError(file, key, f"expected {rng}, got {type_name(v)} {format_value(v)}")
+    [0, DAYS_PER_YEAR), factors in [0, 100]."""
     rows: list[tuple[float, float, float, float]] = []
-    for i, row in enumerate(v):
-        rkey = f"{key}[{i}]"
-        if not isinstance(row, (list, tuple)) or len(row) != 4 or not all(
-                _is_number(c) and _to_float(c) is not None for c in row):
-            raise InputError(file, rkey, f"expected finite numbers [day_of_year, w_in, w_out, w_ground], "
-                             f"got {type_name(row)} {format_value(row)}")
-        day, *w = (float(c) for c in row)
-        if not 0.0 <= day < DAYS_PER_YEAR:
-            raise InputError(file, rkey, f"day {format_value(day)} is outside [0, {DAYS_PER_YEAR}) day of the year")
-        if rows and day <= rows[-1][0]:
-            raise InputError(file, rkey, f"day {format_value(day)} must be greater than the previous keyframe's day {format_value(rows[-1][0])} (days strictly increasing)")
+    for rkey, (day, *w) in _keyframes(p, v, file, key, "day_of_year, w_in, w_out, w_ground", DAYS_PER_YEAR,
+                                      f"[0, {DAYS_PER_YEAR}) day of the year"):
         for name, f in zip(("w_in", "w_out", "w_ground"), w):
             if not 0.0 <= f <= 100.0:
                 raise InputError(file, rkey, f"{name} {format_value(f)} is outside [0, 100]")
