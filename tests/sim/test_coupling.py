@@ -14,27 +14,32 @@ def test_coupling_equations():
     state = initial_state(model, rods=True)
     ms = state.mech
     M_0 = scene.mechanics.M_0
-    state.M[:] = M_0 - 0.1
+    state.M[:] = M_0 - 0.05
     state.H_c[:] = 0.5
     state.H_l[:] = 1.0
     assert scene.moisture.M_1 == 1.0 and scene.moisture.M_2 == 0.1 and not scene.moisture.schedule
     coupling.step(model, state)
-    np.testing.assert_allclose(ms.rest_length, setup.rest_length0 * (1 - 0.1 * scene.mechanics.s))  # Eq. 17
+    np.testing.assert_allclose(ms.rest_length, setup.rest_length0 * (1 - 0.05 * scene.mechanics.s))  # Eq. 17
     mech = scene.mechanics
     dw = model.reg_dir_weights
     g_edge = mech.S * (mech.S_R * dw[:, 0] + mech.S_T * dw[:, 1]) + mech.s * dw[:, 2]
-    np.testing.assert_allclose(ms.rest_offset, setup.offset0 * (1 - 0.1 * g_edge))  # Eq. 16
+    np.testing.assert_allclose(ms.rest_offset, setup.offset0 * (1 - 0.05 * g_edge))  # Eq. 16
     expect_I = np.where(model.reg_theta == 1, 1 - mech.k_c * 0.5, 1.0)  # Eq. 21, H_l = 1
     np.testing.assert_allclose(ms.integrity, expect_I)
-    f = ((M_0 - 0.1 - 0.1) / 0.9) ** mech.p_l_stretch  # Eq. 19
+    f = ((M_0 - 0.05 - 0.1) / (M_0 - 0.1)) ** mech.p_l_stretch  # Eq. 19, its knee at M_0
     # Eq. 21 on the strand link e, e + 1: theta = 1 where the two lie in different BSP leaves
     leaf, n = model.bsp_leaf, model.n_elements
     nxt = np.minimum(np.arange(n) + 1, n - 1)
     crosses = (leaf != leaf[nxt]) & ~np.isin(np.arange(n), model.element_offsets[1:] - 1)
     assert crosses.sum() > 100
     np.testing.assert_allclose(ms.limit_elem[:, 0], mech.L_0_stretch * f * np.where(crosses, 1 - mech.k_c * 0.5, 1.0))
-    assert coupling.limit_factor(np.array(0.05), 1.0, 0.1, 4.0) == 0.0
-    assert coupling.limit_factor(np.array(1.5), 1.0, 0.1, 4.0) == 1.0
+    assert coupling.limit_factor(np.array(0.05), 0.2, 0.1, 4.0) == 0.0
+    assert np.isclose(coupling.limit_factor(np.array(0.15), 0.2, 0.1, 4.0), 0.5 ** 4, rtol=1e-12, atol=0)
+    # wet wood keeps its strength: the factor is 1 from M_0 up, not only at M_1
+    assert coupling.limit_factor(np.array(0.2), 0.2, 0.1, 4.0) == 1.0
+    assert coupling.limit_factor(np.array(0.5), 0.2, 0.1, 4.0) == 1.0
+    assert coupling.limit_factor(np.array(0.15), 0.1, 0.1, 4.0) == 1.0
+    assert coupling.limit_factor(np.array(0.05), 0.1, 0.1, 4.0) == 0.0
 
 
 def test_coupling_kernel_matches_its_numpy_twin():

@@ -4,7 +4,7 @@ on counts of broken REG connections of the full coupled simulation (biology, cou
 The specimen is the tiny sample log (0.3 m, r = 6 cm) drying in the open: no uptake (k_in0 = 0),
 loss at the bark (k_out0 = 2 / (day m)), moisture bounds M_1 / M_2 = 0.6 / 0.2 (Fig. 16a),
 M_init = 0.6, shrinkage below M_0 = 0.5, D_M0 = 1e-4 m^2 / day (the top of Table 3's range, so
-the section dries over its whole depth within the two weeks simulated), dt_bio = 0.1 day, and
+the section dries over its whole depth within two to three weeks), dt_bio = 0.1 day, and
 Algorithm 1's fixed schedule (the paper's figures).
 
 A broken edge's direction is its (n_r^2, n_t^2, n_l^2) (``model.reg_dir_weights``): broken
@@ -105,8 +105,9 @@ def test_balanced_shrinkage_opens_a_few_dominant_radial_cracks(tmp_path):
     competition and stress shielding let a few of them open wide and run inwards: the
     opening-weighted number of cracks (sum w)^2 / sum w^2 is a few, far below the number of crack
     clusters; the widest three are radial (narrow in phi) and the widest runs over a third of the
-    radius deep."""
-    sim = _run(_scene(tmp_path, mechanics__S_R=1.0, mechanics__S_T=1.0), days=13)
+    radius deep. Measured on day 24: wood above M_0 keeps its full limits (Eq. 19's knee at M_0),
+    so the outer wood must dry below M_0 = 0.5 first."""
+    sim = _run(_scene(tmp_path, mechanics__S_R=1.0, mechanics__S_T=1.0), days=24)
     w = _direction(sim)
     label, opening = _crack_clusters(sim)
     effective = opening.sum() ** 2 / np.sum(opening**2)
@@ -178,7 +179,7 @@ def test_brown_rot_breaks_bsp_boundaries_into_blocks_white_rot_does_not_and_wet_
         print(f"{name} day 22: H_c {sim.state.H_c.mean():.2f}, H_l {sim.state.H_l.mean():.2f}, loose pieces "
               f"{len(sizes)} ({np.count_nonzero(blocks)} of >= 5 elements, {np.count_nonzero(~blocks)} smaller), "
               f"BSP purity of those >= 5: {np.round(purity[blocks], 2)}")
-    assert np.count_nonzero(brown10) >= 200 and np.count_nonzero(white10) >= 200
+    assert np.count_nonzero(brown10) >= 100 and np.count_nonzero(white10) >= 100
     assert frac["brown"] > base + 0.15
     assert abs(frac["white"] - base) < 0.08
     assert n_wet < np.count_nonzero(brown10) / 10

@@ -11,9 +11,12 @@ After each biology step, with (x)^+ = max(x, 0):
   strands, and a different gain there makes uniformly drying wood pull its strands apart
   lengthwise (docs/decisions.md);
 * Eq. 17: rest lengths l_r = l_r0 (1 - (M_0 - M)^+ s);
-* Eqs. 18-19: strain limits L(M) = L_0 f(M - M_2), f(x) = clip(x / (M_1 - M_2), 0, 1)^p_l, per
-  constraint type (stretch, shear on elements; bundle, bend, twist on REG pairs), with M_1, M_2
-  the tissue's bounds on the current day (seasonal schedule);
+* Eqs. 18-19: strain limits L(M) = L_0 f(M - M_2), f(x) = clip(x / (M_0 - M_2), 0, 1)^p_l, per
+  constraint type (stretch, shear on elements; bundle, bend, twist on REG pairs), with M_2 the
+  tissue's lower bound on the current day (seasonal schedule). The knee is M_0, where §7 says
+  "reduced failure or strain capacity" starts, not Eq. 19's M_1: with M_1 = 1 the factor at
+  M = 0.24 (wood still above M_0) was 7e-4 and a drying board shattered before any of it shrank
+  (docs/decisions.md, "Limits reduce below M_0"). Wood at or above M_0 keeps L_0;
 * Eq. 21: I_ij = (1 - theta_ij k_c (1 - H_c)) (1 - k_l (1 - H_l)), clipped to [0, 1]. It scales
   the pair's stiffness (SPEC §4) and, as the paper's "connection strength", its strain limits:
   with stiff wood and dt = 0.01 s a connection is effectively rigid until I_ij is tiny, so the
@@ -95,9 +98,11 @@ def prepare(model) -> CouplingSetup:
     )
 
 
-def limit_factor(M: np.ndarray, M_1: np.ndarray, M_2: np.ndarray, p_l: np.ndarray) -> np.ndarray:
-    """f(M - M_2) of Eq. 19: 0 at or below M_2, 1 at or above M_1, a power p_l between."""
-    return np.clip((M - M_2) / (M_1 - M_2), 0.0, 1.0) ** p_l
+def limit_factor(M: np.ndarray, M_0: np.ndarray, M_2: np.ndarray, p_l: np.ndarray) -> np.ndarray:
+    """f(M - M_2) of Eq. 19 with its knee at M_0 (module docstring): 1 at or above M_0, 0 at or
+    below M_2 (when M_2 >= M_0 too), a power p_l between."""
+    span = np.where(M_0 > M_2, M_0 - M_2, 1.0)
+    return np.where(M >= M_0, 1.0, np.clip((M - M_2) / span, 0.0, 1.0) ** p_l)
 
 
 def crumble_scale(cs: CouplingSetup, H_c: np.ndarray, H_l: np.ndarray) -> np.ndarray:
@@ -115,7 +120,7 @@ def integrity(k_c: np.ndarray, k_l: np.ndarray, H_c_pair: np.ndarray, H_l_pair: 
 
 def step(model, state) -> None:
     """Update the rods of ``state`` (``state.mech``: rest data, limits, integrity and masses)
-    from its fields, with each tissue's [M_1, M_2] on the day ``state.t_days``. The coupling is
+    from its fields, with each tissue's M_2 on the day ``state.t_days``. The coupling is
     instantaneous, so unlike the other solvers it takes no dt. One parallel pass over elements
     and one over REG pairs (:func:`_couple`; :func:`step_reference` is its numpy twin)."""
     cs, setup, ms = model.coupling, model.mech, state.mech
@@ -148,8 +153,8 @@ def _couple(M, H_c, H_l, tissue, M12, edges, link_next, M_0, s, rest_length0, g_
     per REG pair the rest offset (Eq. 16), I_ij (Eq. 21) and the pair limits. Each entry is
     written by its own element or pair only."""
     for e in nb.prange(len(M)):
-        t = tissue[e]
-        f = min(max((M[e] - M12[t, 1]) / (M12[t, 0] - M12[t, 1]), 0.0), 1.0)
+        M_2 = M12[tissue[e], 1]
+        f = 1.0 if M[e] >= M_0[e] else (0.0 if M[e] <= M_2 else (M[e] - M_2) / (M_0[e] - M_2))
         for c in range(5):
             L[e, c] = L_0[e, c] * f ** p_l[e, c]
         rest_length[e] = rest_length0[e] * (1.0 - max(M_0[e] - M[e], 0.0) * s[e])
@@ -179,7 +184,7 @@ def step_reference(model, state) -> dict[str, np.ndarray]:
     M = state.M
     i, j = setup.edges[:, 0], setup.edges[:, 1]
     M_pair = 0.5 * (M[i] + M[j])
-    f = limit_factor(M[:, None], M12[tissue, 0][:, None], M12[tissue, 1][:, None], cs.p_l)
+    f = limit_factor(M[:, None], cs.M_0[:, None], M12[tissue, 1][:, None], cs.p_l)
     L = cs.L_0 * f
     crumbled = mass_remaining(state.H_c, state.H_l, cs.k_H) < cs.m_crumble
     I = integrity(cs.k_c, cs.k_l, 0.5 * (state.H_c[i] + state.H_c[j]), 0.5 * (state.H_l[i] + state.H_l[j]))
