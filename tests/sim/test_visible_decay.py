@@ -42,3 +42,31 @@ def test_decayed_blocks_separate_fall_and_rest():
     assert after["debris_height_m"] < before["debris_height_m"] - 0.002
     assert after["debris_footprint_m2"] > before["debris_footprint_m2"]
     assert (z - z0).min() < -0.02
+
+
+@pytest.mark.slow
+def test_drying_board_checks_along_the_fibre(tmp_path):
+    """Fig. 15: the shipped board's first summer, on a 30 cm piece of it (its white-rot knot lies
+    outside), opens separate checks, not a crack network: nothing fails while all the wood is
+    above M_0 (Eq. 19's knee), then at least 3 crack clusters, the board in one piece, no strand
+    cut across the fibre, and the broken connections lean across the grain."""
+    text = (SAMPLES / "board.toml").read_text().replace("position = [1.0, 0.0, 0.025]", "position = [0.3, 0.0, 0.025]")
+    path = tmp_path / "board.toml"
+    path.write_text(text)
+    model = wd.build_model(wd.load_scene(path, {"bsp.cells": 60}))
+    sim = wd.Simulation(model)
+    st, ms = sim.state, sim.state.mech
+    dry_before_failure = None
+    while st.t_days < 160.0 - 1e-9:
+        sim.macro_step(model.time.dt_bio)
+        if dry_before_failure is None and ms.failures:
+            dry_before_failure = st.M.min() < model.coupling.M_0.min()
+    sig = signature(model, st)
+    w = model.reg_dir_weights
+    broken = ~ms.edge_ok[:, 0]
+    across = w[:, 2] < 0.5
+    print(f"{np.count_nonzero(broken)} broken, {sig['crack_clusters']} crack clusters, across-grain share "
+          f"{across[broken].mean():.2f} (all {across.mean():.2f}), M {st.M.min():.3f}-{st.M.max():.3f}")
+    assert dry_before_failure
+    assert sig["crack_clusters"] >= 3 and sig["pieces"] == 1 and ms.element_ok.all()
+    assert across[broken].mean() > 1.3 * across.mean()
