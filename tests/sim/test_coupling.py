@@ -1,6 +1,8 @@
 """Coupling (wooddecay.sim.coupling): Eqs. 16, 17, 19 and 21 on the tiny log."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from wooddecay.sim import coupling
@@ -40,6 +42,11 @@ def test_coupling_equations():
     assert coupling.limit_factor(np.array(0.5), 0.2, 0.1, 4.0) == 1.0
     assert coupling.limit_factor(np.array(0.15), 0.1, 0.1, 4.0) == 1.0
     assert coupling.limit_factor(np.array(0.05), 0.1, 0.1, 4.0) == 0.0
+    # L_knee = 1: Eq. 19 as printed, the knee at M_1
+    cs = replace(model.coupling, L_knee=np.ones(model.n_elements))
+    M_k = coupling.knee(cs, np.full(model.n_elements, 1.0))
+    assert np.allclose(M_k, 1.0)
+    np.testing.assert_allclose(coupling.limit_factor(np.array(0.5), M_k[:1], 0.1, 4.0), (0.4 / 0.9) ** 4)
 
 
 def test_coupling_kernel_matches_its_numpy_twin():
@@ -52,6 +59,8 @@ def test_coupling_kernel_matches_its_numpy_twin():
     state.M[:] = rng.uniform(0.0, 1.2, n)
     state.H_c[:] = rng.uniform(0.0, 1.0, n)
     state.H_l[:] = rng.uniform(0.0, 1.0, n)
-    coupling.step(model, state)
-    for name, expect in coupling.step_reference(model, state).items():
-        np.testing.assert_allclose(getattr(state.mech, name), expect, rtol=1e-15, atol=0.0, err_msg=name)
+    # the default knee (M_0) and a knee anywhere between M_0 and M_1 per element
+    for m in (model, replace(model, coupling=replace(model.coupling, L_knee=rng.uniform(0.0, 1.0, n)))):
+        coupling.step(m, state)
+        for name, expect in coupling.step_reference(m, state).items():
+            np.testing.assert_allclose(getattr(state.mech, name), expect, rtol=1e-15, atol=0.0, err_msg=name)

@@ -189,6 +189,7 @@ _SCHEMA: dict[str, list[tuple]] = {
         ("L_0_bend", 0.1, "", "[0, 10]", f"Baseline bend strain limit L_0 (Eq. 18; {_T3} L_0)."),
         ("L_0_twist", 0.1, "", "[0, 10]", f"Baseline twist strain limit L_0 (Eq. 18; {_T3} L_0)."),
         ("L_0_bundle", 0.02, "", "[0, 10]", f"Baseline bundle (REG connection) strain limit L_0 (Eq. 18; {_T3} L_0)."),
+        ("L_knee", 0.0, "", "[0, 1]", "Where Eq. 19's limits reach L_0: at M_0 + L_knee (M_1 - M_0), so 0 (default) puts the knee at M_0, where §7 says reduced strain capacity starts (wood at or above M_0 keeps L_0), and 1 at M_1, Eq. 19 as printed (docs/decisions.md, \"Limits reduce below M_0\")."),
         ("p_l_stretch", 4.0, "", "[0.1, 20]", f"Exponent p_l of the moisture-to-limit map for stretch (Eq. 19; {_T3} typical [3, 5])."),
         ("p_l_shear", 4.0, "", "[0.1, 20]", f"Exponent p_l for shear (Eq. 19; {_T3} typical [3, 5])."),
         ("p_l_bend", 4.0, "", "[0.1, 20]", f"Exponent p_l for bend (Eq. 19; {_T3} typical [3, 5])."),

@@ -11,12 +11,13 @@ After each biology step, with (x)^+ = max(x, 0):
   strands, and a different gain there makes uniformly drying wood pull its strands apart
   lengthwise (docs/decisions.md);
 * Eq. 17: rest lengths l_r = l_r0 (1 - (M_0 - M)^+ s);
-* Eqs. 18-19: strain limits L(M) = L_0 f(M - M_2), f(x) = clip(x / (M_0 - M_2), 0, 1)^p_l, per
-  constraint type (stretch, shear on elements; bundle, bend, twist on REG pairs), with M_2 the
-  tissue's lower bound on the current day (seasonal schedule). The knee is M_0, where §7 says
-  "reduced failure or strain capacity" starts, not Eq. 19's M_1: with M_1 = 1 the factor at
+* Eqs. 18-19: strain limits L(M) = L_0 f(M - M_2), f(x) = clip(x / (M_k - M_2), 0, 1)^p_l, per
+  constraint type (stretch, shear on elements; bundle, bend, twist on REG pairs), with M_1, M_2
+  the tissue's bounds on the current day (seasonal schedule) and the knee
+  M_k = M_0 + L_knee (M_1 - M_0). By default (L_knee = 0) it is M_0, where §7 says "reduced
+  failure or strain capacity" starts, not Eq. 19's M_1 (L_knee = 1): with M_1 = 1 the factor at
   M = 0.24 (wood still above M_0) was 7e-4 and a drying board shattered before any of it shrank
-  (docs/decisions.md, "Limits reduce below M_0"). Wood at or above M_0 keeps L_0;
+  (docs/decisions.md, "Limits reduce below M_0"). Wood at or above M_k keeps L_0;
 * Eq. 21: I_ij = (1 - theta_ij k_c (1 - H_c)) (1 - k_l (1 - H_l)), clipped to [0, 1]. It scales
   the pair's stiffness (SPEC §4) and, as the paper's "connection strength", its strain limits:
   with stiff wood and dt = 0.01 s a connection is effectively rigid until I_ij is tiny, so the
@@ -57,6 +58,7 @@ class CouplingSetup:
     with the model (``model.coupling``)."""
 
     M_0: np.ndarray  # (n,)
+    L_knee: np.ndarray  # (n,) the knee M_k of Eq. 19 between M_0 (0) and M_1 (1)
     s: np.ndarray  # (n,) rest-length gain
     g_pair: np.ndarray  # (m,) g_edge of Eq. 16 (pair means of the gains)
     M_0_pair: np.ndarray  # (m,)
@@ -88,7 +90,7 @@ def prepare(model) -> CouplingSetup:
     dw = model.reg_dir_weights
     g_edge = pair("S") * (pair("S_R") * dw[:, 0] + pair("S_T") * dw[:, 1]) + pair("s") * dw[:, 2]
     return CouplingSetup(
-        M_0=per_element("M_0"), s=per_element("s"),
+        M_0=per_element("M_0"), L_knee=per_element("L_knee"), s=per_element("s"),
         g_pair=g_edge, M_0_pair=pair("M_0"),
         L_0=np.stack([per_element(f"L_0_{k}") for k in LIMIT_TYPES], axis=1),
         p_l=np.stack([per_element(f"p_l_{k}") for k in LIMIT_TYPES], axis=1),
@@ -98,11 +100,16 @@ def prepare(model) -> CouplingSetup:
     )
 
 
-def limit_factor(M: np.ndarray, M_0: np.ndarray, M_2: np.ndarray, p_l: np.ndarray) -> np.ndarray:
-    """f(M - M_2) of Eq. 19 with its knee at M_0 (module docstring): 1 at or above M_0, 0 at or
-    below M_2 (when M_2 >= M_0 too), a power p_l between."""
-    span = np.where(M_0 > M_2, M_0 - M_2, 1.0)
-    return np.where(M >= M_0, 1.0, np.clip((M - M_2) / span, 0.0, 1.0) ** p_l)
+def limit_factor(M: np.ndarray, M_k: np.ndarray, M_2: np.ndarray, p_l: np.ndarray) -> np.ndarray:
+    """f(M - M_2) of Eq. 19 with its knee at M_k (module docstring): 1 at or above M_k, 0 at or
+    below M_2 (when M_2 >= M_k too), a power p_l between."""
+    span = np.where(M_k > M_2, M_k - M_2, 1.0)
+    return np.where(M >= M_k, 1.0, np.clip((M - M_2) / span, 0.0, 1.0) ** p_l)
+
+
+def knee(cs: "CouplingSetup", M_1: np.ndarray) -> np.ndarray:
+    """M_k = M_0 + L_knee (M_1 - M_0) per element, ``M_1`` its tissue's bound today."""
+    return cs.M_0 + cs.L_knee * (M_1 - cs.M_0)
 
 
 def crumble_scale(cs: CouplingSetup, H_c: np.ndarray, H_l: np.ndarray) -> np.ndarray:
@@ -120,7 +127,7 @@ def integrity(k_c: np.ndarray, k_l: np.ndarray, H_c_pair: np.ndarray, H_l_pair: 
 
 def step(model, state) -> None:
     """Update the rods of ``state`` (``state.mech``: rest data, limits, integrity and masses)
-    from its fields, with each tissue's M_2 on the day ``state.t_days``. The coupling is
+    from its fields, with each tissue's M_1, M_2 on the day ``state.t_days``. The coupling is
     instantaneous, so unlike the other solvers it takes no dt. One parallel pass over elements
     and one over REG pairs (:func:`_couple`; :func:`step_reference` is its numpy twin)."""
     cs, setup, ms = model.coupling, model.mech, state.mech
@@ -128,7 +135,7 @@ def step(model, state) -> None:
     out = (np.empty(n), np.empty(m), np.empty(m), np.empty(n), np.empty(n, dtype=np.bool_), np.empty((n, 2)),
            np.empty((m, 3)))
     _couple(state.M, state.H_c, state.H_l, model.bio.tissue, moisture_bounds(model.bio, state.t_days),
-            setup.edges, cs.link_next, cs.M_0, cs.s, setup.rest_length0, cs.g_pair, cs.M_0_pair, setup.offset0,
+            setup.edges, cs.link_next, cs.M_0, cs.L_knee, cs.s, setup.rest_length0, cs.g_pair, cs.M_0_pair, setup.offset0,
             cs.L_0, cs.p_l, cs.k_c, cs.k_l, cs.k_c_link, cs.k_l_link, cs.k_H, cs.m_crumble, np.empty((n, 5)), *out)
     ms.rest_length, ms.rest_offset, ms.integrity, ms.link_integrity, ms.crumbled, ms.limit_elem, ms.limit_edge = out
     set_masses(setup, ms, state.M)
@@ -145,7 +152,7 @@ def _integrity(k_c, k_l, H_c_pair, H_l_pair):
 
 
 @nb.njit(parallel=True, cache=True)
-def _couple(M, H_c, H_l, tissue, M12, edges, link_next, M_0, s, rest_length0, g_pair, M_0_pair, offset0, L_0, p_l,
+def _couple(M, H_c, H_l, tissue, M12, edges, link_next, M_0, L_knee, s, rest_length0, g_pair, M_0_pair, offset0, L_0, p_l,
             k_c, k_l, k_c_link, k_l_link, k_H, m_crumble, L, rest_length, rest_offset, integrity_out, link_out, crumbled,
             limit_elem, limit_edge):
     """:func:`step`'s arrays (module docstring): per element the rest length (Eq. 17), the limits
@@ -154,7 +161,8 @@ def _couple(M, H_c, H_l, tissue, M12, edges, link_next, M_0, s, rest_length0, g_
     written by its own element or pair only."""
     for e in nb.prange(len(M)):
         M_2 = M12[tissue[e], 1]
-        f = 1.0 if M[e] >= M_0[e] else (0.0 if M[e] <= M_2 else (M[e] - M_2) / (M_0[e] - M_2))
+        M_k = M_0[e] + L_knee[e] * (M12[tissue[e], 0] - M_0[e])
+        f = 1.0 if M[e] >= M_k else (0.0 if M[e] <= M_2 else (M[e] - M_2) / (M_k - M_2))
         for c in range(5):
             L[e, c] = L_0[e, c] * f ** p_l[e, c]
         rest_length[e] = rest_length0[e] * (1.0 - max(M_0[e] - M[e], 0.0) * s[e])
@@ -184,7 +192,7 @@ def step_reference(model, state) -> dict[str, np.ndarray]:
     M = state.M
     i, j = setup.edges[:, 0], setup.edges[:, 1]
     M_pair = 0.5 * (M[i] + M[j])
-    f = limit_factor(M[:, None], cs.M_0[:, None], M12[tissue, 1][:, None], cs.p_l)
+    f = limit_factor(M[:, None], knee(cs, M12[tissue, 0])[:, None], M12[tissue, 1][:, None], cs.p_l)
     L = cs.L_0 * f
     crumbled = mass_remaining(state.H_c, state.H_l, cs.k_H) < cs.m_crumble
     I = integrity(cs.k_c, cs.k_l, 0.5 * (state.H_c[i] + state.H_c[j]), 0.5 * (state.H_l[i] + state.H_l[j]))

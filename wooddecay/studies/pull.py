@@ -11,6 +11,10 @@ specimen at ``quality = "draft"``). docs/decisions.md ("Mechanics") gives reason
   (Fig. 17's "leftward pull to the left branch"). :func:`wooddecay.sim.mechanics.prepare` spreads
   it over the region's particles by mass; the scene's force is 1 N and a probe of F newtons
   scales those particle forces by F.
+* **Limits.** Eq. 19 as printed (``mechanics.L_knee = 1``: the limits fall from M_1 down, so the
+  green wood, M 0.5, keeps 4% of L_0): with the knee at M_0 the healthy branch keeps L_0, bends
+  past the 5 cm break displacement (at about 36 N) before anything fails and the study measured
+  its elastic sag, not its strength (docs/decisions.md, "Pull test").
 * **Specimen** (:func:`specimen_scene`): the same scene with the skeleton cut down to the branch,
   clamped at its fork (an anchored root node at the fork with the first branch node's profile;
   for b1_2 the trunk there is 34 times stiffer in bending than the branch) and the BSP cells
@@ -121,6 +125,7 @@ def pull_scene(path=TREE, node: str = "b1_2", tip: str | None = None, radius: fl
         data = _specimen_data(data, base, nodes)
     if quality is not None:
         data.setdefault("scene", {})["quality"] = quality
+    data.setdefault("mechanics", {})["L_knee"] = 1.0  # Eq. 19 as printed (module docstring)
     data["load"] = data.get("load", []) + [{
         "region": {"kind": "node", "id": skel.ids[k_tip], "radius": float(radius)},
         "force": [float(c) for c in direction], "days": [0.0, 1e9]}]
