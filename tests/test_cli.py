@@ -48,6 +48,26 @@ def test_inspect_bad_input_one_line_exit_2(args, needle):
     assert len(lines) == 1 and needle in lines[0] and "Traceback" not in r.output
 
 
+@pytest.mark.parametrize("args, needle", [
+    (["bake", "{dir}"], "is a directory"),
+    (["bake"], "Missing argument 'SCENE'"),
+    (["bake", "{tiny}", "--frames", "many"], "'many' is not a valid integer"),
+    (["bake", "{tiny}", "--quality", "best"], "'best' is not one of"),
+    (["inspect", "{tiny}", "--bogus"], "No such option '--bogus'"),
+    (["frobnicate"], "No such command 'frobnicate'"),
+])
+def test_click_usage_errors_are_one_line_exit_2(tmp_path, args, needle):
+    """click's own errors (argument types, missing arguments, unknown options and commands) are
+    one line on stderr with exit 2 and write nothing, like the scene errors."""
+    out = tmp_path / "out"
+    args = [a.format(dir=tmp_path, tiny=SAMPLES / "tiny.toml") for a in args]
+    r = CliRunner().invoke(main, [*args, *(["-o", str(out)] if args[0] == "bake" and len(args) > 1 else [])])
+    assert r.exit_code == 2, r.output
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and needle in lines[0], r.stderr
+    assert not out.exists()
+
+
 def test_inspect_broken_scene_file(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text("[strands]\nr_s = 'thick'\n")

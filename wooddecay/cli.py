@@ -24,7 +24,24 @@ TEMPLATES = ("board", "log", "tree")
 
 
 class _Main(click.Group):
-    """Turns InputError into one line and exit code 2 (``--debug`` keeps the traceback)."""
+    """Turns InputError and click's own usage errors (a missing or unreadable SCENE, a directory,
+    a bad option value) into one line and exit code 2 (``--debug`` keeps the traceback)."""
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, standalone_mode, **extra)
+        try:
+            code = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        except click.exceptions.NoArgsIsHelpError as err:
+            click.echo(err.ctx.get_help(), err=True)
+            sys.exit(2)
+        except click.ClickException as err:
+            click.echo(f"error: {' '.join(err.format_message().split())}", err=True)
+            sys.exit(2)
+        except click.exceptions.Abort:
+            click.echo("error: aborted", err=True)
+            sys.exit(1)
+        sys.exit(code if isinstance(code, int) else 0)
 
     def invoke(self, ctx: click.Context):
         try:
