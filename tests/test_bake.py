@@ -94,14 +94,22 @@ def test_diff_same_seed_equal_perturbed_different_malformed_error(baked, tmp_pat
     assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1 and "bad.usda" in res.output
 
 
-@pytest.mark.parametrize("bad", sorted(p.name for p in (ROOT / "tests" / "data" / "bad").glob("*.toml")))
+BAD = ROOT / "tests" / "data" / "bad"
+
+
+@pytest.mark.parametrize("bad", sorted(p.name for p in BAD.glob("*.toml")))
 def test_broken_scenes_exit_2_with_one_line_and_no_output(bad, tmp_path):
+    """The corpus of broken scenes, skeletons and TreeQSM tables: one line naming the file at
+    fault (the scene, or the skeleton file it refers to, in files/), exit 2, nothing written."""
     out = tmp_path / "out"
-    res = run("bake", ROOT / "tests" / "data" / "bad" / bad, "-o", out)
+    res = run("bake", BAD / bad, "-o", out)
     assert res.exit_code == 2
     lines = res.output.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: ") and bad in lines[0]
-    assert not out.exists()
+    assert len(lines) == 1 and lines[0].startswith("error: "), res.output
+    referenced = [f"files/{p.name}" for p in (BAD / "files").iterdir() if p.name in (BAD / bad).read_text(
+        "utf-8", errors="replace")] if (BAD / bad).is_file() else []
+    assert bad in lines[0] or any(f in lines[0] for f in referenced), lines[0]
+    assert not out.exists() and list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.slow
@@ -152,6 +160,18 @@ def test_any_thread_count_bakes_the_same_stage_and_the_summary_says_which(tmp_pa
         assert diff.exit_code == 0, diff.output
     bad = run("bake", TINY, "-o", tmp_path / "bad", "--threads", "0")
     assert bad.exit_code == 2 and "--threads: must be" in bad.output and not (tmp_path / "bad").exists()
+
+
+def test_resumed_bake_counts_the_simulation_seconds_of_the_runs_it_continues(tmp_path):
+    """summary.json ``seconds.simulation`` of a resumed bake adds the seconds checkpointed by the
+    run it continues: resuming a finished bake simulates nothing and keeps its total."""
+    out = tmp_path / "out"
+    assert run("bake", TINY, "-o", out, *SHORT).exit_code == 0
+    first = json.loads((out / "summary.json").read_text())["seconds"]["simulation"]
+    res = run("bake", TINY, "-o", out, *SHORT, "--resume")
+    assert res.exit_code == 0, res.output
+    again = json.loads((out / "summary.json").read_text())["seconds"]["simulation"]
+    assert first > 0.1 and 0.9 * first <= again < 1.5 * first
 
 
 def test_a_second_bake_loads_the_settled_rods_and_bakes_the_same_stage(tmp_path, settle_cache):

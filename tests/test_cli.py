@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import shlex
 
 import pytest
 from click.testing import CliRunner
@@ -9,7 +10,7 @@ from click.testing import CliRunner
 import wooddecay as wd
 from wooddecay.cli import main
 
-from .conftest import SAMPLES
+from .conftest import ROOT, SAMPLES
 
 
 def _run(*args):
@@ -21,7 +22,7 @@ def test_inspect_json_keys():
     assert r.exit_code == 0, r.output
     rep = json.loads(r.stdout)
     for key in ("elements", "reg_edges", "build_seconds", "strands", "bsp_cells", "tissues",
-                "memory_estimate_mb", "build_stages", "reg_degree"):
+                "estimate", "build_stages", "reg_degree"):
         assert key in rep
     m = wd.build_model(wd.load_scene(SAMPLES / "tiny.toml"))
     assert rep["elements"] == m.n_elements and rep["reg_edges"] == m.n_edges
@@ -48,24 +49,26 @@ def test_inspect_bad_input_one_line_exit_2(args, needle):
     assert len(lines) == 1 and needle in lines[0] and "Traceback" not in r.output
 
 
-@pytest.mark.parametrize("args, needle", [
-    (["bake", "{dir}"], "is a directory"),
-    (["bake"], "Missing argument 'SCENE'"),
-    (["bake", "{tiny}", "--frames", "many"], "'many' is not a valid integer"),
-    (["bake", "{tiny}", "--quality", "best"], "'best' is not one of"),
-    (["inspect", "{tiny}", "--bogus"], "No such option '--bogus'"),
-    (["frobnicate"], "No such command 'frobnicate'"),
-])
-def test_click_usage_errors_are_one_line_exit_2(tmp_path, args, needle):
-    """click's own errors (argument types, missing arguments, unknown options and commands) are
-    one line on stderr with exit 2 and write nothing, like the scene errors."""
+BAD_CLI = [line.split("\t") for line in (ROOT / "tests" / "data" / "bad" / "cli.txt").read_text("utf-8").splitlines()
+           if line and not line.startswith("#")]
+
+
+@pytest.mark.parametrize("needle, args", BAD_CLI, ids=[a for _, a in BAD_CLI])
+def test_broken_command_lines_are_one_line_exit_2(tmp_path, needle, args):
+    """Every command line of the corpus (click's own errors included: argument types, missing
+    arguments, unknown options and commands) is one line on stderr with exit 2 and writes nothing."""
+    (tmp_path / "dir").mkdir()
+    (tmp_path / "file.txt").write_text("not [ a scene\n")
     out = tmp_path / "out"
-    args = [a.format(dir=tmp_path, tiny=SAMPLES / "tiny.toml") for a in args]
-    r = CliRunner().invoke(main, [*args, *(["-o", str(out)] if args[0] == "bake" and len(args) > 1 else [])])
+    argv = [a.format(tiny=SAMPLES / "tiny.toml", dir=tmp_path / "dir", file=tmp_path / "file.txt")
+            for a in shlex.split(args)]
+    if argv[0] == "bake" and len(argv) > 1 and "-o" not in argv:
+        argv += ["-o", str(out)]
+    r = CliRunner().invoke(main, argv)
     assert r.exit_code == 2, r.output
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and needle in lines[0], r.stderr
-    assert not out.exists()
+    assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["dir", "file.txt"]
 
 
 def test_inspect_broken_scene_file(tmp_path):

@@ -5,7 +5,8 @@ the rest meshlets (:func:`wooddecay.meshlets.sweep.build_meshlets`) and the expo
 into ``out``:
 
 * ``<name>.usdc`` (:func:`wooddecay.export.usd.export_usd`), ``<name>.glb`` (the last frame,
-  :func:`wooddecay.export.gltf.export_gltf`) and ``summary.json`` (counts, seconds per stage, threads,
+  :func:`wooddecay.export.gltf.export_gltf`) and ``summary.json`` (counts, seconds per stage (the
+  simulation's summed over the runs a resumed bake continues), threads,
   the schedule's macro steps, mechanics solves and seconds (:meth:`Simulation.schedule_summary`)
   and whether the settled rods came from the cache (:mod:`wooddecay.sim.settled`),
   output sizes, and per frame the day, mass loss, moisture content ratio and crack statistics);
@@ -22,12 +23,13 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import time
 from pathlib import Path
 
 import numpy as np
 
-from . import __version__
+from . import __version__, budget
 from .atomic import write_bytes
 from .errors import InputError
 from .export.gltf import export_gltf
@@ -75,17 +77,33 @@ def frame_summary(frame: Frame) -> dict:
     return row
 
 
-def bake(scene, out, resume: bool = False, quality: str = "final", progress=None, threads: int | None = None) -> dict:
+def bake(scene, out, resume: bool = False, quality: str = "final", progress=None, threads: int | None = None,
+         max_memory: int | None = None) -> dict:
     """Bake ``scene`` into the folder ``out`` (module docstring); returns the summary.
 
     ``progress(frame, n_frames)`` is called after every simulated frame. ``threads``: the numba
     thread count of the simulation, or None to pick it per macro step
-    (:class:`wooddecay.sim.threads.ThreadChoice`).
+    (:class:`wooddecay.sim.threads.ThreadChoice`). A scene whose estimated peak memory
+    (:func:`wooddecay.budget.check`) exceeds ``max_memory`` bytes, or the memory available, is
+    refused before anything is written.
     """
 
     if quality not in QUALITIES:
         raise InputError(str(out), "--quality", f"must be one of {', '.join(QUALITIES)}, not {quality!r}")
+    budget.check(scene, max_memory)
     out = Path(out)
+    created = not out.exists()
+    try:
+        return _bake(scene, out, resume, quality, progress, threads)
+    except BaseException:
+        # a bake that fails before its first frame leaves nothing; a later failure keeps the frames
+        # and the checkpoint for --resume
+        if created and not (out / ".bake" / "checkpoint.npz").exists():
+            shutil.rmtree(out, ignore_errors=True)
+        raise
+
+
+def _bake(scene, out: Path, resume: bool, quality: str, progress, threads: int | None) -> dict:
     work = out / ".bake"
     try:
         work.mkdir(parents=True, exist_ok=True)
@@ -112,13 +130,15 @@ def bake(scene, out, resume: bool = False, quality: str = "final", progress=None
             stale.unlink()
         sim = Simulation(model, mechanics=mechanics, threads=choice, settle_cache=settled.default_folder())
     n_frames = int(scene.time.frames)
+    before = sim.wall_seconds  # of the runs this one resumes
     for fr in sim.run():
         save_frame(work / f"frame_{fr.index:05d}.npz", fr)
+        sim.wall_seconds = before + time.perf_counter() - t0
         sim.save_checkpoint(ckpt)
         frames.append(fr)
         if progress is not None:
             progress(fr, n_frames)
-    seconds["simulation"] = time.perf_counter() - t0
+    seconds["simulation"] = before + time.perf_counter() - t0
 
     t0 = time.perf_counter()
     mesh = build_meshlets(model)

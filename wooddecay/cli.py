@@ -17,6 +17,7 @@ from pathlib import Path
 import click
 import numpy as np
 
+from . import budget
 from .atomic import write_bytes
 from .errors import InputError
 
@@ -62,15 +63,31 @@ def main(ctx: click.Context, debug: bool) -> None:
     ctx.obj = {"debug": debug}
 
 
+_UNITS = {"": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}
+
+
+def parse_size(text: str) -> int:
+    """Bytes of a size such as ``8G``, ``500M``, ``2.5g`` or ``1048576``."""
+    t = text.strip().upper().removesuffix("B")
+    unit = t[-1:] if t[-1:] in _UNITS else ""
+    try:
+        value = float(t[:len(t) - len(unit)])
+    except ValueError:
+        value = float("nan")
+    if not value > 0 or value == float("inf"):
+        raise InputError("--max-memory", "", f"{text!r} is not a size such as 8G, 500M or 1048576")
+    return int(value * _UNITS[unit])
+
+
 def _load(scene_path: str, set_items: tuple[str, ...]):
     from .scene import load_scene, parse_set_option
 
     return load_scene(scene_path, overrides=parse_set_option(set_items))
 
 
-def inspect_report(model) -> dict:
+def inspect_report(model, estimate) -> dict:
     """The numbers ``wooddecay inspect`` prints (also its JSON), with the biology's explicit-step
-    bound and substeps (``model.bio``)."""
+    bound and substeps (``model.bio``) and the scene's size estimate (:mod:`wooddecay.budget`)."""
     deg = model.reg_degree
     stages = {k: round(v, 4) for k, v in model.build_seconds.items()}
     return {
@@ -85,7 +102,7 @@ def inspect_report(model) -> dict:
         "branches": model.n_branches,
         "bsp_cells": model.bsp_cells,
         "tissues": model.tissue_counts(),
-        "memory_estimate_mb": round(model.memory_estimate() / 2**20, 2),
+        "estimate": estimate.as_dict(),
         "build_seconds": round(sum(model.build_seconds.values()), 4),
         "build_stages": stages,
         "biology": _bio_report(model),
@@ -116,7 +133,8 @@ def _print_report(rep: dict) -> None:
         f"branches         {rep['branches']}",
         f"BSP cells        {rep['bsp_cells']}",
         "tissues          " + ", ".join(f"{k} {v}" for k, v in rep["tissues"].items()),
-        f"memory estimate  {rep['memory_estimate_mb']} MB (model + simulation state)",
+        f"bake estimate    {rep['estimate']['elements']} elements, peak {rep['estimate']['peak_bytes'] / 2**20:.0f} MB,"
+        f" outputs {rep['estimate']['output_bytes'] / 2**20:.0f} MB (from the scene alone)",
         f"build            {rep['build_seconds']:.3f} s  ("
         + ", ".join(f"{k} {v:.3f}" for k, v in rep["build_stages"].items()) + ")",
     ]
@@ -187,8 +205,9 @@ def inspect(scene_path: str, as_json: bool, strands_usd: Path | None, with_meshl
         _inspect_bake(Path(scene_path), as_json)
         return
     scene = _load(scene_path, set_items)
+    est = budget.check(scene)
     model = build_model(scene)
-    rep = inspect_report(model)
+    rep = inspect_report(model, est)
     if strands_usd:
         from .export.strands_usd import write_strands_usd
 
@@ -250,14 +269,18 @@ def _meshlets_report(model, usd_path: Path | None) -> dict:
 @click.option("--threads", default=None, metavar="N|auto",
               help="Threads of the simulation kernels (default $WOODDECAY_THREADS, else auto: the faster of "
                    "one and all, measured while baking). Results are identical for any count.")
+@click.option("--max-memory", default=None, metavar="SIZE",
+              help="Refuse a scene whose estimated peak memory exceeds SIZE (e.g. 8G, 500M; default: the "
+                   "memory available now).")
 @click.option("--set", "set_items", multiple=True, metavar="KEY=VALUE", help="Override a scene key (repeatable).")
 def bake(scene_path: str, out: str | None, days: float | None, years: float | None, frames: int | None,
-         quality: str, resume: bool, threads: str | None, set_items: tuple[str, ...]) -> None:
+         quality: str, resume: bool, threads: str | None, max_memory: str | None, set_items: tuple[str, ...]) -> None:
     """Simulate SCENE and write DIR/<name>.usdc, DIR/<name>.glb and DIR/summary.json."""
     from .bake import bake as run_bake
     from .sim.threads import requested_threads
 
     n_threads = requested_threads(threads)
+    limit = None if max_memory is None else parse_size(max_memory)
 
     if days is not None and years is not None:
         raise InputError("--years", "", "give one of --days and --years")
@@ -279,7 +302,8 @@ def bake(scene_path: str, out: str | None, days: float | None, years: float | No
                        err=True)
 
     with bar if bar is not None else contextlib.nullcontext():
-        summary = run_bake(scene, out_dir, resume=resume, quality=quality, progress=progress, threads=n_threads)
+        summary = run_bake(scene, out_dir, resume=resume, quality=quality, progress=progress, threads=n_threads,
+                           max_memory=limit)
     sec = summary["seconds"]
     for name, o in summary["outputs"].items():
         click.echo(f"wrote {o['path']}  ({o['bytes'] / 2**20:.1f} MB)")
@@ -292,8 +316,8 @@ def bake(scene_path: str, out: str | None, days: float | None, years: float | No
 @main.command()
 @click.argument("a", type=click.Path(dir_okay=False))
 @click.argument("b", type=click.Path(dir_okay=False))
-@click.option("--rtol", type=float, default=1e-6, show_default=True, help="Relative tolerance of numbers.")
-@click.option("--atol", type=float, default=1e-9, show_default=True, help="Absolute tolerance of numbers.")
+@click.option("--rtol", type=click.FloatRange(min=0), default=1e-6, show_default=True, help="Relative tolerance of numbers.")
+@click.option("--atol", type=click.FloatRange(min=0), default=1e-9, show_default=True, help="Absolute tolerance of numbers.")
 @click.pass_context
 def diff(ctx: click.Context, a: str, b: str, rtol: float, atol: float) -> None:
     """Compare two USD stages: exit 0 equal, 1 different (each difference printed with its

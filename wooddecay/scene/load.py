@@ -25,6 +25,7 @@ from __future__ import annotations
 import copy
 import math
 import os
+import re
 import tomllib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -53,6 +54,9 @@ from wooddecay.scene.validate import (
 )
 from wooddecay.strands.rings import TISSUES
 from wooddecay.strands.skeleton_loader import load_skeleton
+
+#: an explicit ``scene.name``: it names the output files, so no path
+_FILE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")
 
 
 class Overrides(dict):
@@ -326,6 +330,9 @@ def _resolve(data: dict, ctx: _Ctx, base_dir: Path, path: Path | None, default_n
         for name in ("r_s", "rod_length", "connect_radius"):
             strands[name] = strands[name] * DRAFT_SCALE
     name = scene_vals["name"] if scene_vals["name"] is not None else default_name
+    if scene_vals["name"] is not None and not _FILE_NAME.fullmatch(name):
+        raise InputError(file, "scene.name", f"{format_value(name)} must be a file name: letters, digits, '.', "
+                         "'_' and '-', starting with a letter or digit (it names the output files)")
 
     sections = {sec: Section(sec, values[sec]) for sec in SECTIONS if sec != "scene"}
     return Scene(

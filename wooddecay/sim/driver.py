@@ -45,7 +45,7 @@ from .signature import signature
 from .state import FIELDS, SimState, initial_state, inoculate
 from .threads import ThreadChoice
 
-CHECKPOINT_VERSION = 5
+CHECKPOINT_VERSION = 6
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,6 +87,9 @@ class Simulation:
         self.checkpoint_dir = None if checkpoint_dir is None else Path(checkpoint_dir)
         self.checkpoint_every = int(checkpoint_every)
         self.last_frame = -1
+        #: wall seconds spent simulating this state, over every run that resumed it (the caller
+        #: keeps it current; it is checkpointed)
+        self.wall_seconds = 0.0
         self.settled = "no"  # "settled", or "cached" when loaded from ``settle_cache``
         if mechanics:
             coupling.step(model, self.state)
@@ -204,7 +207,7 @@ class Simulation:
                 "frame": self.last_frame, "t_days": s.t_days, "clamp_count": s.clamp_count,
                 "applied": sorted(s.applied), "history": self.history,
                 "t_seconds": s.mech.t_seconds if self.mechanics else 0.0,
-                "failures": s.mech.failures if self.mechanics else 0}
+                "failures": s.mech.failures if self.mechanics else 0, "wall_seconds": self.wall_seconds}
         tmp = path.with_name(path.name + ".tmp")
         with open(tmp, "wb") as fh:
             np.savez(fh, meta=np.array(json.dumps(meta)), **arrays)
@@ -228,4 +231,5 @@ class Simulation:
             s.mech.restore({k: arrays[f"mech_{k}"] for k in s.mech.arrays()}, meta["t_seconds"], meta["failures"])
         sim.history = meta["history"]
         sim.last_frame = meta["frame"]
+        sim.wall_seconds = float(meta["wall_seconds"])
         return sim
