@@ -7,6 +7,9 @@ Prints ``name value unit`` lines:
     meshlets_per_s <v> 1/s        meshlets built per second
     meshing_faces / meshing_vertices   size of the shells
     meshing_closed_fraction       closed and oriented meshlets (must be 1)
+    meshing_volume_error          sum of meshlet volumes against the bark's, relative
+    narrow_notes_seconds <v> s    the build's check for profile parts narrower than a strand
+                                  (ellipse and polygon profiles; best of 3)
     skin_seconds <v> s            one frame of skinning positions and six fields (best of 3)
 Usage: python benchmarks/meshing.py [samples/tree.toml]
 """
@@ -19,6 +22,8 @@ import numpy as np
 
 import wooddecay as wd
 from wooddecay.meshlets import checks, skin
+
+from wooddecay.model import narrow_notes
 
 from timing import SAMPLES, best
 
@@ -33,7 +38,8 @@ def main(path: str = str(SAMPLES / "tree.toml")) -> None:
     link = skin.links(model, mesh)
     fields = np.random.default_rng(0).random((model.n_elements, 6))
     args = (model.particles, model.rest_quat, np.zeros(model.n_elements, dtype=np.int64),
-            np.ones((model.n_edges, 3), dtype=bool), fields)
+            np.ones((model.n_edges, 3), dtype=bool), np.ones(model.n_elements, dtype=bool),
+            np.ones(model.n_elements), fields)
     t_skin = best(lambda: skin.skin(model, mesh, link, *args))
     print(f"meshing_scene {scene.name}")
     print(f"meshing_elements {model.n_elements}")
@@ -42,7 +48,9 @@ def main(path: str = str(SAMPLES / "tree.toml")) -> None:
     print(f"meshing_faces {mesh.n_faces}")
     print(f"meshing_vertices {len(mesh.points)}")
     print(f"meshing_closed_fraction {closed.mean():.6f}")
+    print(f"meshing_volume_error {checks.volumes(mesh).sum() / checks.bark_volume(model) - 1.0:+.2e}")
     print(f"meshing_events {mesh.stats}")
+    print(f"narrow_notes_seconds {best(lambda: narrow_notes(scene.skeleton, scene.strands.r_s)):.4f} s")
     print(f"skin_seconds {t_skin:.4f} s")
 
 

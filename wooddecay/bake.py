@@ -9,7 +9,8 @@ into ``out``:
   simulation's summed over the runs a resumed bake continues), threads,
   the schedule's macro steps, mechanics solves and seconds (:meth:`Simulation.schedule_summary`)
   and whether the settled rods came from the cache (:mod:`wooddecay.sim.settled`),
-  output sizes, and per frame the day, mass loss, moisture content ratio and crack statistics);
+  output sizes, the build's notes (:attr:`WoodModel.notes`), and per frame the day, mass loss,
+  moisture content ratio and crack statistics);
 * ``.bake/``: one small file per finished frame (fields and rod state) and the latest full
   simulation checkpoint. ``resume=True`` reloads the frames, continues the simulation from the
   checkpoint (bit-exact, see the driver) and gives the same outputs as an uninterrupted bake.
@@ -158,6 +159,7 @@ def _bake(scene, out: Path, resume: bool, quality: str, progress, threads: int |
         "seconds": {k: round(v, 3) for k, v in seconds.items()},
         "outputs": {p.name: {"path": str(p), "bytes": p.stat().st_size} for p in (usd, glb)},
         "frames": [frame_summary(f) for f in frames],
+        "notes": list(model.notes),
     }
     write_bytes(out / "summary.json", json.dumps(summary, indent=2).encode("utf-8"), "summary")
     return summary

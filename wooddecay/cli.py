@@ -106,6 +106,7 @@ def inspect_report(model, estimate) -> dict:
         "build_seconds": round(sum(model.build_seconds.values()), 4),
         "build_stages": stages,
         "biology": _bio_report(model),
+        "notes": list(model.notes),
     }
 
 
@@ -143,6 +144,7 @@ def _print_report(rep: dict) -> None:
                  f" -> {b['substeps']} substep(s) per step")
     lines.append(f"transport fit    across-grain moment error p99 {b['transport_fit_error_p99']:.3g},"
                  f" {b['transport_chain_saturated']} element(s) with saturated chains")
+    lines += [f"note             {n}" for n in rep["notes"]]
     click.echo("\n".join(lines))
 
 
@@ -311,6 +313,8 @@ def bake(scene_path: str, out: str | None, days: float | None, years: float | No
     click.echo("seconds: " + ", ".join(f"{k} {v:.2f}" for k, v in sec.items()))
     used = summary["threads"]["steps"]
     click.echo("threads: " + ", ".join(f"{k} for {v} steps" for k, v in used.items()))
+    for note in summary["notes"]:
+        click.echo(f"note: {note}", err=True)
 
 
 @main.command()

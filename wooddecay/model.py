@@ -27,7 +27,7 @@ from .sim.state import Inoculation
 from .strands import bsp as bsp_mod
 from .strands.elements import element_geometry, sample_strands
 from .strands.materials import Materials
-from .strands.profiles import signed_distance
+from .strands.profiles import narrow_area, signed_distance
 from .strands.regions import region_mask
 from .strands.reg import build_reg, csr_adjacency, transport_graph
 from .strands.rings import TISSUES, age_of, classify_tissue, profile_years, radial_coordinate, year_noise
@@ -145,6 +145,7 @@ class WoodModel:
     coupling: CouplingSetup | None = None
     # bookkeeping
     build_seconds: dict = field(default_factory=dict)
+    notes: tuple[str, ...] = ()  # what the build could not model as asked (:func:`narrow_notes`)
 
     @property
     def n_branches(self) -> int:
@@ -224,6 +225,26 @@ def _collider_rows(scene) -> np.ndarray:
     return np.array(rows, dtype=np.float64).reshape(-1, contact.COLLIDER_COLUMNS)
 
 
+#: a profile part narrower than a strand worth a note: this many strand cross-sections (pi r_s^2);
+#: a polygon tip of half-angle 10 degrees leaves about 1.4
+NARROW_STRANDS = 4.0
+
+
+def narrow_notes(skel: Skeleton, r_s: float) -> tuple[str, ...]:
+    """One note per ellipse or polygon profile with a part that no strand can reach larger than
+    NARROW_STRANDS strand cross-sections (:func:`wooddecay.strands.profiles.narrow_area`)."""
+    notes = []
+    for node, prof in zip(skel.ids, skel.profiles):
+        if prof.kind == "circle":
+            continue
+        area = narrow_area(prof.polygon, r_s)
+        if area > NARROW_STRANDS * np.pi * r_s**2:
+            notes.append(f"skeleton.node[{node}].profile: a part of {area * 1e4:.2g} cm^2 is narrower than a strand "
+                         f"(2 r_s = {2e3 * r_s:g} mm); no strand fills it and the meshlets stretch over it; a "
+                         "smaller strands.r_s fills it")
+    return tuple(notes)
+
+
 def build_model(scene) -> WoodModel:
     """Build the wood model of a validated :class:`wooddecay.scene.Scene`."""
     sec: dict[str, float] = {}
@@ -234,6 +255,7 @@ def build_model(scene) -> WoodModel:
     with _timed(sec, "strands"):
         strands = build_strands(skel, topo, st.r_s, st.phi_pack, st.packing_iterations,
                                 stage_rng(scene.seed, "strands"))
+        notes = narrow_notes(skel, float(st.r_s))
     with _timed(sec, "elements"):
         samp = sample_strands(strands, st.rod_length, stage_rng(scene.seed, "sampling"))
         node_a, node_b = strands.node[samp.cp], strands.node[samp.cp + 1]
@@ -324,7 +346,7 @@ def build_model(scene) -> WoodModel:
                                             relative=float(scene.time.tolerance),
                                             rest_speed=float(scene.time.rest_speed),
                                             max_seconds=float(scene.time.max_mechanics))),
-        build_seconds=sec,
+        build_seconds=sec, notes=notes,
     )
     with _timed(sec, "solvers"):
         model = replace(model, inoculations=tuple(

@@ -12,8 +12,14 @@ d_t like the real ones, alive with their strand). A real site's cell then ends a
 with its mirror, which is the tangent of the profile at the closest boundary point: the cells are
 bounded, the bark surface follows the input profile (concave ones too), and all changes along
 d_t stay continuous (a clipped alpha contour jumps at every alpha event). Near a corner a second
-mirror goes across the nearest edge turned by more than CORNER. Where a side branch starts, the
-mirrors go across the hull of its sites offset by r_s (:func:`~wooddecay.meshlets.offset.offset_contour`).
+mirror goes across the nearest edge turned by more than CORNER. At a concave profile a mirror
+can cut the wood itself: one that lands inside the profile (across an arm), one across a reflex
+vertex (its bisector is a line through the vertex, which always crosses the wood) and one across
+an edge within r_s / 2 of a sharp reflex vertex (the edge's line runs on into the wood) are left
+out (:func:`_valid_mirrors`); the cells there end at their neighbours' mirrors. Convex cells cannot
+follow a reflex corner exactly: what they miss on one side of it they overhang on the other.
+Where a side branch starts, the mirrors go across the hull of its sites offset by r_s
+(:func:`~wooddecay.meshlets.offset.offset_contour`).
 FAR_RING far sites keep every real cell bounded even where no mirror reaches. ``docs/decisions.md``
 (Meshlets) records this choice.
 """
@@ -24,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
+from ..strands import profiles
 from .offset import offset_contour
 
 #: sites closer than this many r_s to a node's profile get a mirrored ghost site
@@ -74,6 +81,22 @@ def _feet(poly: np.ndarray, pts: np.ndarray):
     rows = np.arange(n)
     feet = np.stack([foot[rows, e0], foot[rows, e1]], axis=1)
     return feet, np.stack([dist[rows, e0], d1[rows, e1]], axis=1)
+
+
+def _valid_mirrors(poly: np.ndarray, pts: np.ndarray, feet: np.ndarray, r_s: float) -> np.ndarray:
+    """(n, 2) whether the mirrors of ``pts`` at ``feet`` (:func:`_feet`) bound the wood: not one
+    strictly inside ``poly``, across a reflex vertex, or across an edge within r_s / 2 of a sharp
+    reflex vertex (turning by more than CORNER; its line runs on into the wood beyond it)."""
+    a = np.asarray(poly, float)
+    e_in, e_out = a - np.roll(a, 1, axis=0), np.roll(a, -1, axis=0) - a
+    reflex = e_in[:, 0] * e_out[:, 1] - e_in[:, 1] * e_out[:, 0] < 0.0  # CCW profiles
+    cos_turn = (e_in * e_out).sum(1) / np.linalg.norm(e_in, axis=1) / np.linalg.norm(e_out, axis=1)
+    reach = np.where(cos_turn < np.cos(CORNER), 0.5 * r_s, 1e-9 * float(np.max(np.abs(a))))[reflex]
+    ghost = (2.0 * feet - pts[:, None]).reshape(-1, 2)
+    cut = (profiles.signed_distance(a, ghost) > 0.0).reshape(feet.shape[:2])
+    for v, r in zip(a[reflex], reach):
+        cut |= np.linalg.norm(feet - v, axis=-1) <= r
+    return ~cut
 
 
 def _section_profile(skel, chain, node: int, pts: np.ndarray, r_s: float) -> np.ndarray:
@@ -143,23 +166,32 @@ def setup_branch(model, b: int) -> Branch | None:
     is_node = np.isin(d, s_chain)
     node_at = {float(s): int(c) for s, c in zip(s_chain, chain)}
     depth = np.full((n, 2), -np.inf)
+    valid = np.ones((n, 2), dtype=bool)
     offset = np.full((len(d), n, 2, 2), np.nan)
     for k in np.flatnonzero(is_node):
         idx = np.flatnonzero(alive[k])
         poly = _section_profile(skel, chain, node_at[float(d[k])], P[k, idx], r_s)
         foot, dist = _feet(poly, P[k, idx])
         depth[idx] = np.maximum(depth[idx], dist)
+        valid[idx] &= _valid_mirrors(poly, P[k, idx], foot, r_s)
         offset[k, idx] = 2.0 * (foot - P[k, idx][:, None])
-    ghosts = [(i, r) for r in range(2) for i in np.flatnonzero(depth[:, r] < GHOST_DEPTH * r_s)]
+    # a run between two nodes: mirrors across the nearer node's profile
+    between = {}
+    for i in range(n):
+        rows_i = np.flatnonzero(alive[:, i])
+        if len(rows_i) and not is_node[rows_i].any():
+            poly = skel.profiles[chain[int(np.argmin(np.abs(s_chain - d[rows_i].mean())))]].polygon
+            foot, _ = _feet(poly, P[rows_i, i])
+            valid[i] &= np.all(_valid_mirrors(poly, P[rows_i, i], foot, r_s), axis=0)
+            between[i] = foot
+    ghosts = [(i, r) for r in range(2) for i in np.flatnonzero((depth[:, r] < GHOST_DEPTH * r_s) & valid[:, r])]
     G = np.zeros((len(d), len(ghosts), 2))
     for j, (i, r) in enumerate(ghosts):
         rows_i = np.flatnonzero(alive[:, i])
-        known = rows_i[is_node[rows_i]]
-        if len(known) == 0:  # a run between two nodes: mirror across the nearer node's profile
-            k = int(np.argmin(np.abs(s_chain - d[rows_i].mean())))
-            foot, _ = _feet(skel.profiles[chain[k]].polygon, P[rows_i, i])
-            G[rows_i, j] = 2.0 * foot[:, r] - P[rows_i, i]
+        if i in between:
+            G[rows_i, j] = 2.0 * between[i][:, r] - P[rows_i, i]
             continue
+        known = rows_i[is_node[rows_i]]
         for c in range(2):
             G[rows_i, j, c] = P[rows_i, i, c] + np.interp(d[rows_i], d[known], offset[known, i, r, c])
     ghost_of = np.array([i for i, _ in ghosts], dtype=np.int64)

@@ -5,8 +5,9 @@
 * :func:`volumes`: signed volume per meshlet by the divergence theorem, sum over faces of
   x0 . (x1 x x2) / 6 (relative to the meshlet's first vertex, for precision).
 * :func:`bark_volume`: the volume inside the bark surface: the model's skeleton profiles lofted along
-  each edge (polar radius about the centroid interpolated linearly in the polar angle, the
-  star-shaped map the strands follow), integrated along the edge; for the partition check. A side
+  each edge (a prism between equal profiles, of any shape; else the polar radius about the
+  centroid interpolated linearly in the polar angle, the star-shaped map the strands follow),
+  integrated along the edge; for the partition check. A side
   branch's first edge is lofted from its own profile (the fork's belongs to the parent branch);
   where branches meet the lofts still overlap, so on a tree this is a reference, not an exact
   volume (woodstock §8.1 leaves junction gaps and overlaps; ``wooddecay inspect --meshlets``
@@ -16,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..strands.profiles import polygon_centroid, ray_extent
+from ..strands.profiles import polygon_area, polygon_centroid, ray_extent
 
 
 def closed_oriented(mesh) -> np.ndarray:
@@ -62,11 +63,15 @@ def bark_volume(model, samples_per_edge: int = 64, angles: int = 720) -> float:
             continue
         # a side branch starts at the fork with its own profile (the parent's belongs to the trunk)
         a = p if topo.branch[p] == topo.branch[i] else i
+        length = float(np.linalg.norm(skel.positions[i] - skel.positions[p]))
+        pa, pb = skel.profiles[a].polygon, skel.profiles[i].polygon
+        if pa.shape == pb.shape and np.array_equal(pa, pb):  # a prism, whatever the profile's shape
+            total += polygon_area(pa) * length
+            continue
         Ra = ray_extent(skel.profiles[a].polygon, polygon_centroid(skel.profiles[a].polygon), phi)
         Rb = ray_extent(skel.profiles[i].polygon, polygon_centroid(skel.profiles[i].polygon), phi)
         t = (np.arange(samples_per_edge) + 0.5) / samples_per_edge
         R = (1.0 - t)[:, None] * Ra[None] + t[:, None] * Rb[None]
         area = 0.5 * (R * R).mean(axis=1) * 2.0 * np.pi
-        length = float(np.linalg.norm(skel.positions[i] - skel.positions[p]))
         total += float(area.mean()) * length
     return total

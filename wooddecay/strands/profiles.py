@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage
 
 PROFILE_SEGMENTS = 64
 """Vertices used to discretise circles and ellipses."""
@@ -423,3 +424,23 @@ def ray_extent(poly: np.ndarray, origin, angles) -> np.ndarray:
         ``(n,)`` distances in m; 0 where a ray meets no boundary.
     """
     return _ray_hits(poly, origin, angles)[0]
+
+
+def narrow_area(poly: np.ndarray, r_s: float, cells: int = 400) -> float:
+    """Area in m^2 of the largest connected part of the polygon that no disk of radius ``r_s``
+    inside it reaches (the polygon minus its morphological opening by the disk): an arm or tip
+    narrower than a strand, where no strand can lie. Rasterised on at most ``cells`` x ``cells``
+    points with spacing h <= r_s / 4 (the opening by a Euclidean distance transform); a point
+    counts with its cell's covered fraction clip(1/2 + sd / h, 0, 1), exact along straight edges."""
+    lo, hi = poly.min(axis=0) - r_s, poly.max(axis=0) + r_s
+    h = max(r_s / 4.0, float(np.max(hi - lo)) / cells)
+    nx, ny = (np.ceil((hi - lo) / h).astype(int) + 1)
+    gx, gy = np.meshgrid(lo[0] + h * np.arange(nx), lo[1] + h * np.arange(ny), indexing="ij")
+    sd = signed_distance(poly, np.column_stack([gx.ravel(), gy.ravel()])).reshape(nx, ny)
+    centres = sd >= r_s  # where a strand's axis may lie
+    if not centres.any():
+        return polygon_area(poly)
+    reached = ndimage.distance_transform_edt(~centres) * h <= r_s
+    cover = np.clip(0.5 + sd / h, 0.0, 1.0)
+    labels, n = ndimage.label((cover > 0.0) & ~reached)
+    return float(np.bincount(labels.ravel(), cover.ravel(), minlength=n + 1)[1:].max(initial=0)) * h * h
