@@ -1,17 +1,33 @@
-"""The gravity cantilever (L = 0.5 m, r_s = 6 mm, E = 1 GPa, 20 elements) in wooddecay's XPBD
-rods and in PyElastica (SPEC §7). Prints ``name value unit`` lines:
+"""The gravity cantilever in wooddecay's XPBD rods and in PyElastica (SPEC §7).
+
+Default run (L = 0.5 m, r_s = 6 mm, E = 1 GPa, 20 elements); prints ``name value unit`` lines:
     cantilever_error, cantilever_seconds     ours at dt = 2e-4 s, 2 iterations, 1 s simulated
     pyelastica_error, pyelastica_seconds     PyElastica (wooddecay.studies.elastica), settled
     cantilever_error_dt_<dt>_it_<k>          ours over a few other settings (same 1 s)
 Errors are |deflection / (q L^4 / 8 E I) - 1|; seconds are wall time of the time stepping.
+
+``--sweep``: every case of :data:`wooddecay.studies.cantilever.SWEEP` (L / r_s 20-200, E 1-20
+GPa, 10-200 elements) at the scene's default solver settings, gravity and tip load, beside
+PyElastica under the same (scaled) gravity; one line per case with the signed errors, the
+solver's strain excess (its own convergence figure) and wall times, then
+    cantilever_max_error <v> -      largest |error| of ours over the sweep (target <= 0.03)
+    pyelastica_max_error <v> -      PyElastica's over the gravity cases
+    strain_excess_min_flagged <v> - the smallest strain excess of a case off by more than 3%
+                                    (above the bake's tolerance: every such case is reported)
+Usage: python benchmarks/cantilever.py [--sweep]
 """
 from __future__ import annotations
 
+import sys
+
+import numpy as np
+
+from wooddecay.sim.mechanics import STRAIN_EXCESS_TOLERANCE
 from wooddecay.studies import cantilever as mv
 from wooddecay.studies.elastica import elastica_cantilever
 
 
-def main() -> None:
+def default() -> None:
     mv.cantilever(dt=2e-3, iterations=1, seconds=0.01)  # compile
     ours = mv.cantilever(dt=2e-4, iterations=2, seconds=1.0)
     print(f"cantilever_error {ours['error']:.4f} 1")
@@ -25,5 +41,31 @@ def main() -> None:
         print(f"cantilever_seconds_dt_{dt:g}_it_{it} {r['seconds']:.3f} s")
 
 
+def sweep() -> None:
+    mv.cantilever(dt=2e-3, iterations=1, seconds=0.01)  # compile
+    worst = worst_ref = 0.0
+    flagged = []
+    for slenderness, E, n in mv.SWEEP:
+        for load in ("gravity", "tip"):
+            r = mv.sweep_case(slenderness, E, n, load=load)
+            line = (f"case L/r {slenderness:g} E {E / 1e9:g} GPa n {n} {load}: error {r['error']:+.4f} "
+                    f"strain_excess {r['strain_excess']:.3g} settled {r['settled']} ours {r['seconds']:.2f} s")
+            if load == "gravity":
+                s = mv.strand(length=slenderness * 0.006, n=n, E=E, G=0.4 * E)
+                mu = s.q / 9.81
+                g = mv.SAG * s.length / (mu * s.length**4 / (8 * s.EI))
+                ref = elastica_cantilever(length=s.length, radius=0.006, E=E, G=0.4 * E,
+                                          rho=mu / (np.pi * 0.006**2), g=g, n_elements=n)
+                worst_ref = max(worst_ref, ref["error"])
+                line += f" | pyelastica error {ref['error']:+.4f} {ref['seconds']:.2f} s"
+            print(line, flush=True)
+            worst = max(worst, abs(r["error"]))
+            if abs(r["error"]) > 0.03:
+                flagged.append(r["strain_excess"])
+    print(f"cantilever_max_error {worst:.4f} -")
+    print(f"pyelastica_max_error {worst_ref:.4f} -")
+    print(f"strain_excess_min_flagged {min(flagged, default=float('nan')):.3g} - (tolerance {STRAIN_EXCESS_TOLERANCE:g})")
+
+
 if __name__ == "__main__":
-    main()
+    sweep() if "--sweep" in sys.argv[1:] else default()

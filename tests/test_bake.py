@@ -45,6 +45,20 @@ def test_bake_writes_usd_glb_and_summary(baked):
     assert s["outputs"]["tiny.usdc"]["bytes"] == (baked / "tiny.usdc").stat().st_size
 
 
+def test_bake_reports_under_converged_mechanics_with_its_remedy(tmp_path):
+    """The tiny log's strands at the default 1 iteration per 0.1 ms substep are far softer than
+    their E (SPEC §7): summary.json and one stderr line say so and name the remedy."""
+    res = run("bake", TINY, "-o", tmp_path, *SHORT)
+    assert res.exit_code == 0, res.output
+    conv = json.loads((tmp_path / "summary.json").read_text())["convergence"]
+    frames = json.loads((tmp_path / "summary.json").read_text())["frames"]
+    assert conv["strain_excess_max"] == max([conv["strain_excess_settled"]] + [f["strain_excess"] for f in frames])
+    assert conv["strain_excess_max"] > conv["tolerance"] and not conv["converged"]
+    warnings = [ln for ln in res.stderr.splitlines() if ln.startswith("warning: ")]
+    assert warnings == [f"warning: {conv['remedy']}"]
+    assert "mechanics.iterations (now 1)" in warnings[0] and "mechanics.dt_mech (now 0.0001 s)" in warnings[0]
+
+
 def test_baked_stage_follows_the_contract(baked):
     from pxr import Usd, UsdGeom, UsdShade, UsdValidation
 

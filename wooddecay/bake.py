@@ -9,8 +9,9 @@ into ``out``:
   simulation's summed over the runs a resumed bake continues), threads,
   the schedule's macro steps, mechanics solves and seconds (:meth:`Simulation.schedule_summary`)
   and whether the settled rods came from the cache (:mod:`wooddecay.sim.settled`),
-  output sizes, the build's notes (:attr:`WoodModel.notes`), and per frame the day, mass loss,
-  moisture content ratio and crack statistics);
+  the mechanics' convergence (:meth:`Simulation.convergence`), output sizes, the build's notes
+  (:attr:`WoodModel.notes`), and per frame the day, mass loss, moisture content ratio, crack
+  statistics and strain excess);
 * ``.bake/``: one small file per finished frame (fields and rod state) and the latest full
   simulation checkpoint. ``resume=True`` reloads the frames, continues the simulation from the
   checkpoint (bit-exact, see the driver) and gives the same outputs as an uninterrupted bake.
@@ -72,7 +73,8 @@ def frame_summary(frame: Frame) -> dict:
            "moisture_content_ratio": d["moisture_content_ratio"],
            "M_mean": float(np.mean(frame.fields["M"]))}
     if "mechanics" in d:
-        row.update({k: d["mechanics"][k] for k in ("components", "broken_connections", "broken_elements")})
+        row.update({k: d["mechanics"][k] for k in ("components", "broken_connections", "broken_elements",
+                                                   "strain_excess")})
     if "signature" in d:
         row["signature"] = d["signature"]
     return row
@@ -153,7 +155,7 @@ def _bake(scene, out: Path, resume: bool, quality: str, progress, threads: int |
     summary = {
         "wooddecay_version": __version__, "scene": scene.name, "seed": int(scene.seed),
         "scene_hash": scene.hash, "quality": quality, "threads": choice.summary(),
-        "schedule": sim.schedule_summary(),
+        "schedule": sim.schedule_summary(), "convergence": sim.convergence(frames),
         "counts": {"strands": model.n_strands, "elements": model.n_elements, "reg_edges": model.n_edges,
                    "meshlets": mesh.count, "meshlet_faces": mesh.n_faces, "frames": len(frames)},
         "seconds": {k: round(v, 3) for k, v in seconds.items()},

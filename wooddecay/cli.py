@@ -315,6 +315,9 @@ def bake(scene_path: str, out: str | None, days: float | None, years: float | No
     click.echo("threads: " + ", ".join(f"{k} for {v} steps" for k, v in used.items()))
     for note in summary["notes"]:
         click.echo(f"note: {note}", err=True)
+    conv = summary["convergence"]
+    if conv is not None and not conv["converged"]:
+        click.echo(f"warning: {conv['remedy']}", err=True)
 
 
 @main.command()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+from wooddecay.sim.mechanics import STRAIN_EXCESS_TOLERANCE
 from wooddecay.studies import cantilever as mv
 
 
@@ -31,3 +32,24 @@ def test_fixed_free_buckling_load_within_5_percent():
     below = mv.buckles(0.95, dt=2e-4, iterations=2, seconds=1.0)["lateral_over_L"]
     above = mv.buckles(1.05, dt=2e-4, iterations=2, seconds=1.0)["lateral_over_L"]
     assert below < 0.05 and above > 0.2, (below, above)
+
+
+def test_strain_excess_flags_the_strands_that_sag_too_far():
+    """SPEC §7, XPBD with too few iterations for its step: at the scene's defaults a 50-element
+    strand sags about ten times too far and the solver's strain excess says so (far above the
+    bake's tolerance); a 10-element one is within 3% and passes. Both stay bounded: the tip hangs
+    below the clamp by less than the strand's length."""
+    coarse = mv.sweep_case(60, 5e9, 50)
+    fine = mv.sweep_case(200, 1e9, 10)
+    print(coarse, fine, sep="\n")
+    assert coarse["error"] > 0.03 and coarse["strain_excess"] > 10 * STRAIN_EXCESS_TOLERANCE
+    assert abs(fine["error"]) < 0.03 and fine["strain_excess"] < STRAIN_EXCESS_TOLERANCE
+    for r in (coarse, fine):
+        assert r["settled"] and 0.0 < (1.0 + r["error"]) * mv.SAG < 1.0
+
+
+def test_more_iterations_lower_the_strain_excess_and_the_error_together():
+    runs = [mv.sweep_case(60, 5e9, 50, iterations=k) for k in (1, 4, 16)]
+    errors, excess = [r["error"] for r in runs], [r["strain_excess"] for r in runs]
+    print(errors, excess)
+    assert errors[0] > errors[1] > errors[2] > 0.0 and excess[0] > excess[1] > excess[2]

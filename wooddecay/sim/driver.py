@@ -45,7 +45,7 @@ from .signature import signature
 from .state import FIELDS, SimState, initial_state, inoculate
 from .threads import ThreadChoice
 
-CHECKPOINT_VERSION = 6
+CHECKPOINT_VERSION = 7
 
 
 @dataclass(frozen=True, eq=False)
@@ -98,6 +98,8 @@ class Simulation:
                                               run=None if threads is None else threads.run)
             schedule.mark(model, self.state.mech, self.state.t_days, quiet=settle)
         self.history: list[dict] = [self._diagnostics()]
+        if mechanics:
+            self.history[0]["mechanics"]["strain_excess"] = mech.strain_excess(model.mech, self.state.mech)
 
     @property
     def substeps(self) -> int:
@@ -158,6 +160,14 @@ class Simulation:
                 "mechanics_seconds": self.state.mech.t_seconds if self.mechanics else 0.0, "due": reasons,
                 "settled": self.settled}
 
+    def convergence(self, frames) -> dict | None:
+        """:func:`mechanics.convergence` of the settled rods and ``frames`` (None without
+        mechanics)."""
+        if not self.mechanics:
+            return None
+        return mech.convergence(self.model.mech, [self.history[0]["mechanics"]["strain_excess"]]
+                                + [f.diagnostics["mechanics"]["strain_excess"] for f in frames])
+
     def advance(self, days: float) -> None:
         """Advance by ``days`` in macro steps of at most ``time.dt_bio``, equal between the days
         on which an inoculation falls (so it is applied on its day, not up to a step late)."""
@@ -180,6 +190,7 @@ class Simulation:
         d = self._diagnostics()
         if self.mechanics:
             d["signature"] = signature(self.model, self.state)
+            d["mechanics"]["strain_excess"] = mech.strain_excess(self.model.mech, self.state.mech)
         return Frame(index=index, t_days=self.state.t_days,
                      fields={f: getattr(self.state, f).copy() for f in FIELDS}, mech=rods, diagnostics=d)
 

@@ -36,6 +36,9 @@ from . import contact, failure, rods, sleep
 CONTACT_MARGIN = 2.0
 #: seconds of settling between two checks of the strain drift (:func:`settle` with ``tol``)
 SETTLE_CHUNK = 0.05
+#: largest :func:`strain_excess` a bake accepts without a warning: a clamped strand then sags
+#: within about 3% of beam theory
+STRAIN_EXCESS_TOLERANCE = 0.03
 
 
 @dataclass(frozen=True, eq=False)
@@ -451,13 +454,15 @@ def substep(model, state, dt: float) -> int:
     return _substep(model.mech, state.mech, dt)
 
 
-def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: tuple | None = None) -> int:
-    """:func:`substep`; ``stiff``: :func:`stiffness` of this state, if the caller holds it."""
+def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: tuple | None = None, lam: dict | None = None) -> int:
+    """:func:`substep`; ``stiff``: :func:`stiffness` of this state, if the caller holds it;
+    ``lam``: a dict that receives the substep's multipliers (:func:`strain_excess`)."""
     x_old, q_old = np.empty_like(ms.x), np.empty_like(ms.q)
     _predict(ms.x, ms.v, ms.q, ms.omega, ms.w_p, ms.w_q, ms.mass_p, ms.force, setup.gravity, ms.torque,
              np.exp(-setup.damping * dt), dt, x_old, q_old)
     kreg, kjoint = stiff or stiffness(setup, ms)
-    lam = _multipliers(setup)
+    lam = _multipliers(setup) if lam is None else lam
+    lam.update(_multipliers(setup))
     normal_force = np.zeros(setup.n_particles)
     refresh_pairs(setup, ms)
     # contact (docs/decisions.md "Contact"): the normal steps of colliders and pairs, then friction
@@ -483,6 +488,53 @@ def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: tuple | None = N
     contact.contact_velocities(ms.v, ms.x, ms.w_p, setup.fp, setup.radius, ms.pairs, hit_p)
     ms.t_seconds += dt
     return failure.update(setup, ms)
+
+
+def strain_excess(setup: MechSetup, ms: MechState) -> float:
+    """How far the strand constraints are from their constitutive law after a substep: the
+    excess of their strain over what their forces allow, relative and weighted by elastic energy,
+    sum |C + alpha~ lambda| |lambda| / sum alpha~ lambda^2 over the stretch, shear and bend-twist
+    constraints (0 when none is loaded).
+
+    Eq. 1 makes C + alpha~ lambda = 0 at convergence; a Gauss-Seidel sweep that stops short leaves
+    the strands softer than E and G say, and a clamped strand sags too far by about this figure
+    (``benchmarks/cantilever.py --sweep``). One substep of a copy of ``ms`` gives the multipliers
+    lambda; one more sweep of Stage 1 and 2 from them gives each constraint's
+    dlambda = -(C + alpha~ lambda) / (W + alpha~) (alpha~ = 1 / (k dt^2), W and k as in
+    :mod:`~wooddecay.sim.rods`). ``ms`` is left untouched."""
+    probe, lam, dt = ms.copy(), {}, setup.dt
+    _substep(setup, probe, dt, lam=lam)
+    before = {k: v.copy() for k, v in lam.items()}
+    kb, kt = _joint_stiffness(setup, probe)
+    _project(setup, probe, (kb, kt), setup.sweep.arrays(probe), lam, dt)
+    fp, w_p, w_q, l = setup.fp, probe.w_p, probe.w_q, probe.rest_length
+    wa, wb = w_p[fp], w_p[fp + 1]
+    f = 2.0 / setup.joint_length
+    Wj = f * f * (w_q[setup.joints[:, 0]] + w_q[setup.joints[:, 1]])
+    kinds = (("s", wa + wb, setup.k_stretch / l),
+             ("sh", ((wa + wb) / (l * l) + 4.0 * w_q)[:, None], (setup.k_shear * l)[:, None]),
+             ("j", Wj[:, None], np.stack([kb, kb, kt], axis=1) * setup.joint_length[:, None]))
+    num = den = 0.0
+    for key, W, k in kinds:
+        lam0 = before[key]
+        at = np.divide(1.0, k * dt * dt, out=np.zeros_like(k * lam0), where=k > 0.0)
+        num += float((np.abs(lam[key] - lam0) * (W + at) * np.abs(lam0)).sum())
+        den += float((at * lam0 * lam0).sum())
+    return num / den if den > 0.0 else 0.0
+
+
+def convergence(setup: MechSetup, excess) -> dict:
+    """The bake's convergence report from the :func:`strain_excess` of the settled rods and of
+    every frame (``excess``, in that order): its largest value, whether that is within
+    STRAIN_EXCESS_TOLERANCE and, if not, the remedy."""
+    worst = max(excess)
+    ok = worst <= STRAIN_EXCESS_TOLERANCE
+    remedy = None if ok else (
+        f"the strands are softer than mechanics.E and G say: their strain exceeds their forces' by "
+        f"{worst:.0%} (tolerance {STRAIN_EXCESS_TOLERANCE:.0%}); raise mechanics.iterations (now "
+        f"{setup.iterations}) or lower mechanics.dt_mech (now {setup.dt:g} s)")
+    return {"strain_excess_settled": excess[0], "strain_excess_max": worst,
+            "tolerance": STRAIN_EXCESS_TOLERANCE, "converged": ok, "remedy": remedy}
 
 
 def refresh_pairs(setup: MechSetup, ms: MechState) -> None:

@@ -11,6 +11,10 @@ The free length L runs from the clamped element's far particle to the tip.
   |tip - clamp| / L, least-squares circle fit).
 * :func:`buckles`: a vertical strand under a tip load P (plus a lateral imperfection of 1e-3 P);
   fixed-free Euler buckling load pi^2 E I / (2 L)^2.
+* :func:`sweep_case`: the gravity or tip-loaded cantilever of any slenderness L / r_s, modulus
+  and element count at the scene's default solver settings, with the solver's own convergence
+  figure (:func:`wooddecay.sim.mechanics.strain_excess`); :data:`SWEEP` spans the range the
+  strands of a scene can take.
 """
 from __future__ import annotations
 
@@ -21,6 +25,7 @@ import numpy as np
 
 from ..model import build_model
 from ..scene import Scene
+from ..scene.schema import get_param
 from ..sim import mechanics
 from ..sim.state import initial_state
 from . import scene_template
@@ -172,3 +177,49 @@ def buckles(load_ratio: float, length=0.5, n=20, dt=0.001, iterations=20, second
     f[-1] = (1e-3 * P, 0.0, -P)
     settle(s, seconds, force=f)
     return {"lateral_over_L": float(np.hypot(*(s.ms.x[-1, :2] - s.clamp[:2])) / s.length), "P": P}
+
+
+#: (L / r_s, E in Pa, free elements) of ``benchmarks/cantilever.py --sweep``: the corners of
+#: L / r_s in [20, 200], E in [1, 20] GPa and [10, 200] elements, and a middle case
+SWEEP = tuple((lr, E, n) for lr in (20, 200) for E in (1e9, 2e10) for n in (10, 200)) + ((60, 5e9, 50),)
+#: the sweep scales the load so that the linear tip deflection is this fraction of L: beam
+#: theory, the reference, is linear (the strands' own sag ranges from 1e-5 L to 0.1 L over SWEEP)
+SAG = 0.005
+
+
+def sweep_case(slenderness: float, E: float, n: int, load: str = "gravity", r_s: float = 0.006,
+               dt: float | None = None, iterations: int | None = None) -> dict:
+    """The clamped horizontal strand of free length ``slenderness`` r_s, modulus ``E`` (G = 0.4 E)
+    and ``n`` free elements under gravity (deflection q L^4 / (8 E I)) or a tip force
+    (``load = "tip"``, P L^3 / (3 E I)), scaled to a linear deflection of SAG L, at the scene's
+    default ``mechanics.dt_mech`` and ``iterations`` unless given. Damping 1.7 omega_1 (at most
+    the scene's limit of 1000 / s) settles it; it runs in chunks of 2 / omega_1 until the tip
+    moves less than 1e-4 of its deflection in one (at most 200 / omega_1).
+
+    Returns ``error`` (deflection / analytic - 1, signed), ``strain_excess`` (the solver's
+    convergence figure at the end), ``seconds`` (wall time) and the settings."""
+    dt = float(get_param("mechanics.dt_mech").default) if dt is None else dt
+    iterations = int(get_param("mechanics.iterations").default) if iterations is None else iterations
+    L = slenderness * r_s
+    probe = strand(length=L, n=n, r_s=r_s, E=E, G=0.4 * E, g=-9.81, dt=dt, iterations=iterations)
+    mu = probe.q / 9.81  # mass per length
+    omega_1 = 1.8751**2 * np.sqrt(probe.EI / (mu * probe.length**4))
+    gravity = load == "gravity"
+    unit = mu * probe.length**4 / (8 * probe.EI) if gravity else probe.length**3 / (3 * probe.EI)
+    scale = SAG * probe.length / unit  # g in m/s^2, or P in N
+    s = strand(length=L, n=n, r_s=r_s, E=E, G=0.4 * E, g=-scale if gravity else 0.0, dt=dt,
+               iterations=iterations, damping=min(1.7 * omega_1, 1000.0))
+    force = None
+    if not gravity:
+        force = np.zeros((s.setup.n_particles, 3))
+        force[-1, 2] = -scale
+    analytic = SAG * s.length
+    wall, previous, settled = 0.0, None, False
+    while not settled and s.ms.t_seconds < 200.0 / omega_1:
+        wall += settle(s, 2.0 / omega_1, force=force)
+        deflection = float(s.model.particles[-1, 2] - s.ms.x[-1, 2])
+        settled = previous is not None and abs(deflection - previous) <= 1e-4 * analytic
+        previous = deflection
+    return {"error": deflection / analytic - 1.0, "strain_excess": mechanics.strain_excess(s.setup, s.ms),
+            "seconds": wall, "simulated": s.ms.t_seconds, "settled": settled, "slenderness": slenderness, "E": E, "n": n,
+            "load": load, "dt": dt, "iterations": iterations}
