@@ -5,10 +5,11 @@ One substep of length dt (``substep``):
 
 1. external forces (gravity, ``[[load]]`` forces), viscous damping, prediction of particle
    positions and element quaternions (angular velocity in the body frame);
-2. ``iterations`` sweeps (:mod:`wooddecay.sim.rods`) of: Stage 1 per strand (stretch and shear of even then odd elements,
-   bend-twist of even then odd joints: a red-black order along each chain), Stage 2 on the REG
-   one colour class at a time (connection of Eq. 2 scaled by I_ij, pair bend-twist by the rest
-   Darboux vector), colliders and capsule contact (:mod:`wooddecay.sim.contact`, Eqs. 3-4, with
+2. ``iterations`` sweeps (:mod:`wooddecay.sim.rods`) of: Stage 1 per strand (stretch and shear of
+   even then odd elements, bend-twist of even then odd joints: a red-black order along each chain;
+   with ``strand_solver = "direct"`` all of a strand's at once, :mod:`~wooddecay.sim.strand_solve`),
+   Stage 2 on the REG one colour class at a time (connection of Eq. 2 scaled by I_ij, pair
+   bend-twist by the rest Darboux vector), colliders and capsule contact (:mod:`wooddecay.sim.contact`, Eqs. 3-4, with
    the particle friction of Eq. 7 applied to the displacements of the substep after all normal
    contact steps);
 3. velocities from the positions; contacts touched in this substep keep no separating normal
@@ -29,7 +30,7 @@ import numba as nb
 import numpy as np
 
 from ..quaternion import conj_np, mul, mul_np, rotate
-from . import contact, failure, rods, sleep
+from . import contact, failure, rods, sleep, strand_solve
 
 #: contact candidate pairs are searched with this margin (in r_s) and rebuilt once a particle
 #: has moved half of it (a Verlet list)
@@ -90,6 +91,7 @@ class MechConfig:
     damping: float
     dt_mech: float
     iterations: int
+    strand_solver: str
     inertia_scale: float
     k_col: float
     v_depenetration: float
@@ -118,6 +120,8 @@ class MechSetup:
     elems: tuple  # (even, odd) element ids: the two colour classes of Stage 1 stretch-shear
     joints: np.ndarray  # (J, 2) consecutive elements (e, e + 1) of a strand
     joint_sets: tuple  # (even, odd) joint ids
+    strand_offsets: np.ndarray  # (strands + 1,) element ranges of the strands
+    joint_of: np.ndarray  # (n,) the joint (e, e + 1) of element e, -1 at a strand's last element
     joint_rest: np.ndarray  # (J, 4) rest Darboux quaternion conj(q_e) q_{e+1}
     joint_length: np.ndarray  # (J,) mean rest length of the two elements
     joint_kb: np.ndarray  # (J,) E I
@@ -141,6 +145,7 @@ class MechSetup:
     damping: float
     dt: float
     iterations: int
+    strand_solver: str  # "direct" (:mod:`~wooddecay.sim.strand_solve`) or "gauss-seidel"
     colliders: np.ndarray  # (k, contact.COLLIDER_COLUMNS)
     k_col: float
     v_depenetration: float
@@ -253,6 +258,13 @@ def _inner(element_offsets: np.ndarray, n: int) -> np.ndarray:
     return inner
 
 
+def _joint_of(je: np.ndarray, n: int) -> np.ndarray:
+    """(n,) joint index of each element's joint (e, e + 1); -1 at a strand's last element."""
+    out = np.full(n, -1, dtype=np.int64)
+    out[je] = np.arange(len(je))
+    return out
+
+
 def _parity_sets(ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (np.ascontiguousarray(ids[ids % 2 == 0]), np.ascontiguousarray(ids[ids % 2 == 1]))
 
@@ -297,6 +309,7 @@ def prepare(model, config: MechConfig, colliders: np.ndarray, loads: tuple[Load,
     return MechSetup(
         fp=fp, n_particles=P, elems=_parity_sets(np.arange(n)), joints=joints,
         joint_sets=_parity_sets(np.arange(len(joints))),
+        strand_offsets=model.element_offsets.astype(np.int64), joint_of=_joint_of(je, n),
         joint_rest=_conj_mul(model.rest_quat[je], model.rest_quat[je + 1]),
         joint_length=_joint_length(l0, model.anchored, je),
         joint_kb=0.5 * (E[je] + E[je + 1]) * I_b[je], joint_kt=0.5 * (G[je] + G[je + 1]) * 2 * I_b[je],
@@ -309,7 +322,8 @@ def prepare(model, config: MechConfig, colliders: np.ndarray, loads: tuple[Load,
                           k_conn0=Gm * 2.0 * r_s * lm / edge_length, k_pb0=Em * np.pi * r_s**4 / 4.0,
                           k_pt0=Gm * np.pi * r_s**4 / 2.0),
         gravity=np.asarray(mech.gravity, dtype=np.float64), damping=float(mech.damping),
-        dt=float(mech.dt_mech), iterations=int(mech.iterations), colliders=colliders,
+        dt=float(mech.dt_mech), iterations=int(mech.iterations), strand_solver=str(mech.strand_solver),
+        colliders=colliders,
         radius_p=_particle_radius(fp, r, P), k_col=float(mech.k_col),
         v_depenetration=float(mech.v_depenetration), mu_f=float(mech.mu_f), epsilon=float(mech.epsilon),
         loads=tuple(load_forces),
@@ -429,12 +443,17 @@ def _project(setup: MechSetup, ms: MechState, kjoint, kreg, lam: dict, dt: float
     """One sweep of Stage 1 and Stage 2."""
     fp, x, q = setup.fp, ms.x, ms.q
     kb, kt = kjoint
-    for elems in setup.elems:
-        rods.stretch_shear(elems, fp, x, q, ms.w_p, ms.w_q, ms.rest_length, setup.k_stretch, setup.k_shear,
-                           ms.element_ok, lam["s"], lam["sh"], dt)
-    for idx in setup.joint_sets:
-        rods.bend_twist(setup.joints, idx, q, ms.w_q, setup.joint_rest, setup.joint_length, kb, kt,
-                        lam["j"], dt)
+    if setup.strand_solver == "direct":
+        strand_solve.solve_strands(setup.strand_offsets, setup.joint_of, fp, x, q, ms.w_p, ms.w_q, ms.rest_length,
+                                   setup.k_stretch, setup.k_shear, ms.element_ok, setup.joint_rest,
+                                   setup.joint_length, kb, kt, lam["s"], lam["sh"], lam["j"], dt)
+    else:
+        for elems in setup.elems:
+            rods.stretch_shear(elems, fp, x, q, ms.w_p, ms.w_q, ms.rest_length, setup.k_stretch, setup.k_shear,
+                               ms.element_ok, lam["s"], lam["sh"], dt)
+        for idx in setup.joint_sets:
+            rods.bend_twist(setup.joints, idx, q, ms.w_q, setup.joint_rest, setup.joint_length, kb, kt,
+                            lam["j"], dt)
     sw = setup.sweep
     offset, k_conn, k_bend, k_twist = kreg
     for c in range(len(sw.ptr) - 1):

@@ -53,7 +53,7 @@ class Strand:
 
 def strand_scene(length: float = 0.5, n: int = 20, direction=(1.0, 0.0, 0.0), r_s: float = 0.006,
                  E: float = 1e9, G: float = 4e8, rho: float = 450.0, g: float = -9.81, damping: float = 20.0,
-                 dt: float = 0.01, iterations: int = 2) -> Scene:
+                 dt: float = 0.01, iterations: int = 2, solver: str = "gauss-seidel") -> Scene:
     """``scenes/cantilever.toml`` as the strand of ``n`` free elements over the free length
     ``length`` along ``direction`` (module doc), with its material and solver settings."""
     rod = length / n
@@ -65,14 +65,14 @@ def strand_scene(length: float = 0.5, n: int = 20, direction=(1.0, 0.0, 0.0), r_
     return scene_template("cantilever", {
         "strands.r_s": r_s, "strands.rod_length": rod, "mechanics.E": E, "mechanics.G": G, "mechanics.rho_dry": rho,
         "mechanics.gravity": [0.0, 0.0, g], "mechanics.damping": damping, "mechanics.dt_mech": dt,
-        "mechanics.iterations": iterations}, nodes)
+        "mechanics.iterations": iterations, "mechanics.strand_solver": solver}, nodes)
 
 
 def strand(length: float = 0.5, n: int = 20, direction=(1.0, 0.0, 0.0), r_s: float = 0.006,
            E: float = 1e9, G: float = 4e8, rho: float = 450.0, g: float = -9.81, damping: float = 20.0,
-           dt: float = 0.01, iterations: int = 2) -> Strand:
+           dt: float = 0.01, iterations: int = 2, solver: str = "gauss-seidel") -> Strand:
     """Build the strand of ``n`` free elements over the free length ``length`` (module doc)."""
-    scene = strand_scene(length, n, direction, r_s, E, G, rho, g, damping, dt, iterations)
+    scene = strand_scene(length, n, direction, r_s, E, G, rho, g, damping, dt, iterations, solver)
     model = build_model(scene)
     if model.n_strands != 1:
         raise RuntimeError(f"expected one strand, got {model.n_strands}")
@@ -188,18 +188,20 @@ SAG = 0.005
 
 
 def sweep_case(slenderness: float, E: float, n: int, load: str = "gravity", r_s: float = 0.006,
-               dt: float | None = None, iterations: int | None = None) -> dict:
+               dt: float | None = None, iterations: int | None = None, solver: str | None = None) -> dict:
     """The clamped horizontal strand of free length ``slenderness`` r_s, modulus ``E`` (G = 0.4 E)
     and ``n`` free elements under gravity (deflection q L^4 / (8 E I)) or a tip force
     (``load = "tip"``, P L^3 / (3 E I)), scaled to a linear deflection of SAG L, at the scene's
-    default ``mechanics.dt_mech`` and ``iterations`` unless given. Damping 1.7 omega_1 (at most
-    the scene's limit of 1000 / s) settles it; it runs in chunks of 2 / omega_1 until the tip
-    moves less than 1e-4 of its deflection in one (at most 200 / omega_1).
+    default ``mechanics.dt_mech``, ``iterations`` and ``strand_solver`` unless given. Damping
+    1.7 omega_1 (at most the scene's limit of 1000 / s) settles it: 12 time constants of its
+    slowest mode, then chunks of 1 / omega_1 until the tip moves less than 1e-4 of its
+    deflection in one (at most 200 / omega_1 in all).
 
     Returns ``error`` (deflection / analytic - 1, signed), ``strain_excess`` (the solver's
     convergence figure at the end), ``seconds`` (wall time) and the settings."""
     dt = float(get_param("mechanics.dt_mech").default) if dt is None else dt
     iterations = int(get_param("mechanics.iterations").default) if iterations is None else iterations
+    solver = str(get_param("mechanics.strand_solver").default) if solver is None else solver
     L = slenderness * r_s
     probe = strand(length=L, n=n, r_s=r_s, E=E, G=0.4 * E, g=-9.81, dt=dt, iterations=iterations)
     mu = probe.q / 9.81  # mass per length
@@ -207,19 +209,22 @@ def sweep_case(slenderness: float, E: float, n: int, load: str = "gravity", r_s:
     gravity = load == "gravity"
     unit = mu * probe.length**4 / (8 * probe.EI) if gravity else probe.length**3 / (3 * probe.EI)
     scale = SAG * probe.length / unit  # g in m/s^2, or P in N
+    damping = min(1.7 * omega_1, 1000.0)
+    decay = damping / 2 if damping < 2 * omega_1 else omega_1**2 / damping  # slowest mode's rate
     s = strand(length=L, n=n, r_s=r_s, E=E, G=0.4 * E, g=-scale if gravity else 0.0, dt=dt,
-               iterations=iterations, damping=min(1.7 * omega_1, 1000.0))
+               iterations=iterations, damping=damping, solver=solver)
     force = None
     if not gravity:
         force = np.zeros((s.setup.n_particles, 3))
         force[-1, 2] = -scale
     analytic = SAG * s.length
-    wall, previous, settled = 0.0, None, False
+    wall = settle(s, 12.0 / decay, force=force)
+    previous, settled = float(s.model.particles[-1, 2] - s.ms.x[-1, 2]), False
     while not settled and s.ms.t_seconds < 200.0 / omega_1:
-        wall += settle(s, 2.0 / omega_1, force=force)
+        wall += settle(s, 1.0 / omega_1, force=force)
         deflection = float(s.model.particles[-1, 2] - s.ms.x[-1, 2])
-        settled = previous is not None and abs(deflection - previous) <= 1e-4 * analytic
+        settled = abs(deflection - previous) <= 1e-4 * analytic
         previous = deflection
     return {"error": deflection / analytic - 1.0, "strain_excess": mechanics.strain_excess(s.setup, s.ms),
             "seconds": wall, "simulated": s.ms.t_seconds, "settled": settled, "slenderness": slenderness, "E": E, "n": n,
-            "load": load, "dt": dt, "iterations": iterations}
+            "load": load, "dt": dt, "iterations": iterations, "solver": solver}
