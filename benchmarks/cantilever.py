@@ -9,11 +9,11 @@ Errors are |deflection / (q L^4 / 8 E I) - 1|; seconds are wall time of the time
 ``--sweep``: every case of :data:`wooddecay.studies.cantilever.SWEEP` (L / r_s 20-200, E 1-20
 GPa, 10-200 elements) at the scene's default solver settings and with
 ``mechanics.strand_solver = "direct"``, gravity and tip load, beside PyElastica under the same
-(scaled) gravity; one line per case with the signed errors, the strain excess (the solver's own
+(scaled) loads; one line per case with the signed errors, the strain excess (the solver's own
 convergence figure) and wall times, then
     cantilever_max_error <v> -          largest |error| at the defaults (target <= 0.03)
     cantilever_direct_max_error <v> -   the same with the direct strand solver
-    pyelastica_max_error <v> -          PyElastica's over the gravity cases
+    pyelastica_max_error <v> -          PyElastica's over the same cases
     strain_excess_min_flagged <v> -     the smallest strain excess of a case off by more than 3%
                                         (above the bake's tolerance: each such case is reported)
 Usage: python benchmarks/cantilever.py [--sweep]
@@ -57,15 +57,22 @@ def sweep() -> None:
                 worst[solver] = max(worst[solver], abs(r["error"]))
                 if abs(r["error"]) > 0.03:
                     flagged.append(r["strain_excess"])
+            s = mv.strand(length=slenderness * 0.006, n=n, E=E, G=0.4 * E)
+            mu, w = s.q / 9.81, mv.SAG * s.length
             if load == "gravity":
-                s = mv.strand(length=slenderness * 0.006, n=n, E=E, G=0.4 * E)
-                mu = s.q / 9.81
-                g = mv.SAG * s.length / (mu * s.length**4 / (8 * s.EI))
-                ref = elastica_cantilever(length=s.length, radius=0.006, E=E, G=0.4 * E,
-                                          rho=mu / (np.pi * 0.006**2), g=g, n_elements=n)
-                worst_ref = max(worst_ref, ref["error"])
-                line += f" pyelastica {ref['error']:+.4f} {ref['seconds']:.2f} s"
+                g, P = w / (mu * s.length**4 / (8 * s.EI)), 0.0
+            else:
+                g, P = 0.0, w / (s.length**3 / (3 * s.EI))
+            ref = elastica_cantilever(length=s.length, radius=0.006, E=E, G=0.4 * E,
+                                      rho=mu / (np.pi * 0.006**2), g=g, n_elements=n, tip_force=P)
+            worst_ref = max(worst_ref, ref["error"])
+            line += f" pyelastica {ref['error']:+.4f} {ref['seconds']:.2f} s"
             print(line, flush=True)
+    for solver in worst:  # fixed-free Euler buckling at 0.95 and 1.05 of pi^2 E I / (2 L)^2
+        below, above = (mv.buckles(ratio, dt=mv.DEFAULT_DT, iterations=mv.DEFAULT_ITERATIONS, solver=solver)
+                        for ratio in (0.95, 1.05))
+        print(f"buckling_lateral_over_L_{solver} {below['lateral_over_L']:.4f} {above['lateral_over_L']:.4f} - "
+              "(at 0.95 and 1.05 of the Euler load; straight below, buckled above)")
     print(f"cantilever_max_error {worst['gauss-seidel']:.4f} -")
     print(f"cantilever_direct_max_error {worst['direct']:.4f} -")
     print(f"pyelastica_max_error {worst_ref:.4f} -")

@@ -109,3 +109,14 @@ def test_lone_strand_of_many_elements_sags_as_beam_theory_with_the_direct_solver
     print(case, f"Gauss-Seidel {gs['error']:+.4f}, direct {direct['error']:+.4f} (excess {direct['strain_excess']:.2e})")
     assert gs["error"] > 0.03
     assert abs(direct["error"]) < 0.01 and direct["strain_excess"] < mechanics.STRAIN_EXCESS_TOLERANCE
+
+
+@pytest.mark.slow
+def test_fixed_free_buckling_load_within_5_percent_at_the_default_step():
+    """With the direct solver at the scene's dt_mech and one iteration, the vertical strand stays
+    straight at 0.95 of pi^2 E I / (2 L)^2 and buckles at 1.05 (Gauss-Seidel at these settings
+    already bends 6% of L at 0.95)."""
+    below, above = (mv.buckles(ratio, dt=mv.DEFAULT_DT, iterations=mv.DEFAULT_ITERATIONS, solver="direct")
+                    ["lateral_over_L"] for ratio in (0.95, 1.05))
+    print(below, above)
+    assert below < 0.05 and above > 0.2

@@ -167,11 +167,12 @@ def fit_circle(points: np.ndarray) -> tuple[np.ndarray, float, float]:
     return c0 + cu * vt[0] + cv * vt[1], radius, float(np.sqrt(np.mean(dist**2)))
 
 
-def buckles(load_ratio: float, length=0.5, n=20, dt=0.001, iterations=20, seconds=2.0, damping=5.0) -> dict:
+def buckles(load_ratio: float, length=0.5, n=20, dt=0.001, iterations=20, seconds=2.0, damping=5.0,
+            solver="gauss-seidel") -> dict:
     """Vertical clamped strand under a downward tip load ``load_ratio`` * pi^2 E I / (2 L)^2 and
     a lateral imperfection 1e-3 of it; returns the lateral tip deflection over L."""
     s = strand(length=length, n=n, direction=(0.0, 0.0, 1.0), g=0.0, dt=dt, iterations=iterations,
-               damping=damping)
+               damping=damping, solver=solver)
     P = load_ratio * np.pi**2 * s.EI / (2 * s.length) ** 2
     f = np.zeros((s.setup.n_particles, 3))
     f[-1] = (1e-3 * P, 0.0, -P)
@@ -179,6 +180,9 @@ def buckles(load_ratio: float, length=0.5, n=20, dt=0.001, iterations=20, second
     return {"lateral_over_L": float(np.hypot(*(s.ms.x[-1, :2] - s.clamp[:2])) / s.length), "P": P}
 
 
+#: the scene's default mechanics step and iterations
+DEFAULT_DT = float(get_param("mechanics.dt_mech").default)
+DEFAULT_ITERATIONS = int(get_param("mechanics.iterations").default)
 #: (L / r_s, E in Pa, free elements) of ``benchmarks/cantilever.py --sweep``: the corners of
 #: L / r_s in [20, 200], E in [1, 20] GPa and [10, 200] elements, and a middle case
 SWEEP = tuple((lr, E, n) for lr in (20, 200) for E in (1e9, 2e10) for n in (10, 200)) + ((60, 5e9, 50),)
@@ -199,8 +203,8 @@ def sweep_case(slenderness: float, E: float, n: int, load: str = "gravity", r_s:
 
     Returns ``error`` (deflection / analytic - 1, signed), ``strain_excess`` (the solver's
     convergence figure at the end), ``seconds`` (wall time) and the settings."""
-    dt = float(get_param("mechanics.dt_mech").default) if dt is None else dt
-    iterations = int(get_param("mechanics.iterations").default) if iterations is None else iterations
+    dt = DEFAULT_DT if dt is None else dt
+    iterations = DEFAULT_ITERATIONS if iterations is None else iterations
     solver = str(get_param("mechanics.strand_solver").default) if solver is None else solver
     L = slenderness * r_s
     probe = strand(length=L, n=n, r_s=r_s, E=E, G=0.4 * E, g=-9.81, dt=dt, iterations=iterations)

@@ -99,7 +99,7 @@ def stable_dt(dx: float, radius: float, E: float, G: float, rho: float) -> float
     return min(2.0 / math.sqrt(omega_sq), dx / math.sqrt(E / rho))
 
 
-def _simulator(elastica, n, dx, radius, E, G, rho, g, dt, damping):
+def _simulator(elastica, n, dx, radius, E, G, rho, g, dt, damping, tip_force=0.0):
     class Cantilever(
         elastica.BaseSystemCollection, elastica.Constraints, elastica.Forcing, elastica.Damping
     ):
@@ -122,6 +122,9 @@ def _simulator(elastica, n, dx, radius, E, G, rho, g, dt, damping):
         elastica.OneEndFixedBC, constrained_position_idx=(0,), constrained_director_idx=(0,)
     )
     sim.add_forcing_to(rod).using(elastica.GravityForces, acc_gravity=np.array([0.0, 0.0, -g]))
+    if tip_force:
+        sim.add_forcing_to(rod).using(elastica.EndpointForces, np.zeros(3), np.array([0.0, 0.0, -tip_force]),
+                                      ramp_up_time=dt)
     sim.dampen(rod).using(
         elastica.AnalyticalLinearDamper, uniform_damping_constant=damping, time_step=dt
     )
@@ -158,8 +161,10 @@ def elastica_cantilever(
     dt: float | None = None,
     final_time: float | None = None,
     damping: float | None = None,
+    tip_force: float = 0.0,
 ) -> dict:
-    """Static tip sag of a clamped round rod under gravity in PyElastica, against beam theory.
+    """Static tip sag of a clamped round rod under gravity and a tip force ``tip_force`` (N,
+    downwards; PyElastica's EndpointForces) in PyElastica, against beam theory.
 
     Units are SI; ``G`` is passed to PyElastica as ``shear_modulus``. ``dt`` defaults to 0.9 of
     the PositionVerlet limit (:func:`stable_dt`), ``damping`` (uniform, 1/s) to 1.7 omega_1
@@ -167,7 +172,7 @@ def elastica_cantilever(
     10 / omega_1; the module docstring gives the reasons and the clamp offset that makes the
     free span exactly ``length``.
 
-    Returns ``deflection`` (|tip z| at the end, m), ``analytic`` (q L^4 / (8 E I), m),
+    Returns ``deflection`` (|tip z| at the end, m), ``analytic`` (q L^4 / (8 E I) + P L^3 / (3 E I), m),
     ``error`` (|deflection / analytic - 1|), ``seconds`` (wall time of the integration only),
     ``steps``, ``n_elements`` and ``drift`` (relative change of the deflection over the last
     10% of the steps; a warning is raised above 0.1%).
@@ -188,7 +193,7 @@ def elastica_cantilever(
     tail = max(1, steps // 10)
 
     _warm_up()
-    sim, rod = _simulator(elastica, n, dx, radius, E, G, rho, g, dt, damping)
+    sim, rod = _simulator(elastica, n, dx, radius, E, G, rho, g, dt, damping, tip_force)
     start = time.perf_counter()
     t = _integrate(sim, 0.0, dt, steps - tail)
     before = -float(rod.position_collection[2, -1])
@@ -207,7 +212,7 @@ def elastica_cantilever(
         )
     q = rho * math.pi * radius**2 * g  # weight per length
     inertia = math.pi * radius**4 / 4.0
-    analytic = q * length**4 / (8.0 * E * inertia)
+    analytic = q * length**4 / (8.0 * E * inertia) + tip_force * length**3 / (3.0 * E * inertia)
     return {
         "deflection": abs(deflection),
         "analytic": analytic,
