@@ -321,6 +321,56 @@ def bake(scene_path: str, out: str | None, days: float | None, years: float | No
 
 
 @main.command()
+@click.argument("batch_path", metavar="BATCH", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", "out", type=click.Path(file_okay=False), default=None,
+              help="Output folder, one sub-folder per variant (default: bake/<batch file stem>).")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="A running dask scheduler (tcp://host:port); default: a LocalCluster on this machine.")
+@click.option("--workers", type=click.IntRange(min=1), default=None,
+              help="Worker processes of the LocalCluster (default: one per core).")
+@click.option("--resume", is_flag=True, help="Skip variants whose summary.json exists with the same scene hash.")
+def batch(batch_path: str, out: str | None, scheduler: str | None, workers: int | None, resume: bool) -> None:
+    """Bake every variant of BATCH (base scenes x overrides x grid) on Dask; writes
+    DIR/<variant>/ and DIR/batch.json, DIR/batch.csv. Exit 1 if a variant failed."""
+    from . import batch as batch_mod
+
+    variants = batch_mod.load_batch(batch_path)
+    out_dir = Path(out) if out else Path("bake") / Path(batch_path).stem
+    if scheduler is not None and not scheduler.strip():
+        raise InputError("--scheduler", "", "give a scheduler address such as tcp://127.0.0.1:8786")
+    try:
+        client = batch_mod.client_for(scheduler, workers)
+    except (OSError, TimeoutError) as err:
+        raise InputError("--scheduler", "", f"cannot reach {scheduler}: {err}".splitlines()[0]) from None
+    with client:
+        click.echo(f"{len(variants)} variants on {len(client.scheduler_info()['workers'])} workers; "
+                   f"dashboard {client.dashboard_link}", err=True)
+        tty = sys.stderr.isatty()
+        bar = click.progressbar(length=len(variants), label="batch", file=sys.stderr) if tty else None
+
+        def progress(row):
+            if bar is not None:
+                bar.update(1)
+            else:
+                click.echo(f"{row['status']:8s} {Path(row['output']).name}  {row['seconds']:.1f} s"
+                           + (f"  {row['error']}" if row.get("error") else ""), err=True)
+
+        t0 = time.perf_counter()
+        with bar if bar is not None else contextlib.nullcontext():
+            rows = batch_mod.run_batch(variants, out_dir, client, resume=resume, progress=progress)
+        if scheduler is None:
+            client.cluster.close()
+    counts = {k: sum(r["status"] == k for r in rows) for k in ("done", "skipped", "failed")}
+    click.echo(f"wrote {out_dir / 'batch.json'} and {out_dir / 'batch.csv'}: "
+               + ", ".join(f"{v} {k}" for k, v in counts.items()) + f" in {time.perf_counter() - t0:.1f} s")
+    for r in rows:
+        if r["status"] == "failed":
+            click.echo(f"failed: {Path(r['output']).name}: {r['error']}", err=True)
+    if counts["failed"]:
+        sys.exit(1)
+
+
+@main.command()
 @click.argument("a", type=click.Path(dir_okay=False))
 @click.argument("b", type=click.Path(dir_okay=False))
 @click.option("--rtol", type=click.FloatRange(min=0), default=1e-6, show_default=True, help="Relative tolerance of numbers.")
