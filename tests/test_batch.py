@@ -110,3 +110,22 @@ def test_a_worker_killed_mid_bake_has_its_variant_retried_with_the_same_result(t
     assert run("bake", SAMPLES / "tiny.toml", "-o", single, "--days", "20", "--frames", "4",
                "--set", "scene.seed=3").exit_code == 0
     assert run("diff", tmp_path / "out" / variants[0].name / "tiny.usdc", single / "tiny.usdc").exit_code == 0
+
+
+def test_variants_of_the_same_wood_share_one_built_model_and_bake_the_same(tmp_path, monkeypatch):
+    """Two variants that differ only in [time] build the model once on a worker; the second,
+    baked from the retimed model, equals a single bake of its scene."""
+    import wooddecay.model
+
+    builds = []
+    real = wooddecay.model.build_model
+    monkeypatch.setattr(wooddecay.model, "build_model", lambda scene: builds.append(scene.name) or real(scene))
+    monkeypatch.setattr(batch_mod, "_models", {})
+    path = tmp_path / "b.toml"
+    path.write_text(f'[batch]\nscenes = ["{SAMPLES / "tiny.toml"}"]\n[batch.set]\n"time.frames" = 2\n'
+                    '[batch.grid]\n"time.days" = [1, 3]\n')
+    rows = [batch_mod.bake_variant(v, str(tmp_path / v.name), 1) for v in batch_mod.load_batch(path)]
+    assert [r["status"] for r in rows] == ["done", "done"] and len(builds) == 1
+    single = tmp_path / "single"
+    assert run("bake", SAMPLES / "tiny.toml", "-o", single, "--days", "3", "--frames", "2").exit_code == 0
+    assert run("diff", tmp_path / "tiny__time.days=3" / "tiny.usdc", single / "tiny.usdc").exit_code == 0

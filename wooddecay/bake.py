@@ -81,14 +81,15 @@ def frame_summary(frame: Frame) -> dict:
 
 
 def bake(scene, out, resume: bool = False, quality: str = "final", progress=None, threads: int | None = None,
-         max_memory: int | None = None) -> dict:
+         max_memory: int | None = None, model=None) -> dict:
     """Bake ``scene`` into the folder ``out`` (module docstring); returns the summary.
 
     ``progress(frame, n_frames)`` is called after every simulated frame. ``threads``: the numba
     thread count of the simulation, or None to pick it per macro step
     (:class:`wooddecay.sim.threads.ThreadChoice`). A scene whose estimated peak memory
     (:func:`wooddecay.budget.check`) exceeds ``max_memory`` bytes, or the memory available, is
-    refused before anything is written.
+    refused before anything is written. ``model``: the scene's built model, if the caller holds it
+    (:func:`wooddecay.model.retimed`; a batch shares one between variants).
     """
 
     if quality not in QUALITIES:
@@ -97,7 +98,7 @@ def bake(scene, out, resume: bool = False, quality: str = "final", progress=None
     out = Path(out)
     created = not out.exists()
     try:
-        return _bake(scene, out, resume, quality, progress, threads)
+        return _bake(scene, out, resume, quality, progress, threads, model)
     except BaseException:
         # a bake that fails before its first frame leaves nothing; a later failure keeps the frames
         # and the checkpoint for --resume
@@ -106,7 +107,7 @@ def bake(scene, out, resume: bool = False, quality: str = "final", progress=None
         raise
 
 
-def _bake(scene, out: Path, resume: bool, quality: str, progress, threads: int | None) -> dict:
+def _bake(scene, out: Path, resume: bool, quality: str, progress, threads: int | None, model=None) -> dict:
     work = out / ".bake"
     try:
         work.mkdir(parents=True, exist_ok=True)
@@ -115,7 +116,10 @@ def _bake(scene, out: Path, resume: bool, quality: str, progress, threads: int |
     ckpt = work / "checkpoint.npz"
     seconds = {}
     t0 = time.perf_counter()
-    model = build_model(scene)
+    if model is None:
+        model = build_model(scene)
+    elif model.info.hash != scene.hash:
+        raise ValueError("the model given to bake() is not the scene's")
     seconds["build"] = time.perf_counter() - t0
     mechanics = quality == "final"
 

@@ -19,7 +19,9 @@ the others go on.
 The engine is a ``dask.distributed`` Client: a LocalCluster of one single-threaded process per
 worker by default (each bake then runs its numba kernels on cores // workers threads, so workers
 do not oversubscribe the machine), or any scheduler by address (a farm, dask-jobqueue, Kubernetes)
-with no other change. Each variant is one task with retries: a worker that dies mid-bake has its
+with no other change. A worker keeps the models it built and bakes the next variant of the same
+wood (differing only in [time], [export] or its name) from it, not from a new build. Each variant
+is one task with retries: a worker that dies mid-bake has its
 variant run again elsewhere, and a bake is deterministic, so the result is the same. ``resume``
 skips variants whose ``summary.json`` exists with the scene hash of the resolved scene. At the
 end ``batch.json`` and ``batch.csv`` list every variant (scene, overrides, status, seconds,
@@ -125,6 +127,28 @@ def load_batch(path: str | os.PathLike) -> list[Variant]:
     return out
 
 
+#: built models a worker keeps for the next variants of the same wood (Scene.model_hash)
+MODELS_KEPT = 2
+_models: dict[str, Any] = {}
+
+
+def _model_for(scene):
+    """The scene's model: built, or retimed from a model this worker built for a variant of the
+    same wood (:func:`wooddecay.model.retimed`)."""
+    from .budget import check
+    from .model import build_model, retimed
+
+    key = scene.model_hash
+    if key in _models:
+        return retimed(_models[key], scene)
+    check(scene)  # refuse an oversized scene before building it, as bake() does
+    model = build_model(scene)
+    _models[key] = model
+    while len(_models) > MODELS_KEPT:
+        _models.pop(next(iter(_models)))
+    return model
+
+
 def bake_variant(variant: Variant, out: str, threads: int | None) -> dict:
     """Bake one variant into ``out`` (its folder) and return its row of ``batch.json``; a bad
     scene or a failed bake gives status "failed" with the one-line error. Runs on a worker."""
@@ -135,7 +159,7 @@ def bake_variant(variant: Variant, out: str, threads: int | None) -> dict:
     row = {"scene": variant.scene, "overrides": variant.overrides, "output": out}
     try:
         scene = load_scene(variant.scene, overrides=variant.overrides)
-        summary = bake(scene, out, threads=threads)
+        summary = bake(scene, out, threads=threads, model=_model_for(scene))
     except (InputError, ValueError, FloatingPointError, MemoryError) as err:
         return {**row, "status": "failed", "error": str(err).splitlines()[0], "seconds": time.perf_counter() - t0}
     last = summary["frames"][-1]

@@ -245,6 +245,28 @@ def narrow_notes(skel: Skeleton, r_s: float) -> tuple[str, ...]:
     return tuple(notes)
 
 
+def _scene_info(scene) -> SceneInfo:
+    return SceneInfo(name=str(scene.name), seed=int(scene.seed), hash=scene.hash, settle_hash=scene.settle_hash)
+
+
+def _time_spec(scene) -> TimeSpec:
+    return TimeSpec(days=float(scene.time.days), dt_bio=float(scene.time.dt_bio), frames=int(scene.time.frames),
+                    fps=float(scene.time.fps), N_mech=int(scene.mechanics.N_mech),
+                    settle=float(scene.mechanics.settle), settle_damping=float(scene.mechanics.settle_damping),
+                    schedule=str(scene.time.schedule),
+                    tolerances=Tolerances(strain=float(scene.time.strain_tolerance),
+                                          relative=float(scene.time.tolerance),
+                                          rest_speed=float(scene.time.rest_speed),
+                                          max_seconds=float(scene.time.max_mechanics)))
+
+
+def retimed(model: WoodModel, scene) -> WoodModel:
+    """The model of ``scene``, from the ``model`` of a scene with the same
+    :attr:`~wooddecay.scene.types.Scene.model_hash` (it differs at most in [time], [export], its
+    name and description): only the schedule and the scene's identity change."""
+    return replace(model, info=_scene_info(scene), time=_time_spec(scene), build_seconds={})
+
+
 def build_model(scene) -> WoodModel:
     """Build the wood model of a validated :class:`wooddecay.scene.Scene`."""
     sec: dict[str, float] = {}
@@ -337,16 +359,7 @@ def build_model(scene) -> WoodModel:
         cp_offsets=strands.offsets, cp_node=strands.node, cp_uv=cp_uv, cp_s=cp_s, particle_s=particle_s,
         skeleton=skel, topology=topo, r_s=float(st.r_s), bark_thickness=float(rg.bark_thickness),
         materials=materials,
-        info=SceneInfo(name=str(scene.name), seed=int(scene.seed), hash=scene.hash, settle_hash=scene.settle_hash),
-        time=TimeSpec(days=float(scene.time.days), dt_bio=float(scene.time.dt_bio), frames=int(scene.time.frames),
-                      fps=float(scene.time.fps), N_mech=int(scene.mechanics.N_mech),
-                      settle=float(scene.mechanics.settle), settle_damping=float(scene.mechanics.settle_damping),
-                      schedule=str(scene.time.schedule),
-                      tolerances=Tolerances(strain=float(scene.time.strain_tolerance),
-                                            relative=float(scene.time.tolerance),
-                                            rest_speed=float(scene.time.rest_speed),
-                                            max_seconds=float(scene.time.max_mechanics))),
-        build_seconds=sec, notes=notes,
+        info=_scene_info(scene), time=_time_spec(scene), build_seconds=sec, notes=notes,
     )
     with _timed(sec, "solvers"):
         model = replace(model, inoculations=tuple(

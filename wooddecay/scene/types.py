@@ -196,6 +196,17 @@ class Scene:
         d["scene"] = {k: v for k, v in d["scene"].items() if k not in ("name", "description")}
         return _digest(d)
 
+    @cached_property
+    def model_hash(self) -> str:
+        """:attr:`hash` without the keys the built model's geometry and solvers do not depend on:
+        [time], [export] and the scene's name and description (variants of a batch that differ
+        only there share one built model, :func:`wooddecay.model.retimed`)."""
+        d = self._hashed()
+        for key in ("time", "export"):
+            d.pop(key)
+        d["scene"] = {k: v for k, v in d["scene"].items() if k not in ("name", "description")}
+        return _digest(d)
+
     def _hashed(self) -> dict:
         d = self.to_dict()
         d.pop("path", None)
