@@ -20,7 +20,7 @@ import numpy as np
 from timing import SAMPLES, spread, times
 
 import wooddecay as wd
-from wooddecay.sim import mechanics, rods, strand_solve
+from wooddecay.sim import mechanics, strand_solve
 from wooddecay.sim.state import initial_state
 
 
@@ -38,12 +38,7 @@ def main(path: str = str(SAMPLES / "log.toml")) -> None:
                lam["s"], lam["sh"], lam["j"], setup.dt)
 
     def gauss_seidel():
-        for elems in setup.elems:
-            rods.stretch_shear(elems, setup.fp, ms.x, ms.q, ms.w_p, ms.w_q, ms.rest_length, setup.k_stretch,
-                               setup.k_shear, ms.element_ok, lam["s"], lam["sh"], setup.dt)
-        for idx in setup.joint_sets:
-            rods.bend_twist(setup.joints, idx, ms.q, ms.w_q, setup.joint_rest, setup.joint_length, kb, kt,
-                            lam["j"], setup.dt)
+        mechanics.strand_stage(replace(setup, strand_solver="gauss-seidel"), ms, (kb, kt), lam, setup.dt)
 
     print(f"elements {model.n_elements} -")
     t_d, t_g = times(direct, 15), times(gauss_seidel, 15)

@@ -68,8 +68,8 @@ def bark_volume(model, samples_per_edge: int = 64, angles: int = 720) -> float:
         if pa.shape == pb.shape and np.array_equal(pa, pb):  # a prism, whatever the profile's shape
             total += polygon_area(pa) * length
             continue
-        Ra = ray_extent(skel.profiles[a].polygon, polygon_centroid(skel.profiles[a].polygon), phi)
-        Rb = ray_extent(skel.profiles[i].polygon, polygon_centroid(skel.profiles[i].polygon), phi)
+        Ra = ray_extent(pa, polygon_centroid(pa), phi)
+        Rb = ray_extent(pb, polygon_centroid(pb), phi)
         t = (np.arange(samples_per_edge) + 0.5) / samples_per_edge
         R = (1.0 - t)[:, None] * Ra[None] + t[:, None] * Rb[None]
         area = 0.5 * (R * R).mean(axis=1) * 2.0 * np.pi

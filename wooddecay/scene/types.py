@@ -190,22 +190,22 @@ class Scene:
         """:attr:`hash` without the keys the settled rods do not depend on: [time], [export], [climate] and
         the scene's name and description (the key of the settled-state cache,
         :mod:`wooddecay.sim.settled`)."""
-        d = self._hashed()
-        for key in ("time", "export", "climate"):
-            d.pop(key)
-        d["scene"] = {k: v for k, v in d["scene"].items() if k not in ("name", "description")}
-        return _digest(d)
+        return _digest(self._identity_free(("time", "export", "climate")))
 
     @cached_property
     def model_hash(self) -> str:
         """:attr:`hash` without the keys the built model's geometry and solvers do not depend on:
         [time], [export] and the scene's name and description (variants of a batch that differ
         only there share one built model, :func:`wooddecay.model.retimed`)."""
+        return _digest(self._identity_free(("time", "export")))
+
+    def _identity_free(self, sections: tuple[str, ...]) -> dict:
+        """:meth:`_hashed` without ``sections`` and the scene's name and description."""
         d = self._hashed()
-        for key in ("time", "export"):
+        for key in sections:
             d.pop(key)
         d["scene"] = {k: v for k, v in d["scene"].items() if k not in ("name", "description")}
-        return _digest(d)
+        return d
 
     def _hashed(self) -> dict:
         d = self.to_dict()

@@ -9,9 +9,9 @@ One substep of length dt (``substep``):
    even then odd elements, bend-twist of even then odd joints: a red-black order along each chain;
    with ``strand_solver = "direct"`` all of a strand's at once, :mod:`~wooddecay.sim.strand_solve`),
    Stage 2 on the REG one colour class at a time (connection of Eq. 2 scaled by I_ij, pair
-   bend-twist by the rest Darboux vector), colliders and capsule contact (:mod:`wooddecay.sim.contact`, Eqs. 3-4, with
-   the particle friction of Eq. 7 applied to the displacements of the substep after all normal
-   contact steps);
+   bend-twist by the rest Darboux vector), colliders and capsule contact
+   (:mod:`wooddecay.sim.contact`, Eqs. 3-4, with the particle friction of Eq. 7 applied to the
+   displacements of the substep after all normal contact steps);
 3. velocities from the positions; contacts touched in this substep keep no separating normal
    velocity (restitution 0);
 4. failure against the limits L(M) and recomputed components (:mod:`wooddecay.sim.failure`).
@@ -442,23 +442,29 @@ def _joint_stiffness(setup: MechSetup, ms: MechState) -> tuple[np.ndarray, np.nd
 def _project(setup: MechSetup, ms: MechState, kjoint, kreg, lam: dict, dt: float) -> None:
     """One sweep of Stage 1 and Stage 2."""
     fp, x, q = setup.fp, ms.x, ms.q
-    kb, kt = kjoint
-    if setup.strand_solver == "direct":
-        strand_solve.solve_strands(setup.strand_offsets, setup.joint_of, fp, x, q, ms.w_p, ms.w_q, ms.rest_length,
-                                   setup.k_stretch, setup.k_shear, ms.element_ok, setup.joint_rest,
-                                   setup.joint_length, kb, kt, lam["s"], lam["sh"], lam["j"], dt)
-    else:
-        for elems in setup.elems:
-            rods.stretch_shear(elems, fp, x, q, ms.w_p, ms.w_q, ms.rest_length, setup.k_stretch, setup.k_shear,
-                               ms.element_ok, lam["s"], lam["sh"], dt)
-        for idx in setup.joint_sets:
-            rods.bend_twist(setup.joints, idx, q, ms.w_q, setup.joint_rest, setup.joint_length, kb, kt,
-                            lam["j"], dt)
+    strand_stage(setup, ms, kjoint, lam, dt)
     sw = setup.sweep
     offset, k_conn, k_bend, k_twist = kreg
     for c in range(len(sw.ptr) - 1):
         rods.reg_pass(sw.edges, sw.ptr[c], sw.ptr[c + 1], fp, x, q, ms.w_p, ms.w_q, offset, k_conn, sw.rest,
                       sw.length, k_bend, k_twist, lam["c"], lam["p"], dt)
+
+
+def strand_stage(setup: MechSetup, ms: MechState, kjoint, lam: dict, dt: float) -> None:
+    """Stage 1: the strands' stretch, shear and bend-twist constraints, by ``setup.strand_solver``
+    (one red-black Gauss-Seidel sweep, or one direct solve per strand)."""
+    fp, x, q = setup.fp, ms.x, ms.q
+    kb, kt = kjoint
+    if setup.strand_solver == "direct":
+        strand_solve.solve_strands(setup.strand_offsets, setup.joint_of, fp, x, q, ms.w_p, ms.w_q, ms.rest_length,
+                                   setup.k_stretch, setup.k_shear, ms.element_ok, setup.joint_rest,
+                                   setup.joint_length, kb, kt, lam["s"], lam["sh"], lam["j"], dt)
+        return
+    for elems in setup.elems:
+        rods.stretch_shear(elems, fp, x, q, ms.w_p, ms.w_q, ms.rest_length, setup.k_stretch, setup.k_shear,
+                           ms.element_ok, lam["s"], lam["sh"], dt)
+    for idx in setup.joint_sets:
+        rods.bend_twist(setup.joints, idx, q, ms.w_q, setup.joint_rest, setup.joint_length, kb, kt, lam["j"], dt)
 
 
 def stiffness(setup: MechSetup, ms: MechState) -> tuple:
@@ -480,8 +486,9 @@ def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: tuple | None = N
     _predict(ms.x, ms.v, ms.q, ms.omega, ms.w_p, ms.w_q, ms.mass_p, ms.force, setup.gravity, ms.torque,
              np.exp(-setup.damping * dt), dt, x_old, q_old)
     kreg, kjoint = stiff or stiffness(setup, ms)
-    lam = _multipliers(setup) if lam is None else lam
-    lam.update(_multipliers(setup))
+    fresh = _multipliers(setup)
+    lam = fresh if lam is None else lam
+    lam.update(fresh)
     normal_force = np.zeros(setup.n_particles)
     refresh_pairs(setup, ms)
     # contact (docs/decisions.md "Contact"): the normal steps of colliders and pairs, then friction
@@ -524,8 +531,8 @@ def strain_excess(setup: MechSetup, ms: MechState) -> float:
     probe, lam, dt = ms.copy(), {}, setup.dt
     _substep(setup, probe, dt, lam=lam)
     before = {k: v.copy() for k, v in lam.items()}
-    kb, kt = _joint_stiffness(setup, probe)
-    _project(setup, probe, (kb, kt), setup.sweep.arrays(probe), lam, dt)
+    kreg, (kb, kt) = stiffness(setup, probe)
+    _project(setup, probe, (kb, kt), kreg, lam, dt)
     fp, w_p, w_q, l = setup.fp, probe.w_p, probe.w_q, probe.rest_length
     wa, wb = w_p[fp], w_p[fp + 1]
     f = 2.0 / setup.joint_length
