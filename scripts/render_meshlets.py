@@ -32,8 +32,8 @@ import os
 import sys
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b -P: not on the path
-import _render_common as common
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "wooddecay", "render"))
+import blender_common as common
 
 # ring ramp (linear RGB, positions in [0, 1] of the oldest ring): pale pith -> deep outer rings
 RING_RAMP = [

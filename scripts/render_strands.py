@@ -23,8 +23,8 @@ import os
 import sys
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # blender -b -P: not on the path
-import _render_common as common
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "wooddecay", "render"))
+import blender_common as common
 
 
 def parse_args(argv=None):

@@ -371,6 +371,26 @@ def batch(batch_path: str, out: str | None, scheduler: str | None, workers: int 
 
 
 @main.command()
+@click.argument("figures", metavar="[FIG]...", nargs=-1)
+@click.option("-o", "--output", "out", type=click.Path(file_okay=False), default="gallery", show_default=True,
+              help="Output folder: DIR/<fig>/<variant>/ bakes, DIR/<fig>/*.png panels, DIR/signatures.json.")
+@click.option("--quick", is_flag=True, help="Reduced scenes (coarser strands, fewer days) that fit CI.")
+@click.option("--render/--no-render", default=True, show_default=True,
+              help="Render the panels through the add-on (needs the bpy wheel: wooddecay[render]).")
+def gallery(figures: tuple[str, ...], out: str, quick: bool, render: bool) -> None:
+    """Bake, render and measure the paper's figures (FIG: fig6, fig11, ..., fig19, or 6, 11, ...;
+    default all) and write DIR/signatures.json with, per figure, whether its claim holds."""
+    from .gallery.run import run_gallery, select
+
+    select(figures)  # a bad name fails before anything is written
+    t0 = time.perf_counter()
+    result = run_gallery(figures, out, quick=quick, renders=render, log=lambda m: click.echo(m, err=True))
+    for key, e in result.items():
+        click.echo(f"{key:6s} holds {str(e['holds']).lower():5s} {e['seconds']:7.0f} s  {e['title']}")
+    click.echo(f"wrote {Path(out) / 'signatures.json'} in {time.perf_counter() - t0:.0f} s")
+
+
+@main.command()
 @click.argument("a", type=click.Path(dir_okay=False))
 @click.argument("b", type=click.Path(dir_okay=False))
 @click.option("--rtol", type=click.FloatRange(min=0), default=1e-6, show_default=True, help="Relative tolerance of numbers.")

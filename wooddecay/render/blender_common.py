@@ -1,4 +1,5 @@
-"""Helpers shared by the ``bpy`` render scripts (render_meshlets.py, render_bake.py, render_strands.py).
+"""Helpers shared by the ``bpy`` render scripts (blender_bake.py here, scripts/render_meshlets.py and
+scripts/render_strands.py).
 
 Their common command-line options, importing a USD file and finding its object, reading point
 positions and attributes, the render settings, a sun and a plain sky, node-tree building blocks
@@ -7,8 +8,8 @@ rendering one or more views into a PNG (captions, size capping) and the exit und
 wheel. Nothing here imports ``bpy`` at module level (the scripts pass it in), nor wooddecay or
 usd-core's ``pxr``.
 
-The scripts import this file by name: ``python scripts/X.py`` puts ``scripts/`` first on
-``sys.path``; under ``blender -b -P scripts/X.py`` each script adds its own folder first.
+The scripts import this file by name (``import blender_common``): each puts this folder first on
+``sys.path``, as ``blender -b -P`` does not.
 """
 from __future__ import annotations
 

@@ -1,0 +1,78 @@
+"""The gallery (``wooddecay gallery``; wooddecay.gallery): figures' quick scenes baked and decided
+in CI, the direction of each claim asserted through its ``holds``, one figure rendered through the
+add-on, and the command's errors.
+
+CI decides the five figures whose quick scenes bake in seconds (CI_FIGURES, about 2.5 min in all);
+the log and tree figures (12, 13, 15, 16, 19) take 1-3 min per quick bake on 2 cores, so they are
+decided by the full gallery (docs/gallery.md), and every figure's scenes are loaded here."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from wooddecay.gallery import FIGURES, run_gallery
+from wooddecay.gallery.run import SCENES
+from wooddecay.scene import load_scene
+
+CI_FIGURES = ("fig6", "fig11", "fig14", "fig17", "fig18")
+
+
+def test_every_figure_has_its_scenes_and_claim():
+    assert list(FIGURES) == ["fig6", "fig11", "fig12", "fig13", "fig14", "fig15", "fig16", "fig17", "fig18", "fig19"]
+    for fig in FIGURES.values():
+        assert fig.claim and fig.test and fig.caption
+        assert (fig.study is None) == bool(fig.variants)
+        for v in fig.variants:
+            load_scene(SCENES / (v.scene or fig.scene), overrides={**v.overrides, **fig.quick})
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    out = tmp_path_factory.mktemp("gallery")
+    return out, run_gallery(CI_FIGURES, out, quick=True, renders=False, log=print)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("key", CI_FIGURES)
+def test_quick_figure_holds(quick, key):
+    """Each figure's claim, decided on its quick scenes (figures.py: the test per figure)."""
+    out, result = quick
+    entry = result[key]
+    print(key, json.dumps({k: {s: v.get(s) for s in ("signature",) if s in v} for k, v in entry["variants"].items()}))
+    assert entry["holds"] is True, f"{key}: {entry['test']}"
+
+
+@pytest.mark.slow
+def test_signatures_json_and_page(quick):
+    out, result = quick
+    on_disk = json.loads((out / "signatures.json").read_text())
+    assert on_disk == json.loads(json.dumps(result))
+    page = (out / "gallery.md").read_text()
+    for key in CI_FIGURES:
+        assert f"## {key}" in page
+
+
+@pytest.mark.slow
+@pytest.mark.blender
+def test_gallery_command_renders_panels(tmp_path):
+    """`wooddecay gallery 6 --quick`: three panels rendered through the add-on, listed in
+    signatures.json."""
+    proc = subprocess.run([sys.executable, "-m", "wooddecay.cli", "gallery", "6", "--quick", "-o", str(tmp_path)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    entry = json.loads((tmp_path / "signatures.json").read_text())["fig6"]
+    assert len(entry["panels"]) == 3
+    for p in entry["panels"]:
+        assert (tmp_path / p).stat().st_size > 10_000
+    assert "fig6   holds" in proc.stdout
+
+
+def test_unknown_figure_is_one_line(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "wooddecay.cli", "gallery", "fig7", "-o", str(tmp_path / "g")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0 and "fig7" in proc.stderr and "fig6" in proc.stderr
+    assert not (tmp_path / "g").exists()

@@ -1,0 +1,277 @@
+"""The figures of the gallery: per figure of woodstock, its scene in ``samples/gallery/``, the
+variants the paper compares (Table 2's parameter changes as scene overrides), the claim of its
+caption in one sentence, the statistic and the test that decide whether our bake shows it, and
+what ``--quick`` changes to fit CI.
+
+A figure with ``study`` runs a study instead of bakes (Fig. 17's pull test, Fig. 18's barrier
+curves); every other figure bakes each variant with :func:`wooddecay.bake.bake`.
+``measure(model, frames)`` adds the figure's own statistic (:mod:`.measures`) to the last frame's
+signature; ``decide(measured)`` takes the variants' measurements by name and returns whether the
+claim holds.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from ..studies import barrier, pull
+from . import measures
+
+
+@dataclass(frozen=True)
+class Variant:
+    name: str  # folder and panel name
+    label: str  # what differs, in the paper's terms
+    overrides: dict = field(default_factory=dict)
+    scene: str | None = None  # its own file in samples/gallery instead of the figure's
+
+
+@dataclass(frozen=True)
+class Figure:
+    key: str  # "fig6"
+    title: str
+    caption: str  # the paper's caption in our words
+    claim: str  # what must hold, one sentence
+    test: str  # how ``decide`` reads the statistic
+    decide: Callable[[dict], bool]
+    scene: str | None = None  # file in samples/gallery
+    variants: tuple[Variant, ...] = ()
+    quick: dict = field(default_factory=dict)  # overrides of every variant under --quick
+    measure: Callable | None = None  # (model, frames) -> dict
+    panels: tuple[int, ...] = (-1,)  # frames rendered per variant
+    render_options: tuple = ()
+    study: Callable | None = None  # (out_dir, quick) -> (measured by variant, chart path)
+
+
+#: Fig. 6's crack orientation is read on the first frame with this many broken connections: later
+#: breaks of the cracked section (along the grain, at the ends) blur it
+FIRST_CRACKS = 25
+
+
+def _orientation(m):
+    """(r, t) shares of the broken connections at the first frame with FIRST_CRACKS of them."""
+    first = next((f for f in m["frames"] if f["broken_connections"] >= FIRST_CRACKS), m["frames"][-1])
+    r, t, _ = first["signature"]["crack_orientation"]
+    return r, t
+
+
+def _fig6_measure(model, frames):
+    return measures.crack_opening(model, frames[0], frames[-1])
+
+
+def _fig6_decide(m):
+    (ra, ta), (rb, tb), (rc, tc) = (_orientation(m[k]) for k in ("a", "b", "c"))
+    c = m["c"]
+    return bool(ta > 2 * ra and rb > 2 * tb and tc > 2 * rc and c["cracks"] >= 4 * max(c["effective_cracks"], 1.0))
+
+
+def _blocks(model, frames):
+    return measures.loose_blocks(model, frames[-1])
+
+
+def _fig11_decide(m):
+    a, b, c, d = (m[k] for k in "abcd")
+    return bool(a["blocks"] >= 3 and c["median_block_elements"] > a["median_block_elements"]
+                and b["median_block_length_m"] > a["median_block_length_m"] and d["blocks"] < a["blocks"])
+
+
+def _fig12_decide(m):
+    a, b = m["uniform"]["signature"], m["one_side"]["signature"]
+    return bool(a["pieces"] >= 5 and b["pieces"] > a["pieces"]
+                and m["one_side"]["median_block_elements"] <= m["uniform"]["median_block_elements"]
+                and b["debris_height_m"] < a["debris_height_m"])
+
+
+def _halves(model, frames):
+    s = model.wood_coords[:, 2]
+    mid = 0.5 * (s.min() + s.max())
+    return {"root_end": measures.part(model, frames[-1], s < mid), "far_end": measures.part(model, frames[-1], s >= mid)}
+
+
+def _fig13_decide(m):
+    brown, white = m["brown_white"]["root_end"], m["brown_white"]["far_end"]
+    return bool(brown["blocks"] >= 3 and brown["median_block_purity"] >= 0.8
+                and white["crumbled_share"] > max(2.0 * brown["crumbled_share"], 0.02))
+
+
+def _sequence(sig_frames, key):
+    return [f["signature"][key] for f in sig_frames]
+
+
+def _fig14_decide(m):
+    f = m["trunk"]["frames"]
+    ml, cracks, hollow = (_sequence(f, k) for k in ("mass_loss", "crack_clusters", "hollow_fraction"))
+    cracked = [i for i, c in enumerate(cracks) if c > 0]
+    return bool(cracked and ml[cracked[0]] < 0.05 and max(hollow) >= 0.3 and ml[-1] > ml[len(ml) // 2] > 0.05)
+
+
+def _fig15_decide(m):
+    f = m["board"]["frames"]
+    checked = [x for x in f if x["signature"]["crack_clusters"] >= 3 and x["signature"]["mass_loss"] < 0.02]
+    return bool(checked and checked[0]["signature"]["pieces"] <= 1 and f[-1]["signature"]["mass_loss"] >= 0.1)
+
+
+def _fig16_decide(m):
+    dry, wet = m["dry"]["signature"], m["wet"]["signature"]
+    return bool(dry["pieces"] > wet["pieces"] and dry["largest_piece_fraction"] < wet["largest_piece_fraction"]
+                and min(dry["hollow_fraction"], wet["hollow_fraction"]) > 0.05)
+
+
+def _fig19_decide(m):
+    def progresses(v):
+        f = v["frames"]
+        ml, hollow, largest = (_sequence(f, k) for k in ("mass_loss", "hollow_fraction", "largest_piece_fraction"))
+        return ml[-1] > ml[1] and hollow[-1] > 0.05 and largest[-1] < largest[0] - 0.05
+    return all(progresses(v) for v in m.values())
+
+
+def _fig17_study(out, quick):
+    scene = pull.specimen_scene(quality="draft")
+    from ..model import build_model
+
+    model = build_model(scene)
+    rel = 0.25 if quick else 0.1
+    measured = {}
+    for name, decay, guess in (("severe", 0.5, (0.2, 0.4)), ("intermediate", 0.8, (1.0, 3.0))):
+        st = pull.study(scene, model, healthy=(4.0, 8.0), decayed=guess, rel=rel, decay=decay)
+        measured.setdefault("healthy", {"threshold_N": st.healthy.force, "bracket_N": [st.healthy.lo, st.healthy.hi]})
+        measured[name] = {"H": decay, "threshold_N": st.decayed.force, "bracket_N": [st.decayed.lo, st.decayed.hi]}
+    return measured, None
+
+
+def _fig17_decide(m):
+    h, i, s = (m[k]["bracket_N"] for k in ("healthy", "intermediate", "severe"))
+    return bool(h[0] >= 10.0 * s[1] and s[1] <= i[0] and i[1] <= h[0])
+
+
+def _fig18_study(out, quick):
+    days = 600.0 if quick else 1500.0
+    runs = [barrier.run_barrier(r, days=days, dt=2.0 if quick else 1.0) for r in barrier.RATIOS]
+    chart = out / "fig18.png"
+    barrier.plot_barrier(runs, chart)
+    return {f"beta_kappa_{r.ratio:g}": {"plateau_days": r.plateau, "mass_loss_end": float(r.mass_loss[-1])}
+            for r in runs}, chart
+
+
+def _fig18_decide(m):
+    p = [v["plateau_days"] for v in m.values()]
+    return bool(np.all(np.diff(p) >= 0) and p[-1] > p[0])
+
+
+END_VIEW = ("--azimuth", "-150")  # one view onto the x = 0 end face
+#: --quick: the log of Figs. 12-13 and the trees of Figs. 16, 19 with strands 2x (trees) to 2.7x
+#: (log... ) wider, so a bake takes seconds
+LOG_QUICK = {"strands.r_s": 0.018, "strands.rod_length": 0.09, "bsp.cells": 80, "time.frames": 4}
+TREE_QUICK = {"strands.r_s": 0.012, "strands.rod_length": 0.06, "bsp.cells": 200}
+
+FIGURES = {f.key: f for f in (
+    Figure(
+        "fig6", "Shrinkage ablation",
+        "A fresh log section dries from its surface; the ratio of radial to tangential shrinkage "
+        "decides how it cracks: S_R/S_T = 0.1/1 splits radially, 1/0.1 delaminates along the rings, "
+        "1/1 opens many small surface cracks of which a few dominant radial ones run inwards.",
+        "Radial shrinkage alone breaks radial connections (delamination), tangential alone "
+        "tangential ones (radial splits), and balanced shrinkage concentrates the opening in a few cracks.",
+        "on the first frame with >= 25 broken connections their shares t > 2 r for 0.1/1 and 1/1, "
+        "r > 2 t for 1/0.1; for 1/1 on the last frame the crack count is at least 4x the "
+        "opening-weighted crack count",
+        _fig6_decide, scene="fig6.toml",
+        variants=(Variant("a", "S_R/S_T = 0.1/1", {"mechanics.S_R": 0.1, "mechanics.S_T": 1.0}),
+                  Variant("b", "S_R/S_T = 1/0.1", {"mechanics.S_R": 1.0, "mechanics.S_T": 0.1}),
+                  Variant("c", "S_R/S_T = 1/1", {"mechanics.S_R": 1.0, "mechanics.S_T": 1.0})),
+        quick={"time.days": 18.0, "time.frames": 4}, measure=_fig6_measure, render_options=END_VIEW),
+    Figure(
+        "fig11", "BSP configurations",
+        "The same brown-rotting log under four BSP partitions: (a) the default gives cubical "
+        "blocks, (b) cells 2.5x longer along the grain bias the blocks along it, (c) 16x larger "
+        "cells give coarser blocks, (d) without a BSP the structure is uniform and loses its blocks.",
+        "Block size follows the cell size, block shape the cell shape, and no BSP gives no blocks.",
+        "loose blocks (pieces of >= 5 elements but the largest): (a) at least 3, (c) larger median "
+        "size than (a), (b) longer along the grain (median) than (a), (d) fewer than (a)",
+        _fig11_decide, scene="fig11.toml",
+        variants=(Variant("a", "default: 48 cells"),
+                  Variant("b", "cells 2.5x along e_l: 19 cells", {"bsp.elongation": 5.0, "bsp.cells": 19}),
+                  Variant("c", "cells 16x larger: 3 cells", {"bsp.cells": 3}), Variant("d", "no BSP", {"bsp.cells": 0})),
+        measure=_blocks),
+    Figure(
+        "fig12", "Brown rot to a debris pile",
+        "A log degraded by brown rot cracks into cubes, collapses and piles up as debris; more "
+        "fungal activity on one side gives finer fragments and a lower, more compact pile.",
+        "Brown rot takes the log apart into blocks that pile up; more activity on one side gives "
+        "more, smaller blocks and a lower pile.",
+        "uniform: >= 5 pieces; one side: more pieces, a median block no larger, a lower pile",
+        _fig12_decide, scene="fig12.toml",
+        variants=(Variant("uniform", "activity 0.05 from the ground"),
+                  Variant("one_side", "activity 0.2 from the ground", {"inoculation.1.activity": 0.2})),
+        quick=LOG_QUICK, measure=_blocks, panels=(0, -1)),
+    Figure(
+        "fig13", "Brown and white rot from opposite ends",
+        "Brown rot from one end breaks the carbohydrate-rich wood into cubes; white rot from the "
+        "other end hollows the lignin-rich heartwood with a diffuse front.",
+        "The brown end comes apart in blocks of one BSP cell, the white end is consumed (crumbles).",
+        "brown (root) half: >= 3 loose blocks of median BSP purity >= 0.8; white (far) half: "
+        "crumbled share above 2x the brown half's and above 2%",
+        _fig13_decide, scene="fig13.toml", variants=(Variant("brown_white", "brown at x = 0, white at x = 1 m"),),
+        quick=LOG_QUICK, measure=_halves, panels=(-1,)),
+    Figure(
+        "fig14", "Trunk: cracks, hollow, decomposition",
+        "A cut trunk first cracks internally as it dries, then white rot hollows its weak heartwood, "
+        "then brown rot from a wound decomposes the rest.",
+        "Cracks come before decay, white rot leaves a hollow, and decay keeps going after it.",
+        "the first frame with a crack has mass loss < 0.05; the hollow fraction reaches 0.3; mass "
+        "loss rises from the middle frame (> 0.05) to the last",
+        _fig14_decide, scene="fig14.toml", variants=(Variant("trunk", "as shipped"),),
+        quick={"strands.r_s": 0.014, "bsp.cells": 100, "time.frames": 12},
+        panels=(1, -2, -1), render_options=("--elevation", "60")),
+    Figure(
+        "fig15", "Board: checks along the fibre, then decay",
+        "A green board dries and checks along the fibre before any decay; fungi then take it apart "
+        "from the inside.",
+        "Drying opens several checks while the board is still whole and all but undecayed (< 2% mass "
+        "loss); decay follows.",
+        "a frame with >= 3 crack clusters at mass loss < 0.02 and the board in one piece; mass "
+        "loss >= 0.1 at the end",
+        _fig15_decide, scene="fig15.toml", variants=(Variant("board", "as shipped"),),
+        quick={"strands.r_s": 0.006, "bsp.cells": 60, "time.frames": 12}, panels=(1, -1)),
+    Figure(
+        "fig16", "Moisture: dry tree against wet tree",
+        "The same rotting tree at moisture bounds M_1/M_2 = 0.6/0.2 loses branches and partly "
+        "collapses; at 0.6/0.4 it stays largely intact; both hollow.",
+        "Drier wood breaks more: more pieces and a smaller largest piece; both trees hollow.",
+        "dry: more pieces and a smaller largest-piece share than wet; hollow fraction > 0.05 in both",
+        _fig16_decide, scene="fig16.toml",
+        variants=(Variant("dry", "M_1/M_2 = 0.6/0.2", {"moisture.M_2": 0.2}),
+                  Variant("wet", "M_1/M_2 = 0.6/0.4", {"moisture.M_2": 0.4})),
+        quick={**TREE_QUICK, "time.frames": 3}, render_options=("--elevation", "15")),
+    Figure(
+        "fig17", "Pull test at three stages of health",
+        "The same pull on a branch: severely decayed it fragments at once, at intermediate health "
+        "it breaks early, healthy it needs at least 10x the force.",
+        "The force that breaks the branch rises with its health, 10x or more from severe to healthy.",
+        "thresholds (bisected brackets) severe < intermediate < healthy, healthy >= 10x severe",
+        _fig17_decide, study=_fig17_study),
+    Figure(
+        "fig18", "Barrier effect",
+        "Mass loss and moisture over time for beta/kappa in {0, 0.5, 1, 2}: stronger defence gives "
+        "a longer intermediate plateau before decay resumes.",
+        "The plateau lengthens with beta/kappa.",
+        "plateau lengths non-decreasing in beta/kappa and longer at 2 than at 0",
+        _fig18_decide, study=_fig18_study),
+    Figure(
+        "fig19", "Three trees after death",
+        "Trees of different geometry and species settings go from intact through brittle, hollowed "
+        "and broken to collapsed.",
+        "Each tree loses mass, hollows and breaks apart over time.",
+        "per tree: mass loss grows after the second frame, the last hollow fraction > 0.05 and the "
+        "largest piece's share falls by > 0.05",
+        _fig19_decide, scene="fig19_oak.toml",
+        variants=(Variant("oak", "oak-like, the sample tree"),
+                  Variant("spruce", "a taller, slimmer tree; brittle when dry: S 0.8, p_l 5, k_c 1.2",
+                          {"mechanics.S": 0.8, "mechanics.p_l_bundle": 5.0, "mechanics.k_c": 1.2}, scene="fig19_spruce.toml"),
+                  Variant("birch", "a low, wide tree; moisture-tolerant: M_0 0.15, s 0.01, k_l 0.6",
+                          {"mechanics.M_0": 0.15, "mechanics.s": 0.01, "mechanics.k_l": 0.6}, scene="fig19_birch.toml")),
+        quick={**TREE_QUICK, "time.frames": 4}, panels=(0, 1, 2, -1),
+        render_options=("--elevation", "15")),
+)}

@@ -1,0 +1,155 @@
+"""``wooddecay gallery``: bake each figure's variants, render the panels the paper shows through
+the add-on, measure, decide and write ``DIR/signatures.json``.
+
+``DIR/<fig>/<variant>/`` holds each bake (as ``wooddecay bake`` writes it), ``DIR/<fig>/*.png``
+the panels (``<variant>_f<frame>.png``) or the study's chart. ``signatures.json`` is an object
+keyed by figure: title, caption, claim, test, ``variants`` (label, overrides, the last frame's
+signature, the per-frame signatures and the figure's statistic), ``panels``, ``seconds`` and
+``holds`` (true/false). It is rewritten atomically after every figure, so an interrupted gallery
+keeps the figures it finished, and so is ``DIR/gallery.md`` (:func:`markdown`), the page a user
+reads: per figure the caption, the panels, the statistic and whether the claim holds.
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+from .. import render
+from ..atomic import write_bytes
+from ..bake import bake, load_frame
+from ..errors import InputError
+from ..model import build_model
+from ..scene import load_scene
+from .figures import FIGURES, Figure
+
+#: the gallery's scenes
+SCENES = Path(__file__).resolve().parent.parent / "samples" / "gallery"
+#: panels smaller and with fewer samples than render_bake's defaults: a gallery renders dozens
+PANEL_OPTIONS = ("--width", "480", "--height", "270", "--samples", "12", "--max-kb", "90")
+
+
+def select(names) -> list[Figure]:
+    """The figures named (``fig6`` or ``6``), all of them in order when none is."""
+    if not names:
+        return list(FIGURES.values())
+    out = []
+    for name in names:
+        key = name if name.startswith("fig") else f"fig{name}"
+        if key not in FIGURES:
+            raise InputError("FIG", name, f"must be one of {', '.join(FIGURES)}")
+        out.append(FIGURES[key])
+    return out
+
+
+def _bake_variant(fig: Figure, variant, folder: Path, quick: bool, log) -> tuple[dict, list]:
+    """Bake one variant into ``folder``; its measurement and its frames."""
+    overrides = {**variant.overrides, **(fig.quick if quick else {})}
+    scene = load_scene(SCENES / (variant.scene or fig.scene), overrides=overrides)
+    model = build_model(scene)
+    t0 = time.perf_counter()
+    summary = bake(scene, folder, model=model)
+    frames = [load_frame(p) for p in sorted((folder / ".bake").glob("frame_*.npz"))]
+    measured = {"label": variant.label, "overrides": overrides, "signature": summary["frames"][-1]["signature"],
+                "frames": [{"t_days": f["t_days"], "broken_connections": f["broken_connections"], "signature": f["signature"]}
+                           for f in summary["frames"]],
+                "seconds": round(time.perf_counter() - t0, 1)}
+    if fig.measure is not None:
+        measured.update(fig.measure(model, frames))
+    log(f"  {fig.key}/{variant.name}: {measured['seconds']:.0f} s, {_brief(measured['signature'])}")
+    return measured, frames
+
+
+def _brief(sig: dict) -> str:
+    r, t, l = sig["crack_orientation"]
+    return (f"mass loss {sig['mass_loss']:.3f}, pieces {sig['pieces']}, largest {sig['largest_piece_fraction']:.2f}, "
+            f"purity {sig['block_purity']:.2f}, cracks {sig['crack_clusters']} (r/t/l {r:.2f}/{t:.2f}/{l:.2f}), "
+            f"hollow {sig['hollow_fraction']:.2f}, height {sig['debris_height_m']:.3f} m")
+
+
+def run_figure(fig: Figure, out: Path, quick: bool, renders: bool, log=print) -> dict:
+    """Bake (or study), render and decide one figure; its entry of signatures.json."""
+    t0 = time.perf_counter()
+    folder = out / fig.key
+    folder.mkdir(parents=True, exist_ok=True)
+    panels = []
+    if fig.study is not None:
+        measured, chart = fig.study(folder, quick)
+        if chart is not None:
+            panels.append(str(Path(chart).relative_to(out)))
+    else:
+        measured = {}
+        for v in fig.variants:
+            measured[v.name], frames = _bake_variant(fig, v, folder / v.name, quick, log)
+            if renders:
+                usd = folder / v.name / f"{load_scene(SCENES / (v.scene or fig.scene)).name}.usdc"
+                for k in fig.panels:
+                    index = frames[k].index
+                    png = folder / f"{v.name}_f{index}.png"
+                    render.render_bake(usd, png, frame=index, options=(*PANEL_OPTIONS, *fig.render_options))
+                    panels.append(str(png.relative_to(out)))
+    holds = fig.decide(measured)
+    entry = {"title": fig.title, "caption": fig.caption, "claim": fig.claim, "test": fig.test,
+             "quick": quick, "variants": measured, "panels": panels,
+             "seconds": round(time.perf_counter() - t0, 1), "holds": holds}
+    log(f"{fig.key} {fig.title}: holds {str(holds).lower()} ({entry['seconds']:.0f} s)")
+    return entry
+
+
+def run_gallery(names, out, quick: bool = False, renders: bool = True, log=print) -> dict:
+    """Run the figures ``names`` (all when empty) into ``out``; returns signatures.json's object.
+    Figures already in an existing signatures.json are kept unless run again."""
+    figures = select(names)
+    out = Path(out)
+    if renders and not render.available():
+        raise InputError("--render", "bpy", 'rendering needs the bpy wheel: pip install "wooddecay[render]" '
+                                            "(or give --no-render)")
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "signatures.json"
+    result = json.loads(path.read_text()) if path.is_file() else {}
+    for fig in figures:
+        result[fig.key] = run_figure(fig, out, quick, renders, log)
+        write_bytes(path, json.dumps(result, indent=1).encode())
+        write_bytes(out / "gallery.md", markdown(result).encode())
+    return result
+
+
+#: statistics shown per variant in gallery.md (the signature's, then the figure's own)
+SHOWN = ("mass_loss", "pieces", "largest_piece_fraction", "block_purity", "crack_clusters", "hollow_fraction",
+         "debris_height_m")
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.3g}"
+    if isinstance(v, list):
+        return "/".join(_fmt(x) for x in v)
+    return str(v)
+
+
+def markdown(result: dict, prefix: str = "") -> str:
+    """gallery.md of a signatures.json object; panel paths get ``prefix`` in front."""
+    lines = ["# Gallery: woodstock's figures baked, rendered and measured", "",
+             "Made by `wooddecay gallery`; every number below is from `signatures.json` beside it.", "",
+             "| figure | claim | holds | seconds |", "|---|---|---|---|"]
+    lines += [f"| [{k}](#{k}) {e['title']} | {e['claim']} | {'yes' if e['holds'] else '**no**'} | {e['seconds']:.0f} |"
+              for k, e in result.items()]
+    for key, e in result.items():
+        lines += ["", f"## {key}", "", f"**{e['title']}.** {e['caption']}", "",
+                  f"Claim: {e['claim']} Test: {e['test']}. **Holds: {'yes' if e['holds'] else 'no'}**"
+                  + (" (quick scenes)" if e["quick"] else "") + ".", ""]
+        lines += [f"![{p}]({prefix}{p})" for p in e["panels"]]
+        rows = {name: v for name, v in e["variants"].items()}
+        own = sorted({k for v in rows.values() for k, x in v.items()
+                      if isinstance(x, (int, float)) and k != "seconds"} - set(SHOWN))
+        nested = sorted({k for v in rows.values() for k, x in v.items() if isinstance(x, dict) and k != "overrides"
+                         and k != "signature"})
+        cols = [c for c in SHOWN if any("signature" in v for v in rows.values())] + own
+        lines += ["", "| variant | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
+        for name, v in rows.items():
+            sig = v.get("signature", {})
+            lines.append(f"| {name}: {v.get('label', '')} | " + " | ".join(_fmt(sig.get(c, v.get(c, ""))) for c in cols) + " |")
+            for sub in nested:
+                if sub in v:
+                    lines.append(f"| {name} {sub} | " + " | ".join(_fmt(v[sub].get(c, "")) for c in cols) + " |")
+    return "\n".join(lines) + "\n"
