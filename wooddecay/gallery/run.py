@@ -17,17 +17,9 @@ from pathlib import Path
 
 from .. import render
 from ..atomic import write_bytes
-from ..bake import bake, load_frame
 from ..errors import InputError
-from ..model import build_model
-from ..scene import load_scene
+from .bakes import bake_scene, frame_rows, render_panel
 from .figures import FIGURES, Figure
-
-#: the gallery's scenes
-SCENES = Path(__file__).resolve().parent.parent / "samples" / "gallery"
-#: panels smaller and with fewer samples than render_bake's defaults: a gallery renders dozens
-PANEL_OPTIONS = ("--width", "480", "--height", "270", "--samples", "12", "--max-kb", "90")
-
 
 def select(names) -> list[Figure]:
     """The figures named (``fig6`` or ``6``), all of them in order when none is."""
@@ -42,22 +34,16 @@ def select(names) -> list[Figure]:
     return out
 
 
-def _bake_variant(fig: Figure, variant, folder: Path, quick: bool, log) -> tuple[dict, list]:
-    """Bake one variant into ``folder``; its measurement and its frames."""
+def _bake_variant(fig: Figure, variant, folder: Path, quick: bool, log) -> tuple[dict, list, Path]:
+    """Bake one variant into ``folder``; its measurement, its frames and its USD file."""
     overrides = {**variant.overrides, **(fig.quick if quick else {})}
-    scene = load_scene(SCENES / (variant.scene or fig.scene), overrides=overrides)
-    model = build_model(scene)
-    t0 = time.perf_counter()
-    summary = bake(scene, folder, model=model)
-    frames = [load_frame(p) for p in sorted((folder / ".bake").glob("frame_*.npz"))]
+    model, summary, frames, usd, seconds = bake_scene(variant.scene or fig.scene, overrides, folder)
     measured = {"label": variant.label, "overrides": overrides, "signature": summary["frames"][-1]["signature"],
-                "frames": [{"t_days": f["t_days"], "broken_connections": f["broken_connections"], "signature": f["signature"]}
-                           for f in summary["frames"]],
-                "seconds": round(time.perf_counter() - t0, 1)}
+                "frames": frame_rows(summary), "seconds": round(seconds, 1)}
     if fig.measure is not None:
         measured.update(fig.measure(model, frames))
     log(f"  {fig.key}/{variant.name}: {measured['seconds']:.0f} s, {_brief(measured['signature'])}")
-    return measured, frames
+    return measured, frames, usd
 
 
 def _brief(sig: dict) -> str:
@@ -74,19 +60,16 @@ def run_figure(fig: Figure, out: Path, quick: bool, renders: bool, log=print) ->
     folder.mkdir(parents=True, exist_ok=True)
     panels = []
     if fig.study is not None:
-        measured, chart = fig.study(folder, quick)
-        if chart is not None:
-            panels.append(str(Path(chart).relative_to(out)))
+        measured, charts = fig.study(folder, quick, renders, log)
+        panels += [str(Path(c).relative_to(out)) for c in charts]
     else:
         measured = {}
         for v in fig.variants:
-            measured[v.name], frames = _bake_variant(fig, v, folder / v.name, quick, log)
+            measured[v.name], frames, usd = _bake_variant(fig, v, folder / v.name, quick, log)
             if renders:
-                usd = folder / v.name / f"{load_scene(SCENES / (v.scene or fig.scene)).name}.usdc"
                 for k in fig.panels:
-                    index = frames[k].index
-                    png = folder / f"{v.name}_f{index}.png"
-                    render.render_bake(usd, png, frame=index, options=(*PANEL_OPTIONS, *fig.render_options))
+                    png = folder / f"{v.name}_f{frames[k].index}.png"
+                    render_panel(usd, png, frames[k].index, fig.render_options)
                     panels.append(str(png.relative_to(out)))
     holds = fig.decide(measured)
     entry = {"title": fig.title, "caption": fig.caption, "claim": fig.claim, "test": fig.test,

@@ -1,0 +1,38 @@
+"""One bake of a gallery scene and its renders: what the figures (:mod:`.run`) and the sensitivity
+study (:mod:`.sensitivity`) share."""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from .. import render
+from ..bake import bake, load_frame
+from ..model import build_model
+from ..scene import load_scene
+
+#: the gallery's scenes
+SCENES = Path(__file__).resolve().parent.parent / "samples" / "gallery"
+#: panels smaller and with fewer samples than render_bake's defaults: a gallery renders dozens
+PANEL_OPTIONS = ("--width", "480", "--height", "270", "--samples", "12", "--max-kb", "90")
+
+
+def bake_scene(scene_file: str, overrides: dict, folder: Path):
+    """Bake ``samples/gallery/<scene_file>`` with ``overrides`` into ``folder``; returns the model,
+    the summary, the frames (:func:`wooddecay.bake.load_frame`), the USD path and the seconds."""
+    scene = load_scene(SCENES / scene_file, overrides=overrides)
+    t0 = time.perf_counter()
+    model = build_model(scene)
+    summary = bake(scene, folder, model=model)
+    frames = [load_frame(p) for p in sorted((folder / ".bake").glob("frame_*.npz"))]
+    return model, summary, frames, folder / f"{scene.name}.usdc", time.perf_counter() - t0
+
+
+def frame_rows(summary: dict) -> list[dict]:
+    """Per frame: day, broken connections and signature (of ``summary.json``)."""
+    return [{"t_days": f["t_days"], "broken_connections": f["broken_connections"], "signature": f["signature"]}
+            for f in summary["frames"]]
+
+
+def render_panel(usd: Path, png: Path, frame: int, options=()) -> None:
+    """One panel of ``usd`` at ``frame`` (PANEL_OPTIONS, then ``options``)."""
+    render.render_bake(usd, png, frame=frame, options=(*PANEL_OPTIONS, *options))

@@ -1,0 +1,100 @@
+"""Spatial and temporal sensitivity (woodstock §9.5, Fig. 20): the gallery's log (Fig. 12) and trunk
+(Fig. 14) baked at the default step dt_bio and at dt_bio / 2, and with 2x and 4x sparser rods.
+
+Timestep: the cracking state (the first frame with FIRST_CRACKS broken connections in the default
+run) and the degraded state (the last frame) of both runs are rendered alike (no captions, no
+quantisation) and compared by SSIM (:mod:`.ssim`; the paper: 0.9984 and 0.9868, our targets
+SSIM_TARGET). Resolution: strands 2x and 4x sparser (r_s x sqrt 2 and x 2, so 1/2 and 1/4 of the
+strands) keep the last frame's signature within TOLERANCE of the default's.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..scene import load_scene
+from .bakes import SCENES, bake_scene, render_panel
+from .figures import FIGURES
+from .ssim import ssim_png
+
+#: Fig. 12's log and Fig. 14's trunk (their --quick overrides are the figures')
+STUDIED = ("fig12", "fig14")
+#: SSIM the dt / 2 renders must reach: cracking state, degraded state
+SSIM_TARGET = (0.99, 0.985)
+#: largest absolute change of the last frame's signature under 2x and 4x sparser rods
+TOLERANCE = {"mass_loss": 0.05, "hollow_fraction": 0.1, "largest_piece_fraction": 0.25, "block_purity": 0.2}
+#: the first frame with this many broken connections is the cracking state
+FIRST_CRACKS = 25
+#: renders compared by SSIM: as the panels, without captions or quantisation
+SSIM_OPTIONS = ("--no-labels", "--max-kb", "0")
+
+
+def run(out: Path, quick: bool, renders: bool, log) -> tuple[dict, list]:
+    """The study (module docstring) into ``out``; measured per scene, and the chart."""
+    measured = {}
+    for name in STUDIED:
+        scene_file = FIGURES[name].scene
+        base = FIGURES[name].quick if quick else {}
+        runs, frames, usds = {}, {}, {}
+        scene = load_scene(SCENES / scene_file, overrides=base)
+        variants = {"dt": {}, "dt_half": {"time.dt_bio": scene.time.dt_bio / 2},
+                    "sparse2": {"strands.r_s": scene.strands.r_s * math.sqrt(2.0)},
+                    "sparse4": {"strands.r_s": scene.strands.r_s * 2.0}}
+        for v, overrides in variants.items():
+            _, summary, fr, usd, seconds = bake_scene(scene_file, {**base, **overrides}, out / name / v)
+            runs[v] = {"overrides": {**base, **overrides}, "signature": summary["frames"][-1]["signature"],
+                       "seconds": round(seconds, 1), "elements": summary["counts"]["elements"]}
+            frames[v], usds[v] = fr, usd
+            log(f"  fig20/{name}/{v}: {seconds:.0f} s")
+        entry = {"runs": runs}
+        ref = runs["dt"]["signature"]
+        entry["within_tolerance"] = {v: all(abs(runs[v]["signature"][k] - ref[k]) <= t for k, t in TOLERANCE.items())
+                                     for v in ("sparse2", "sparse4")}
+        if renders:
+            broken = [f.diagnostics["mechanics"]["broken_connections"] for f in frames["dt"]]
+            cracking = next((i for i, b in enumerate(broken) if b >= FIRST_CRACKS), len(broken) - 1)
+            for state, k in (("cracking", cracking), ("degraded", len(broken) - 1)):
+                pngs = [out / name / f"{v}_{state}.png" for v in ("dt", "dt_half")]
+                for v, png in zip(("dt", "dt_half"), pngs):
+                    render_panel(usds[v], png, frames[v][k].index, SSIM_OPTIONS)
+                entry[f"ssim_{state}"] = ssim_png(*pngs)
+                entry[f"{state}_frame"] = int(frames["dt"][k].index)
+        measured[name] = entry
+    chart = out / "fig20.png"
+    plot(measured, chart)
+    return measured, [chart]
+
+
+def decide(measured: dict) -> bool:
+    """SSIM at both states reaches SSIM_TARGET and sparser rods stay within TOLERANCE, on both scenes."""
+    return all(e.get("ssim_cracking", 0.0) >= SSIM_TARGET[0] and e.get("ssim_degraded", 0.0) >= SSIM_TARGET[1]
+               and all(e["within_tolerance"].values()) for e in measured.values())
+
+
+def plot(measured: dict, path: Path) -> None:
+    """Per scene, the last frame's signature (TOLERANCE's keys) of the four runs, SSIM in the title."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(measured), figsize=(5.2 * len(measured), 3.8), dpi=110, squeeze=False)
+    keys = list(TOLERANCE)
+    for ax, (name, e) in zip(axes[0], measured.items()):
+        runs = e["runs"]
+        width = 0.8 / len(runs)
+        for i, (v, r) in enumerate(runs.items()):
+            ax.bar(np.arange(len(keys)) + (i - 1.5) * width, [r["signature"][k] for k in keys], width,
+                   label=f"{v} ({r['elements']} elements)")
+        ax.set_xticks(np.arange(len(keys)), [k.replace("_", " ") for k in keys], fontsize=8)
+        ssim_text = (f"SSIM dt/2: cracking {e['ssim_cracking']:.4f}, degraded {e['ssim_degraded']:.4f}"
+                     if "ssim_cracking" in e else "SSIM: not rendered")
+        ax.set_title(f"{name}\n{ssim_text}", fontsize=9)
+        ax.set_ylim(0, 1.05)
+        ax.legend(fontsize=7)
+    fig.suptitle("Sensitivity (woodstock §9.5): timestep and rod density, last frame's signature")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
