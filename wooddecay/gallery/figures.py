@@ -16,6 +16,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..model import build_model
 from ..studies import barrier, pull
 from . import measures
 
@@ -129,8 +130,6 @@ def _fig19_decide(m):
 
 def _fig17_study(out, quick, renders, log):
     scene = pull.specimen_scene(quality="draft")
-    from ..model import build_model
-
     model = build_model(scene)
     rel = 0.25 if quick else 0.1
     measured = {}
