@@ -133,6 +133,7 @@ def markdown(result: dict, prefix: str = "") -> str:
             sig = v.get("signature", {})
             lines.append(f"| {name}: {v.get('label', '')} | " + " | ".join(_fmt(sig.get(c, v.get(c, ""))) for c in cols) + " |")
             for sub in nested:
-                if sub in v:
-                    lines.append(f"| {name} {sub} | " + " | ".join(_fmt(v[sub].get(c, "")) for c in cols) + " |")
+                cells = [_fmt(v[sub].get(c, "")) for c in cols] if sub in v else []
+                if any(cells):
+                    lines.append(f"| {name} {sub} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
