@@ -11,6 +11,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from ..sim.diagnostics import mass_remaining
 from ..sim.signature import MIN_PIECE
 
 
@@ -18,7 +19,7 @@ def crumbled(model, frame) -> np.ndarray:
     """Elements consumed by frame ``frame``: remaining mass (H_l + k_H H_c) / (1 + k_H) below
     m_crumble (:mod:`wooddecay.sim.coupling`; H only falls, so this is the bake's flag)."""
     cs, f = model.coupling, frame.fields
-    return (f["H_l"] + cs.k_H * f["H_c"]) / (1.0 + cs.k_H) < cs.m_crumble
+    return mass_remaining(f["H_c"], f["H_l"], cs.k_H) < cs.m_crumble
 
 
 def loose_blocks(model, frame, mask: np.ndarray | None = None) -> dict:
@@ -80,7 +81,7 @@ def part(model, frame, mask: np.ndarray) -> dict:
     """The state of the elements in ``mask``: mass loss (volume-weighted, k_H as the signature),
     the crumbled share of their volume and their loose blocks (:func:`loose_blocks`)."""
     V, cs, f = model.bio.op.volume, model.coupling, frame.fields
-    left = (f["H_l"] + cs.k_H * f["H_c"]) / (1.0 + cs.k_H)
+    left = mass_remaining(f["H_c"], f["H_l"], cs.k_H)
     w = V * mask
     gone = crumbled(model, frame)
     return {"mass_loss": float(1.0 - np.sum(w * left) / w.sum()), "crumbled_share": float(np.sum(w * gone) / w.sum()),
