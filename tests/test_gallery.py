@@ -15,6 +15,7 @@ import pytest
 
 from wooddecay.gallery import FIGURES, run_gallery
 from wooddecay.gallery.bakes import SCENES
+from wooddecay.gallery.figures import first_cracks
 from wooddecay.scene import load_scene
 
 CI_FIGURES = ("fig6", "fig11", "fig14", "fig17", "fig18")
@@ -60,12 +61,14 @@ def test_signatures_json_and_page(quick):
 @pytest.mark.blender
 def test_gallery_command_renders_panels(tmp_path):
     """`wooddecay gallery 6 --quick`: three panels rendered through the add-on, listed in
-    signatures.json."""
+    signatures.json, each of the frame the crack orientation is read on."""
     proc = subprocess.run([sys.executable, "-m", "wooddecay.cli", "gallery", "6", "--quick", "-o", str(tmp_path)],
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr[-2000:]
     entry = json.loads((tmp_path / "signatures.json").read_text())["fig6"]
     assert len(entry["panels"]) == 3
+    for name, v in entry["variants"].items():
+        assert f"fig6/{name}_f{first_cracks(v['frames'])}.png" in entry["panels"]
     for p in entry["panels"]:
         assert (tmp_path / p).stat().st_size > 10_000
     assert "fig6   holds" in proc.stdout
@@ -77,3 +80,21 @@ def test_unknown_figure_is_one_line(tmp_path):
     assert proc.returncode == 2
     assert proc.stderr.strip().count("\n") == 0 and "fig7" in proc.stderr and "fig6" in proc.stderr
     assert not (tmp_path / "g").exists()
+
+
+def test_panel_frames_and_shared_camera_box():
+    """Panels picked by the claim's frame (Fig. 15: the most checks before decay); the
+    sensitivity study's one camera box holds both bakes' elements."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from wooddecay.gallery.figures import FIGURES
+    from wooddecay.gallery.sensitivity import fit_box
+
+    rows = [{"signature": {"crack_clusters": c, "mass_loss": ml}} for c, ml in ((0, 0), (3, 0.01), (7, 0.015), (9, 0.03))]
+    pick = FIGURES["fig15"].panels[0]
+    assert pick(rows) == 2
+    a = SimpleNamespace(mech={"x": np.array([[0.0, 0.0, 0.0], [1.0, 0.2, 0.3]])})
+    b = SimpleNamespace(mech={"x": np.array([[-0.5, 0.1, 0.0], [0.5, 0.1, 0.4]])})
+    assert [float(v) for v in fit_box([a, b], 0.01)] == [-0.51, -0.01, -0.01, 1.01, 0.21, 0.41]

@@ -41,7 +41,9 @@ class Figure:
     variants: tuple[Variant, ...] = ()
     quick: dict = field(default_factory=dict)  # overrides of every variant under --quick
     measure: Callable | None = None  # (model, frames) -> dict
-    panels: tuple[int, ...] = (-1,)  # frames rendered per variant
+    #: frames rendered per variant: an index, or a function of the variant's frame rows
+    #: (:func:`.bakes.frame_rows`) that picks the frame the claim is read on
+    panels: tuple = (-1,)
     render_options: tuple = ()
     study: Callable | None = None  # (out_dir, quick, renders, log) -> (measured by variant, [chart paths])
 
@@ -51,10 +53,14 @@ class Figure:
 FIRST_CRACKS = 25
 
 
+def first_cracks(rows) -> int:
+    """The first frame with FIRST_CRACKS broken connections (the last if none has)."""
+    return next((i for i, f in enumerate(rows) if f["broken_connections"] >= FIRST_CRACKS), len(rows) - 1)
+
+
 def _orientation(m):
     """(r, t) shares of the broken connections at the first frame with FIRST_CRACKS of them."""
-    first = next((f for f in m["frames"] if f["broken_connections"] >= FIRST_CRACKS), m["frames"][-1])
-    r, t, _ = first["signature"]["crack_orientation"]
+    r, t, _ = m["frames"][first_cracks(m["frames"])]["signature"]["crack_orientation"]
     return r, t
 
 
@@ -108,10 +114,20 @@ def _fig14_decide(m):
     return bool(cracked and ml[cracked[0]] < 0.05 and max(hollow) >= 0.3 and ml[-1] > ml[len(ml) // 2] > 0.05)
 
 
+def _checked(rows) -> list[int]:
+    """Frames of Fig. 15's board with >= 3 crack clusters at mass loss < 0.02."""
+    return [i for i, x in enumerate(rows) if x["signature"]["crack_clusters"] >= 3 and x["signature"]["mass_loss"] < 0.02]
+
+
+def _most_checked(rows) -> int:
+    """The checked frame (:func:`_checked`) with the most crack clusters (the first if none is)."""
+    return max(_checked(rows), key=lambda i: rows[i]["signature"]["crack_clusters"], default=1)
+
+
 def _fig15_decide(m):
     f = m["board"]["frames"]
-    checked = [x for x in f if x["signature"]["crack_clusters"] >= 3 and x["signature"]["mass_loss"] < 0.02]
-    return bool(checked and checked[0]["signature"]["pieces"] <= 1 and f[-1]["signature"]["mass_loss"] >= 0.1)
+    checked = _checked(f)
+    return bool(checked and f[checked[0]]["signature"]["pieces"] <= 1 and f[-1]["signature"]["mass_loss"] >= 0.1)
 
 
 def _fig16_decide(m):
@@ -192,7 +208,8 @@ FIGURES = {f.key: f for f in (
         variants=(Variant("a", "S_R/S_T = 0.1/1", {"mechanics.S_R": 0.1, "mechanics.S_T": 1.0}),
                   Variant("b", "S_R/S_T = 1/0.1", {"mechanics.S_R": 1.0, "mechanics.S_T": 0.1}),
                   Variant("c", "S_R/S_T = 1/1", {"mechanics.S_R": 1.0, "mechanics.S_T": 1.0})),
-        quick={"time.days": 18.0, "time.frames": 4}, measure=_fig6_measure, render_options=END_VIEW),
+        quick={"time.days": 18.0, "time.frames": 4}, measure=_fig6_measure, panels=(first_cracks,),
+        render_options=END_VIEW),
     Figure(
         "fig11", "BSP configurations",
         "The same brown-rotting log under four BSP partitions: (a) the default gives cubical "
@@ -245,7 +262,7 @@ FIGURES = {f.key: f for f in (
         "a frame with >= 3 crack clusters at mass loss < 0.02 and the board in one piece; mass "
         "loss >= 0.1 at the end",
         _fig15_decide, scene="fig15.toml", variants=(Variant("board", "as shipped"),),
-        quick={"strands.r_s": 0.006, "bsp.cells": 60, "time.frames": 12}, panels=(1, -1)),
+        quick={"strands.r_s": 0.006, "bsp.cells": 60, "time.frames": 12}, panels=(_most_checked, -1)),
     Figure(
         "fig16", "Moisture: dry tree against wet tree",
         "The same rotting tree at moisture bounds M_1/M_2 = 0.6/0.2 loses branches and partly "

@@ -67,7 +67,9 @@ def run_figure(fig: Figure, out: Path, quick: bool, renders: bool, log=print) ->
         for v in fig.variants:
             measured[v.name], frames, usd = _bake_variant(fig, v, folder / v.name, quick, log)
             if renders:
-                for k in fig.panels:
+                rows = measured[v.name]["frames"]
+                picked = [p(rows) if callable(p) else p % len(rows) for p in fig.panels]
+                for k in dict.fromkeys(picked):
                     png = folder / f"{v.name}_f{frames[k].index}.png"
                     render_panel(usd, png, frames[k].index, fig.render_options)
                     panels.append(str(png.relative_to(out)))

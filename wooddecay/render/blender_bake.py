@@ -20,8 +20,8 @@ BAKE OUT.png [options]``) the extension must already be installed and enabled th
 The picture: the bake at ``--frame`` (default its last; a USD bake plays back through a
 MeshSequenceCache, a .glb holds the last frame only) on a grey ground plane under a sun and a
 grey sky, seen by one perspective camera per ``--azimuth`` (degrees about +z from the log's
-axis, the longest side of its bounding box, pointing to +x), each fitted to the mesh on a 3/4
-view. A log has two cut ends and a view shows one, so by default there are two views side by
+axis, the longest side of its bounding box, pointing to +x), each fitted to the mesh (or to
+``--fit-box``, so that renders of two bakes share their camera) on a 3/4 view. A log has two cut ends and a view shows one, so by default there are two views side by
 side, both from -y with x = 0 on the left: -145 looks at the x = 0 end (the sample log's root
 end, where its brown rot enters), -35 at the far end. Each view is captioned with the mean
 H_c and H_l (cellulose, lignin left) of the end it faces, and a footer gives the simulated day
@@ -66,6 +66,9 @@ def parse_args(argv=None):
     common.add_layout_arg(ap, "the views")
     common.add_camera_args(ap, 28.0, lens=50.0)
     ap.add_argument("--margin", type=float, default=1.08, help="room around the log in each view (1: tight)")
+    ap.add_argument("--fit-box", type=float, nargs=6, default=None, metavar=("X0", "Y0", "Z0", "X1", "Y1", "Z1"),
+                    help="fit the cameras and the ground to this box (m) instead of the shown mesh, so renders "
+                         "of different bakes or frames share one camera")
     ap.add_argument("--no-ground", dest="ground", action="store_false", help="no ground plane")
     common.add_labels_arg(ap, "no captions (near end's mean H_c and H_l; day and mass loss from the "
                               "bake's summary.json)")
@@ -179,7 +182,12 @@ def render(bpy, args, t0):
         frame = None
     bpy.context.view_layer.update()
     pos, fields = evaluated_fields(bpy, obs, ("H_c", "H_l"))
-    lo, hi = pos.min(0), pos.max(0)
+    if args.fit_box is None:
+        framed = pos
+    else:
+        box = np.reshape(args.fit_box, (2, 3))
+        framed = np.array([[box[i, 0], box[j, 1], box[k, 2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+    lo, hi = framed.min(0), framed.max(0)
     axis = common.log_axis(lo, hi)
     n = len(args.azimuth)
     pw, ph = common.panel_size(args.width, args.height, n, args.layout)
@@ -192,7 +200,7 @@ def render(bpy, args, t0):
 
     def view(i):
         v = common.view_direction(axis, args.azimuth[i], args.elevation)
-        common.frame_camera(bpy, pos, v, pw / ph, lens=args.lens, margin=args.margin)
+        common.frame_camera(bpy, framed, v, pw / ph, lens=args.lens, margin=args.margin)
         common.aim_sun(sun, v, 0.6, -0.5, 1.2)  # from above, behind the camera's left shoulder
         captions.append(end_caption(pos, fields, axis, v))
 
