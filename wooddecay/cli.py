@@ -7,10 +7,12 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import sys
 import tempfile
 import time
+import tomllib
 from importlib import resources
 from pathlib import Path
 
@@ -227,15 +229,21 @@ def inspect(scene_path: str, as_json: bool, strands_usd: Path | None, with_meshl
         if "meshlets" in rep:
             r = rep["meshlets"]
             click.echo(f"meshlets         {r['count']} in {r['seconds']:.2f} s, closed fraction {r['closed_fraction']:.6f}, "
-                       f"volume error {r['volume_error']:.2e}, {r['faces']} faces"
+                       f"volume {r['volume']:.6g} m^3, volume error {r['volume_error']:.2e}, {r['faces']} faces"
                        + (f" -> {meshlets_usd}" if meshlets_usd else ""))
+            if "source_mesh" in r:
+                m = r["source_mesh"]
+                click.echo(f"source mesh      volume {m['volume']:.6g} m^3 (meshlets {100 * m['volume_error']:+.2f} %), "
+                           f"bark to mesh: mean {1e3 * m['bark_distance_mean']:.1f} mm, p99 "
+                           f"{1e3 * m['bark_distance_p99']:.1f} mm, max {1e3 * m['bark_distance_max']:.1f} mm")
 
 
 def _meshlets_report(model, usd_path: Path | None) -> dict:
     """``meshlets`` fields of the inspect report: count, closed fraction, volume error against
-    the volume inside the bark surface, seconds (and the debug USD)."""
+    the volume inside the bark surface, total volume, seconds (and the debug USD); for a skeleton
+    built from a mesh, the meshlets against it (source_mesh: volumes, bark-to-mesh distances)."""
     from .meshlets import checks
-    from .meshlets.sweep import build_meshlets
+    from .meshlets.sweep import BARK, build_meshlets
 
     mesh = build_meshlets(model)
     closed = checks.closed_oriented(mesh)
@@ -246,10 +254,20 @@ def _meshlets_report(model, usd_path: Path | None) -> dict:
         "vertices": int(len(mesh.points)),
         "closed_fraction": float(closed.mean()) if mesh.count else 1.0,
         "positive_volume_fraction": float((vol > 0).mean()) if mesh.count else 1.0,
+        "volume": float(vol.sum()),
         "volume_error": float(vol.sum() / checks.bark_volume(model) - 1.0),
         "seconds": round(mesh.stats["seconds"], 4),
         "events": {k: v for k, v in mesh.stats.items() if k != "seconds"},
     }
+    surface = model.skeleton.surface
+    if surface is not None:
+        from .strands.mesh_input import surface_distance
+
+        bark = np.unique(mesh.faces[mesh.face_kind == BARK])
+        d = surface_distance(surface, mesh.points[bark], model.r_s)
+        rep["source_mesh"] = {"volume": float(surface.volume), "volume_error": float(vol.sum() / surface.volume - 1.0),
+                              "bark_distance_max": float(d.max()), "bark_distance_mean": float(d.mean()),
+                              "bark_distance_p99": float(np.percentile(d, 99))}
     if usd_path:
         from .export.meshlets_usd import write_meshlets_usd
 
@@ -442,26 +460,86 @@ def template_text(template: str, name: str) -> str:
     return "".join(lines)
 
 
+def mesh_template_text(template: str, name: str, mesh_ref: str, mi, scale: float, largest: bool) -> str:
+    """The log template with its [skeleton] replaced by ``mesh = mesh_ref`` (and ``scale``,
+    ``largest``) and its ground inoculation box fitted to the mesh: the bottom BOX_HEIGHT of it."""
+    lines = template_text(template, name).splitlines(keepends=True)
+    start = next(i for i, line in enumerate(lines) if line.strip() == "[skeleton]")
+    end = next(i for i in range(start + 1, len(lines))
+               if lines[i].startswith("[") and not lines[i].startswith(("[skeleton", "[[skeleton")))
+    table = ["[skeleton]\n# built from the mesh: a centreline and its cross-sections (wooddecay init --from-mesh)\n",
+             f"mesh = {json.dumps(mesh_ref)}\n"]
+    table += [f"scale = {scale!r}\n"] if scale != 1.0 else []
+    table += ["largest = true\n"] if largest else []
+    lo, hi = mi.mesh.bounds
+    box = (f'region = {{ kind = "box", min = [{lo[0] - 0.1:.3f}, {lo[1] - 0.1:.3f}, {lo[2] - 0.1:.3f}], '
+           f'max = [{hi[0] + 0.1:.3f}, {hi[1] + 0.1:.3f}, {lo[2] + BOX_HEIGHT * (hi[2] - lo[2]):.3f}] }}\n')
+    rest = [box if line.startswith('region = { kind = "box"') else line for line in lines[end:]]
+    return "".join(lines[:start] + table + ["\n"] + rest)
+
+
+#: the ground inoculation of a log from a mesh: the bottom 13% of its height (as the sample log's)
+BOX_HEIGHT = 0.13
+
+
 @main.command()
 @click.argument("name")
 @click.option("--template", type=click.Choice(TEMPLATES), default="log", show_default=True)
+@click.option("--from-mesh", "mesh_file", type=click.Path(dir_okay=False), default=None,
+              help="Build the skeleton and profiles from this surface mesh (OBJ, PLY, STL, glTF/GLB, USD); "
+                   "the log template only.")
+@click.option("--scale", type=float, default=1.0, show_default=True,
+              help="With --from-mesh: multiply the mesh's coordinates (e.g. 0.01 for centimetres).")
+@click.option("--largest", is_flag=True, help="With --from-mesh: keep the largest of several disjoint bodies.")
 @click.option("--force", is_flag=True, help="Overwrite existing files.")
-def init(name: str, template: str, force: bool) -> None:
+def init(name: str, template: str, mesh_file: str | None, scale: float, largest: bool, force: bool) -> None:
     """Write a starting scene NAME.toml from a template (and its skeleton file, if any)."""
     target = Path(name if name.endswith(".toml") else f"{name}.toml")
     scene_name = target.stem
-    files = {target: template_text(template, scene_name)}
-    samples = resources.files("wooddecay").joinpath("samples")
-    for extra in sorted(p.name for p in samples.iterdir() if p.name.startswith(f"{template}_skeleton")):
-        files[target.parent / extra] = samples.joinpath(extra).read_text("utf-8")
     if not target.parent.is_dir():
         raise InputError(str(target), "", f"folder {target.parent} does not exist")
+    if mesh_file is None:
+        files = {target: template_text(template, scene_name)}
+        samples = resources.files("wooddecay").joinpath("samples")
+        for extra in sorted(p.name for p in samples.iterdir() if p.name.startswith(f"{template}_skeleton")):
+            files[target.parent / extra] = samples.joinpath(extra).read_text("utf-8")
+    else:
+        files = {target: _scene_from_mesh(target, template, Path(mesh_file), scale, largest)}
     existing = [str(p) for p in files if p.exists()]
     if existing and not force:
         raise InputError(existing[0], "", "already exists; use --force to overwrite")
     for path, text in files.items():
         write_bytes(path, text.encode("utf-8"), "scene")
         click.echo(f"wrote {path}")
+
+
+def _scene_from_mesh(target: Path, template: str, mesh_file: Path, scale: float, largest: bool) -> str:
+    """The scene text of ``init --from-mesh``, after building its skeleton once (so a bad mesh
+    fails here, in one line); prints what was found."""
+    from .strands.mesh_input import load_mesh
+    from .strands.mesh_skeleton import mesh_skeleton
+
+    if template != "log":
+        raise InputError("--template", template, "--from-mesh builds logs, boards and stumps (one centreline); "
+                         "a branching mesh needs an explicit skeleton")
+    if not (math.isfinite(scale) and scale > 0.0):
+        raise InputError("--scale", str(scale), "must be a finite number > 0")
+    t0 = time.perf_counter()
+    mi = load_mesh(mesh_file, scale, largest, "--from-mesh")
+    r_s = tomllib.loads(template_text(template, target.stem))["strands"]["r_s"]
+    skel = mesh_skeleton(mi, r_s)
+    ref = os.path.relpath(mesh_file.resolve(), target.parent.resolve())
+    if ref.startswith(".."):  # outside the scene's folder: where it is
+        ref = str(mesh_file.resolve())
+    text = mesh_template_text(template, target.stem, ref, mi, scale, largest)
+    lo, hi = mi.mesh.bounds
+    click.echo(f"mesh             {mesh_file}: {len(mi.mesh.faces)} faces, volume {mi.mesh.volume:.6g} m^3, "
+               f"box {np.round(lo, 3).tolist()} .. {np.round(hi, 3).tolist()} m")
+    for note in mi.repairs:
+        click.echo(f"repaired         {note}")
+    click.echo(f"skeleton         {len(skel.ids)} nodes along {np.linalg.norm(np.diff(skel.positions, axis=0), axis=1).sum():.3f} m "
+               f"in {time.perf_counter() - t0:.2f} s")
+    return text
 
 
 @main.group()

@@ -316,7 +316,7 @@ def _resolve(data: dict, ctx: _Ctx, base_dir: Path, path: Path | None, default_n
     # -- skeleton
     if "skeleton" not in data:
         raise InputError(file, "skeleton", "missing [skeleton] table (inline [[skeleton.node]] or file = \"...\")")
-    skeleton = load_skeleton(data["skeleton"], base_dir, file)
+    skeleton = load_skeleton(data["skeleton"], base_dir, file, resolution=strands["r_s"])
 
     # -- tissues
     tissues = _resolve_tissues(data.get("tissue", {}), values, ctx)

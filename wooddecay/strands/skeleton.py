@@ -51,6 +51,8 @@ class Skeleton:
         ``(n,)`` bool, True for nodes held in place (stump).
     source : str
         File the nodes came from (for messages).
+    surface : trimesh.Trimesh or None
+        The surface mesh the skeleton was built from (:mod:`.mesh_skeleton`), for reports.
     """
 
     ids: tuple[str, ...]
@@ -59,6 +61,7 @@ class Skeleton:
     profiles: tuple[Profile, ...]
     anchored: np.ndarray
     source: str
+    surface: object = None
 
     def __len__(self) -> int:
         """Number of nodes."""

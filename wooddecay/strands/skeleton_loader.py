@@ -1,8 +1,10 @@
 """The scene's ``[skeleton]`` table -> a :class:`~wooddecay.strands.skeleton.Skeleton` (SPEC §1).
 
 The nodes of the skeleton graph G (woodstock §3, Fig. 3a) come inline (``[[skeleton.node]]``),
-from a native TOML file with a ``[[node]]`` array, or from a TreeQSM cylinder table
-(:mod:`wooddecay.strands.qsm`), optionally scaled. Errors about the table name the scene file,
+from a native TOML file with a ``[[node]]`` array, from a TreeQSM cylinder table
+(:mod:`wooddecay.strands.qsm`), optionally scaled, or from a surface mesh (``mesh = "FILE"``:
+:mod:`wooddecay.strands.mesh_input`, :mod:`wooddecay.strands.mesh_skeleton`; ``scale`` scales the
+mesh, ``largest`` keeps its largest body, ``spacing`` sets the node spacing in m). Errors about the table name the scene file,
 errors inside a skeleton file name that file.
 """
 from __future__ import annotations
@@ -14,7 +16,8 @@ from wooddecay.errors import InputError, format_value, type_name
 from wooddecay.strands.qsm import load_treeqsm
 from wooddecay.strands.skeleton import Skeleton, check_keys, parse_nodes, positive, scale_skeleton
 
-TABLE_KEYS = ("file", "format", "node", "scale")
+TABLE_KEYS = ("file", "format", "node", "mesh", "scale", "largest", "spacing")
+SOURCES = ("file", "node", "mesh")
 FORMAT_BY_SUFFIX = {".toml": "native", ".csv": "treeqsm", ".txt": "treeqsm"}
 
 
@@ -48,19 +51,37 @@ def _format_of(table: dict, path: Path | None, source: str) -> str:
     return FORMAT_BY_SUFFIX[path.suffix.lower()]
 
 
-def load_skeleton(table, base_dir: Path, source: str) -> Skeleton:
+def _from_mesh(table: dict, base_dir: Path, source: str, scale: float, resolution: float) -> Skeleton:
+    from wooddecay.strands.mesh_input import load_mesh
+    from wooddecay.strands.mesh_skeleton import mesh_skeleton
+
+    if not isinstance(table["mesh"], str) or not table["mesh"].strip():
+        raise InputError(source, "skeleton.mesh", f"must be a path string (got {format_value(table['mesh'])})")
+    largest = table.get("largest", False)
+    if not isinstance(largest, bool):
+        raise InputError(source, "skeleton.largest", f"must be true or false (got {format_value(largest)})")
+    spacing = positive(table["spacing"], source, "skeleton.spacing") if "spacing" in table else None
+    mesh = load_mesh(Path(base_dir) / table["mesh"], scale, largest, f"{source}: skeleton.mesh")
+    return mesh_skeleton(mesh, resolution, spacing)
+
+
+def load_skeleton(table, base_dir: Path, source: str, resolution: float = 0.005) -> Skeleton:
     """Load the skeleton described by the scene's ``[skeleton]`` table.
 
     Parameters
     ----------
     table : dict
-        Keys ``file`` (path relative to the scene file) or ``node`` (inline array of node
-        tables), exactly one of them; ``format`` ("native" | "treeqsm", default from the file
-        extension: .toml native, .csv/.txt treeqsm); ``scale`` (float > 0, default 1).
+        Keys ``file`` (path relative to the scene file), ``node`` (inline array of node tables)
+        or ``mesh`` (a surface mesh, relative to the scene file), exactly one of them;
+        ``format`` ("native" | "treeqsm", default from the file extension: .toml native,
+        .csv/.txt treeqsm); ``scale`` (float > 0, default 1); with ``mesh``: ``largest``
+        (bool) and ``spacing`` (m).
     base_dir : Path
         Directory of the scene file.
     source : str
         The scene file (for messages).
+    resolution : float
+        Point spacing of profiles sliced from a mesh (m): the strand radius r_s.
 
     Returns
     -------
@@ -74,9 +95,14 @@ def load_skeleton(table, base_dir: Path, source: str) -> Skeleton:
     if not isinstance(table, dict):
         raise InputError(source, "skeleton", f"must be a table (got {type_name(table)})")
     check_keys(table, TABLE_KEYS, (), source, "skeleton")
-    if ("file" in table) == ("node" in table):
-        raise InputError(source, "skeleton", "give exactly one of skeleton.file or [[skeleton.node]]")
+    if sum(k in table for k in SOURCES) != 1:
+        raise InputError(source, "skeleton", "give exactly one of skeleton.file, [[skeleton.node]] or skeleton.mesh")
     scale = positive(table.get("scale", 1.0), source, "skeleton.scale")
+    if "mesh" in table:
+        return _from_mesh(table, base_dir, source, scale, resolution)
+    for key in ("largest", "spacing"):
+        if key in table:
+            raise InputError(source, f"skeleton.{key}", "applies to skeleton.mesh only")
     if "node" in table:
         _format_of(table, None, source)
         return scale_skeleton(parse_nodes(table["node"], source, "skeleton.node"), scale, "skeleton.node")

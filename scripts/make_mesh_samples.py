@@ -1,0 +1,74 @@
+"""Regenerate the sample mesh of ``wooddecay/samples/meshes/``: ``bent_log.obj``, a bent, knotty
+spruce log as an artist would model or scan it (1.2 m along an arch of 4 m radius, 0.13-0.15 m
+radius with bark noise and four knots; cut square at both ends; placed off the origin, lying on
+z = 0, as in a set).
+
+Deterministic (fixed seed). Run: ``python scripts/make_mesh_samples.py``.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+OUT = Path(__file__).resolve().parent.parent / "wooddecay" / "samples" / "meshes"
+AROUND, ALONG = 48, 40  # vertices around a ring, rings along the log
+LENGTH, BEND = 1.2, 4.0  # m: along the centreline, radius of its bend
+PLACE = np.array([2.0, -1.0, 0.0])  # where the log's root end sits in the artist's set
+
+
+def bent_log(seed: int = 5):
+    """Vertices (n, 3) and triangles (m, 3) of the log (module docstring)."""
+    rng = np.random.default_rng(seed)
+    s = np.linspace(0.0, LENGTH, ALONG)
+    phi = (s - LENGTH / 2) / BEND  # an arch in the x-z plane: the log rests on its two ends
+    centre = np.stack([BEND * np.sin(phi), np.zeros_like(s), -BEND * (1.0 - np.cos(phi))], axis=1)
+    tangent = np.stack([np.cos(phi), np.zeros_like(s), -np.sin(phi)], axis=1)
+    side = np.array([0.0, 1.0, 0.0])
+    up = np.cross(tangent, side)  # +z at the middle
+    theta = np.linspace(0.0, 2 * np.pi, AROUND, endpoint=False)
+    radius = 0.15 - 0.02 * s[:, None] / LENGTH + 0.004 * np.sin(3 * theta + 2.0 * s[:, None])
+    radius = radius + 0.002 * rng.standard_normal((ALONG, AROUND))
+    for ks, kt in zip(rng.uniform(0.2, 1.0, 4), rng.uniform(0.0, 2 * np.pi, 4)):  # knots: bumps of 2 cm
+        dt = np.angle(np.exp(1j * (theta[None, :] - kt)))
+        radius = radius + 0.02 * np.exp(-((s[:, None] - ks) / 0.04) ** 2 - (dt / 0.25) ** 2)
+    ring = (np.cos(theta)[None, :, None] * side[None, None, :] + np.sin(theta)[None, :, None] * up[:, None, :])
+    v = centre[:, None, :] + radius[:, :, None] * ring
+    vertices = np.vstack([v.reshape(-1, 3), centre[0], centre[-1]])
+    vertices[:, 2] -= vertices[:, 2].min()  # on the ground
+    vertices += PLACE
+    i = np.arange(ALONG - 1)[:, None] * AROUND
+    j = np.arange(AROUND)[None, :]
+    a, b = i + j, i + (j + 1) % AROUND
+    c, d = a + AROUND, b + AROUND
+    quads = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
+    n = ALONG * AROUND
+    ring0, ring1 = np.arange(AROUND), (ALONG - 1) * AROUND + np.arange(AROUND)
+    cap0 = np.stack([np.full(AROUND, n), np.roll(ring0, -1), ring0], -1)
+    cap1 = np.stack([np.full(AROUND, n + 1), ring1, np.roll(ring1, -1)], -1)
+    return vertices, np.concatenate([quads, cap0, cap1])
+
+
+def write_obj(path: Path, vertices, faces) -> None:
+    lines = ["# wooddecay sample: a bent, knotty log (scripts/make_mesh_samples.py); units: metres"]
+    lines += [f"v {x:.4f} {y:.4f} {z:.4f}" for x, y, z in vertices]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def main() -> None:
+    import trimesh
+
+    OUT.mkdir(parents=True, exist_ok=True)
+    v, f = bent_log()
+    mesh = trimesh.Trimesh(v, f, process=False)
+    if mesh.volume < 0:
+        f = f[:, ::-1]
+        mesh = trimesh.Trimesh(v, f, process=False)
+    assert mesh.is_watertight and mesh.volume > 0
+    write_obj(OUT / "bent_log.obj", v, f)
+    print(f"wrote {OUT / 'bent_log.obj'}: {len(v)} vertices, {len(f)} faces, volume {mesh.volume:.5f} m^3")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,312 @@
+"""A skeleton and its profiles from a closed surface mesh (:mod:`.mesh_input`): a centreline
+through cross-section centroids for logs, boards and stumps, and at every node the mesh sliced
+perpendicular to it, its outer contour resampled as a polygon profile.
+
+Branch-fracture §3.1-3.3 voxelises a scanned branch, takes each cross-section's outer contour and
+grows the rings inwards from it by erosion. We slice the surface exactly instead of voxelising
+(a 512^3 grid resolves a log's section with a few dozen voxels across, the slice with the
+mesh's own vertices), and the rings come from the contours by reversed growth as for any polygon
+profile (:mod:`.rings`).
+
+Centreline (:func:`centreline`): the principal axis of the surface (area-weighted) spans the
+mesh; ``n`` segments of about ``spacing`` (default: the mean equivalent radius sqrt(A / pi) of
+the sections, so that a bend is followed) put ``n - 1`` interior nodes at the centroids of the
+largest contour of the slices perpendicular to that axis; a gap is halved (down to REFINE_MIN r_s)
+while a slice within it (PROBES) strays by more than r_s from the linear interpolation of its nodes' ray
+extents (woodstock interpolates profiles between nodes that way), so knots and swellings get
+nodes and a smooth log few. The end nodes continue the centreline
+to the log's cut ends, square to them (:func:`_end_node`), so the end profiles are whole sections.
+
+Profiles (:func:`profile_at`): the slice through each node perpendicular to its frame's T
+(:func:`~wooddecay.strands.topology.build_topology`, the frame the strands are packed in), the
+contour around the node (else the largest), in the frame's (U, V) coordinates, smoothed along its
+length by a Gaussian of SMOOTH r_s (scaled back to the slice's area), its pockets shallower than
+POCKET r_s filled, and resampled to points ``resolution`` apart along it (at
+least MIN_POINTS): strands of radius r_s resolve no finer detail. A contour that is not a simple polygon after resampling is an error naming the node.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+
+from wooddecay.errors import InputError
+from wooddecay.strands import profiles
+from wooddecay.strands.mesh_input import MeshInput
+from wooddecay.strands.skeleton import Skeleton
+from wooddecay.strands.topology import build_topology
+
+#: the end nodes stop this fraction of their distance to the last interior node short of the
+#: end (a slice through the end face itself is degenerate)
+END_INSET = 1e-3
+#: a second contour beside a section's (not inside it) larger than this share of it: the mesh
+#: branches or bends back across the slice
+APART = 0.1
+#: rays per section when comparing a section with its neighbours' interpolation
+RAYS = 180
+#: where between two nodes the slices are compared with the nodes' interpolation
+PROBES = (0.125, 0.25, 0.375, 0.5, 0.625, 0.75, 0.875)
+#: node gaps are halved down to this many r_s
+REFINE_MIN = 2.0
+#: a face of a cut end turns less than this (rad) from the centreline
+CAP_ANGLE = math.radians(30.0)
+#: a rounded or broken end: its node sits where the section keeps this share of the last
+#: interior node's area
+END_AREA = 0.9
+#: contours are smoothed along their length by a Gaussian of this many r_s (their detail below
+#: r_s is noise to the strands, and its small reflex corners leave the meshlets' bark unbounded:
+#: :mod:`wooddecay.meshlets.branch`)
+SMOOTH = 1.0
+#: pockets of a contour shallower than this many r_s are filled to its hull: strands do not
+#: resolve them, and the meshlets' bark overhangs at reflex corners (:mod:`wooddecay.meshlets.branch`)
+POCKET = 0.5
+#: fewest points of a profile polygon
+MIN_POINTS = 16
+#: most points of a profile polygon (a 5 m perimeter at 1 cm)
+MAX_POINTS = 512
+
+
+def contour_loops(mesh, origin, normal) -> list[np.ndarray]:
+    """The closed contours of the slice of ``mesh`` by the plane through ``origin`` with
+    ``normal``, each an ``(k, 3)`` array of points in order (open chains are dropped)."""
+    from trimesh.intersections import mesh_plane
+
+    seg = mesh_plane(mesh, plane_normal=normal, plane_origin=origin)
+    if len(seg) == 0:
+        return []
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    pts = seg.reshape(-1, 3)
+    # the two segments meeting at a mesh edge end at the same point up to rounding: merge within
+    # a tolerance (rounding to a grid splits the pairs that straddle a grid line)
+    pairs = cKDTree(pts).query_pairs(1e-9 * float(np.max(mesh.extents)), output_type="ndarray")
+    n = len(pts)
+    _, vid = connected_components(coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)),
+                                  directed=False)
+    first = np.zeros(vid.max() + 1, dtype=np.int64)
+    first[vid] = np.arange(n)  # a representative of each merged point
+    vid = vid.reshape(-1, 2)
+    vid = vid[vid[:, 0] != vid[:, 1]]
+    nbr: dict[int, list[int]] = {}
+    for a, b in vid.tolist():
+        nbr.setdefault(a, []).append(b)
+        nbr.setdefault(b, []).append(a)
+    loops, seen = [], set()
+    for start, ends in nbr.items():
+        if start in seen or len(ends) != 2:
+            continue
+        loop, prev, cur = [start], -1, start
+        seen.add(start)
+        while True:
+            nxt = [v for v in nbr[cur] if v != prev]
+            if len(nbr[cur]) != 2 or not nxt:
+                loop = None
+                break
+            prev, cur = cur, nxt[0]
+            if cur == start:
+                break
+            if cur in seen:
+                loop = None
+                break
+            seen.add(cur)
+            loop.append(cur)
+        if loop is not None and len(loop) >= 3:
+            loops.append(pts[first[loop]])
+    return loops
+
+
+def _planar(loop: np.ndarray, origin, u, v) -> np.ndarray:
+    """``loop`` in the plane coordinates (u, v) about ``origin``, counter-clockwise."""
+    d = loop - origin
+    poly = np.stack([d @ u, d @ v], axis=1)
+    return poly if profiles.is_ccw(poly) else poly[::-1]
+
+
+def _plane_basis(normal) -> tuple[np.ndarray, np.ndarray]:
+    n = np.asarray(normal, float) / np.linalg.norm(normal)
+    a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    u = np.cross(n, a)
+    u /= np.linalg.norm(u)
+    return u, np.cross(n, u)
+
+
+def section(mesh, origin, normal, u=None, v=None, apart: list | None = None):
+    """The outer contour of the slice through ``origin`` with ``normal``: the one around the
+    origin, else the largest; as a CCW polygon in (u, v) (a basis of the plane if not given),
+    or None if the plane misses the mesh. ``apart`` (a list) receives the areas of the other
+    contours outside it (another branch or arm of the mesh)."""
+    if u is None:
+        u, v = _plane_basis(normal)
+    polys = [_planar(loop, origin, u, v) for loop in contour_loops(mesh, origin, normal)]
+    if not polys:
+        return None
+    around = [p for p in polys if profiles.contains(p, np.zeros((1, 2)))[0]]
+    # a hollow log has its cavity's contour inside the bark's: the outer one has the larger area
+    outer = max(around or polys, key=profiles.polygon_area)
+    if apart is not None:
+        apart += [profiles.polygon_area(p) for p in polys if not profiles.contains(outer, p[:1])[0]]
+    return outer
+
+
+def _principal_axis(mesh) -> np.ndarray:
+    w = mesh.area_faces
+    c = mesh.triangles_center
+    mean = (w[:, None] * c).sum(0) / w.sum()
+    d = c - mean
+    cov = (w[:, None] * d).T @ d
+    axis = np.linalg.eigh(cov)[1][:, -1]
+    return axis if axis[int(np.argmax(np.abs(axis)))] > 0 else -axis
+
+
+def centreline(mi: MeshInput, spacing: float | None, resolution: float) -> np.ndarray:
+    """Node positions ``(n + 1, 3)`` along the mesh's centreline (module docstring)."""
+    mesh = mi.mesh
+    axis = _principal_axis(mesh)
+    u, v = _plane_basis(axis)
+    s = mesh.vertices @ axis
+    s0, s1 = float(s.min()), float(s.max())
+    length = s1 - s0
+    centre = mesh.centroid - (mesh.centroid @ axis) * axis
+    angles = np.linspace(-np.pi, np.pi, RAYS, endpoint=False)
+    cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+
+    def at(t: float):
+        """Centroid and ray extents (about it) of the slice perpendicular to the axis at t."""
+        if t not in cache:
+            o = centre + t * axis
+            apart: list[float] = []
+            poly = section(mesh, o, axis, u, v, apart)
+            if poly is None or max(apart, default=0.0) > APART * profiles.polygon_area(poly):
+                what = "no closed cross-section" if poly is None else f"{len(apart) + 1} separate cross-sections"
+                raise InputError(mi.source, "", f"{what} {t - s0:.3f} m along the mesh's axis: the mesh is not one "
+                                 "log, board or stump along a line (it branches or bends back; give an explicit skeleton)")
+            c = profiles.polygon_centroid(poly)
+            cache[t] = (o + c[0] * u + c[1] * v, profiles.ray_extent(poly, c, angles))
+        return cache[t]
+
+    def strays(a: float, b: float) -> bool:
+        """Whether a slice between a and b (at PROBES points) strays by more than ``resolution``
+        from the linear interpolation of theirs."""
+        return any(np.abs(at(a + w * (b - a))[1] - ((1 - w) * at(a)[1] + w * at(b)[1])).max() > resolution
+                   for w in PROBES)
+
+    radii = [float(np.sqrt(np.mean(at(t)[1] ** 2))) for t in np.linspace(s0, s1, 10)[1:-1]]
+    if spacing is None:
+        spacing = float(np.mean(radii))
+    n = max(3, math.ceil(length / spacing))
+    stations = list(s0 + length * np.arange(1, n) / n)
+    # halve a gap while the section between its two nodes strays by more than ``resolution`` from
+    # their linear interpolation (a knot, a swelling), down to REFINE_MIN r_s
+    gap = length / n
+    while gap / 2 >= REFINE_MIN * resolution:
+        gap /= 2
+        mids = [0.5 * (a + b) for a, b in zip(stations[:-1], stations[1:]) if b - a > 1.5 * gap and strays(a, b)]
+        if not mids:
+            break
+        stations = sorted(stations + mids)
+    inner = np.array([at(t)[0] for t in stations])
+    ends = []
+    for tip, nxt in ((inner[0], inner[1]), (inner[-1], inner[-2])):
+        t = (tip - nxt) / np.linalg.norm(tip - nxt)
+        d = mesh.vertices - tip
+        along = d @ t
+        # the surface beyond the last interior node, within the log's reach of its centreline
+        near = (along > 0) & (along < 2.0 * length / n) & \
+            (np.linalg.norm(d - along[:, None] * t, axis=1) <= 1.5 * max(radii))
+        far = float(along[near].max(initial=0.0))
+        ends.append(_end_node(mesh, tip, t, far, 1.5 * max(radii)))
+    return np.vstack([ends[0], inner, ends[1]])
+
+
+def _area_at(mesh, origin, normal) -> float:
+    poly = section(mesh, origin, normal)
+    return 0.0 if poly is None else profiles.polygon_area(poly)
+
+
+def _end_node(mesh, tip, t, far: float, reach: float) -> np.ndarray:
+    """The end node beyond the last interior node ``tip`` (direction ``t``, the surface up to
+    ``far`` along it). A cut end (faces beyond ``tip`` within ``reach`` of the centreline,
+    turned less than CAP_ANGLE from ``t``, of at least half the section's area): on the line
+    from ``tip`` along the cut's mean normal, END_INSET of ``far`` short of the cut's plane, so
+    the end profile (square to the line from ``tip``) is a full section. Otherwise (a rounded or
+    broken end) where the section perpendicular to ``t`` keeps END_AREA of the section at ``tip``
+    (bisection)."""
+    rel = mesh.triangles_center - tip
+    along = rel @ t
+    w = mesh.area_faces * ((along > 0) & (mesh.face_normals @ t > math.cos(CAP_ANGLE))
+                           & (np.linalg.norm(rel - along[:, None] * t, axis=1) <= reach))
+    a0 = _area_at(mesh, tip, t)
+    if w.sum() >= 0.5 * a0:
+        normal = (w @ mesh.face_normals) / np.linalg.norm(w @ mesh.face_normals)
+        depth = float((w @ rel) / w.sum() @ normal)
+        return tip + (depth - END_INSET * far) * normal
+    lo, hi = 0.0, far
+    for _ in range(30):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if _area_at(mesh, tip + mid * t, t) >= END_AREA * a0 else (lo, mid)
+    return tip + max(lo - END_INSET * far, 0.0) * t
+
+
+def _fill_shallow(poly: np.ndarray, depth: float) -> np.ndarray:
+    """``poly`` with its pockets (the runs between consecutive convex-hull vertices) shallower than
+    ``depth`` flattened onto their hull edge."""
+    from scipy.spatial import ConvexHull
+
+    hull = ConvexHull(poly).vertices  # counter-clockwise
+    if not profiles.is_ccw(poly):
+        raise ValueError("poly must be counter-clockwise")
+    out = poly.copy()
+    n = len(poly)
+    for i, j in zip(hull, np.roll(hull, -1)):
+        run = (np.arange(i, i + (j - i) % n + 1)) % n
+        a, b = poly[i], poly[j]
+        e = (b - a) / np.linalg.norm(b - a)
+        rel = poly[run] - a
+        off = rel[:, 0] * e[1] - rel[:, 1] * e[0]  # distance inside the hull edge
+        if off.max() < depth:
+            out[run] = a + np.outer(rel @ e, e)
+    return out
+
+
+def _resample(poly: np.ndarray, spacing: float, most: int) -> np.ndarray:
+    """Points about ``spacing`` apart along the closed polygon (MIN_POINTS to ``most``)."""
+    closed = np.vstack([poly, poly[:1]])
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(closed, axis=0), axis=1))])
+    k = int(np.clip(math.ceil(arc[-1] / spacing), MIN_POINTS, most))
+    t = np.arange(k) * arc[-1] / k
+    return np.stack([np.interp(t, arc, closed[:, 0]), np.interp(t, arc, closed[:, 1])], axis=1)
+
+
+def profile_at(mi: MeshInput, origin, frame, resolution: float, node: str) -> profiles.Profile:
+    """The polygon profile at a node (module docstring); ``frame`` rows U, V, T."""
+    poly = section(mi.mesh, origin, frame[2], frame[0], frame[1])
+    if poly is None:
+        raise InputError(mi.source, f"node {node}", "the slice perpendicular to the centreline misses the mesh")
+    fine = _resample(poly, resolution / 4.0, MAX_POINTS * 4)
+    step = np.linalg.norm(fine[1] - fine[0])
+    smooth = gaussian_filter1d(fine, SMOOTH * resolution / step, axis=0, mode="wrap")
+    # smoothing shrinks a convex contour by its curvature: scale back to the slice's area
+    c = profiles.polygon_centroid(smooth)
+    fine = _fill_shallow(c + (smooth - c) * math.sqrt(profiles.polygon_area(poly) / profiles.polygon_area(smooth)),
+                         POCKET * resolution)
+    out = _resample(fine, resolution, MAX_POINTS)
+    if not profiles.is_simple(out) or not profiles.polygon_area(out) > 0.0:
+        raise InputError(mi.source, f"node {node}", f"the mesh's cross-section there is not a simple polygon at "
+                         f"{resolution * 1e3:.1f} mm resolution")
+    return profiles.polygon(out if profiles.is_ccw(out) else out[::-1])
+
+
+def mesh_skeleton(mi: MeshInput, resolution: float, spacing: float | None = None) -> Skeleton:
+    """The skeleton of a log, board or stump mesh: a centreline and polygon profiles."""
+    pos = centreline(mi, spacing, resolution)
+    n = len(pos)
+    ids = tuple(f"m{i}" for i in range(n))
+    parent = np.arange(-1, n - 1, dtype=np.int64)
+    circle = profiles.circle(1.0)
+    rough = Skeleton(ids, pos, parent, (circle,) * n, np.zeros(n, bool), mi.source)
+    frames = build_topology(rough).frames
+    profs = tuple(profile_at(mi, pos[i], frames[i], resolution, ids[i]) for i in range(n))
+    return Skeleton(ids, pos, parent, profs, np.zeros(n, bool), mi.source, mi.mesh)
