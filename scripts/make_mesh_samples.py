@@ -1,7 +1,8 @@
-"""Regenerate the sample mesh of ``wooddecay/samples/meshes/``: ``bent_log.obj``, a bent, knotty
-spruce log as an artist would model or scan it (1.2 m along an arch of 4 m radius, 0.13-0.15 m
-radius with bark noise and four knots; cut square at both ends; placed off the origin, lying on
-z = 0, as in a set).
+"""Regenerate the samples of ``wooddecay/samples/meshes/``: ``bent_log.obj``, a bent, knotty
+spruce log as an artist would model it (1.2 m along an arch of 4 m radius, 0.13-0.15 m radius with
+bark noise and four knots; cut square at both ends; placed off the origin, lying on z = 0, as in
+a set), and ``bent_log_scan.ply``, the same log as a scanner sees it: SCAN_POINTS points on its
+surface with SCAN_NOISE of noise, none on its underside within 2 cm of the ground.
 
 Deterministic (fixed seed). Run: ``python scripts/make_mesh_samples.py``.
 """
@@ -15,6 +16,7 @@ OUT = Path(__file__).resolve().parent.parent / "wooddecay" / "samples" / "meshes
 AROUND, ALONG = 48, 40  # vertices around a ring, rings along the log
 LENGTH, BEND = 1.2, 4.0  # m: along the centreline, radius of its bend
 PLACE = np.array([2.0, -1.0, 0.0])  # where the log's root end sits in the artist's set
+SCAN_POINTS, SCAN_NOISE = 6000, 0.001  # points, m
 
 
 def bent_log(seed: int = 5):
@@ -68,6 +70,11 @@ def main() -> None:
     assert mesh.is_watertight and mesh.volume > 0
     write_obj(OUT / "bent_log.obj", v, f)
     print(f"wrote {OUT / 'bent_log.obj'}: {len(v)} vertices, {len(f)} faces, volume {mesh.volume:.5f} m^3")
+    rng = np.random.default_rng(11)
+    pts, _ = trimesh.sample.sample_surface(mesh, 2 * SCAN_POINTS, seed=11)
+    pts = pts[pts[:, 2] > 0.02][:SCAN_POINTS] + SCAN_NOISE * rng.standard_normal((SCAN_POINTS, 3))
+    trimesh.PointCloud(np.round(pts, 4)).export(OUT / "bent_log_scan.ply")
+    print(f"wrote {OUT / 'bent_log_scan.ply'}: {len(pts)} points")
 
 
 if __name__ == "__main__":

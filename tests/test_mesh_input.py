@@ -31,35 +31,54 @@ def log_mesh() -> trimesh.Trimesh:
     return m
 
 
-def write_usd(path: Path, mesh: trimesh.Trimesh, unit: float, offset) -> None:
-    """``mesh`` as a USD stage in units of ``unit`` m, under an Xform translated by ``offset``
-    (in those units), its points moved back by it: the world positions are the mesh's."""
+#: our z-up coordinates -> a y-up file's (export.gltf's Z_TO_Y_UP)
+Z_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+
+
+def write_usd(path: Path, mesh: trimesh.Trimesh, unit: float, offset, up: str = "z") -> None:
+    """``mesh`` as a USD stage in units of ``unit`` m with ``up`` as its upAxis, under an Xform
+    translated by ``offset`` (in those units), its points moved back by it: the world positions
+    are the mesh's."""
     from pxr import Gf, Usd, UsdGeom, Vt
 
     stage = Usd.Stage.CreateNew(str(path))
     UsdGeom.SetStageMetersPerUnit(stage, unit)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y if up == "y" else UsdGeom.Tokens.z)
     xf = UsdGeom.Xform.Define(stage, "/set")
     xf.AddTranslateOp().Set(Gf.Vec3d(*offset))
     m = UsdGeom.Mesh.Define(stage, "/set/log")
-    pts = np.asarray(mesh.vertices) / unit - np.asarray(offset)
+    v = np.asarray(mesh.vertices) @ (Z_TO_Y_UP.T if up == "y" else np.eye(3))
+    pts = v / unit - np.asarray(offset)
     m.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(pts.astype(np.float32)))
     m.GetFaceVertexCountsAttr().Set(Vt.IntArray([3] * len(mesh.faces)))
     m.GetFaceVertexIndicesAttr().Set(Vt.IntArray(np.asarray(mesh.faces).ravel().tolist()))
     stage.GetRootLayer().Save()
 
 
-@pytest.mark.parametrize("suffix", [".obj", ".ply", ".stl", ".glb", ".usda"])
+@pytest.mark.parametrize("suffix", [".obj", ".ply", ".stl", ".glb", ".usda", "y.usda"])
 def test_every_format_reads_the_same_body_where_it_sat(tmp_path, suffix):
+    """The same log from every format, in metres and z-up where it sat: glTF is y-up, a USD
+    stage says its units, up axis and placement."""
     mesh = log_mesh()
     path = tmp_path / f"log{suffix}"
-    if suffix == ".usda":
-        write_usd(path, mesh, 0.01, (100.0, -50.0, 0.0))  # centimetres, placed by its Xform
+    if suffix.endswith(".usda"):  # centimetres, placed by its Xform
+        write_usd(path, mesh, 0.01, (100.0, -50.0, 0.0), up="y" if suffix == "y.usda" else "z")
+    elif suffix == ".glb":
+        trimesh.Trimesh(mesh.vertices @ Z_TO_Y_UP.T, mesh.faces).export(path)
     else:
         mesh.export(path)
     got = load_mesh(path).mesh
     assert got.is_watertight
     assert got.volume == pytest.approx(mesh.volume, rel=1e-5)
     assert np.allclose(got.bounds, mesh.bounds, atol=1e-5)
+
+
+def test_up_turns_a_y_up_obj(tmp_path):
+    mesh = log_mesh()
+    path = tmp_path / "log.obj"
+    trimesh.Trimesh(mesh.vertices @ Z_TO_Y_UP.T, mesh.faces).export(path)
+    assert np.allclose(load_mesh(path, up="y").mesh.bounds, mesh.bounds, atol=1e-5)
+    assert not np.allclose(load_mesh(path).mesh.bounds, mesh.bounds, atol=1e-5)
 
 
 def test_scale_multiplies_coordinates(tmp_path):
@@ -219,6 +238,7 @@ def test_scene_mesh_keys_are_checked(tmp_path):
     log_mesh().export(tmp_path / "log.obj")
     for table, key in (('mesh = "log.obj"\nlargest = 1', "skeleton.largest"),
                        ('mesh = "log.obj"\nspacing = -0.1', "skeleton.spacing"),
+                       ('mesh = "log.obj"\nup = "x"', "skeleton.up"),
                        ('file = "x.toml"\nlargest = true', "skeleton.largest"),
                        ('mesh = "log.obj"\nfile = "x.toml"', "skeleton"),
                        ('mesh = 3', "skeleton.mesh")):

@@ -460,17 +460,20 @@ def template_text(template: str, name: str) -> str:
     return "".join(lines)
 
 
-def mesh_template_text(template: str, name: str, mesh_ref: str, mi, scale: float, largest: bool) -> str:
-    """The log template with its [skeleton] replaced by ``mesh = mesh_ref`` (and ``scale``,
-    ``largest``) and its ground inoculation box fitted to the mesh: the bottom BOX_HEIGHT of it."""
+def mesh_template_text(template: str, name: str, key: str, ref: str, mi, scale: float, largest: bool,
+                       up: str | None) -> str:
+    """The log template with its [skeleton] replaced by ``key = ref`` (``mesh`` or ``points``;
+    and ``scale``, ``largest``, ``up``) and its ground inoculation box fitted to the surface ``mi``:
+    the bottom BOX_HEIGHT of it."""
     lines = template_text(template, name).splitlines(keepends=True)
     start = next(i for i, line in enumerate(lines) if line.strip() == "[skeleton]")
     end = next(i for i in range(start + 1, len(lines))
                if lines[i].startswith("[") and not lines[i].startswith(("[skeleton", "[[skeleton")))
-    table = ["[skeleton]\n# built from the mesh: a centreline and its cross-sections (wooddecay init --from-mesh)\n",
-             f"mesh = {json.dumps(mesh_ref)}\n"]
+    table = [f"[skeleton]\n# a centreline and its cross-sections, built from the file (wooddecay init --from-{key})\n",
+             f"{key} = {json.dumps(ref)}\n"]
     table += [f"scale = {scale!r}\n"] if scale != 1.0 else []
     table += ["largest = true\n"] if largest else []
+    table += [f"up = {json.dumps(up)}\n"] if up else []
     lo, hi = mi.mesh.bounds
     box = (f'region = {{ kind = "box", min = [{lo[0] - 0.1:.3f}, {lo[1] - 0.1:.3f}, {lo[2] - 0.1:.3f}], '
            f'max = [{hi[0] + 0.1:.3f}, {hi[1] + 0.1:.3f}, {lo[2] + BOX_HEIGHT * (hi[2] - lo[2]):.3f}] }}\n')
@@ -490,21 +493,29 @@ BOX_HEIGHT = 0.13
                    "the log template only.")
 @click.option("--scale", type=float, default=1.0, show_default=True,
               help="With --from-mesh: multiply the mesh's coordinates (e.g. 0.01 for centimetres).")
+@click.option("--from-points", "points_file", type=click.Path(dir_okay=False), default=None,
+              help="Build the skeleton and profiles from this scanned point cloud (PLY, XYZ, LAS); the log template only.")
 @click.option("--largest", is_flag=True, help="With --from-mesh: keep the largest of several disjoint bodies.")
+@click.option("--up", type=click.Choice(("y", "z")), default=None,
+              help="The file's up axis (default: glTF y, USD its stage's, others z).")
 @click.option("--force", is_flag=True, help="Overwrite existing files.")
-def init(name: str, template: str, mesh_file: str | None, scale: float, largest: bool, force: bool) -> None:
+def init(name: str, template: str, mesh_file: str | None, points_file: str | None, scale: float, largest: bool,
+         up: str | None, force: bool) -> None:
     """Write a starting scene NAME.toml from a template (and its skeleton file, if any)."""
     target = Path(name if name.endswith(".toml") else f"{name}.toml")
     scene_name = target.stem
     if not target.parent.is_dir():
         raise InputError(str(target), "", f"folder {target.parent} does not exist")
-    if mesh_file is None:
+    if mesh_file is not None and points_file is not None:
+        raise InputError("--from-points", points_file, "give --from-mesh or --from-points, not both")
+    if mesh_file is None and points_file is None:
         files = {target: template_text(template, scene_name)}
         samples = resources.files("wooddecay").joinpath("samples")
         for extra in sorted(p.name for p in samples.iterdir() if p.name.startswith(f"{template}_skeleton")):
             files[target.parent / extra] = samples.joinpath(extra).read_text("utf-8")
     else:
-        files = {target: _scene_from_mesh(target, template, Path(mesh_file), scale, largest)}
+        key, surface_file = ("mesh", mesh_file) if mesh_file is not None else ("points", points_file)
+        files = {target: _scene_from_surface(target, template, key, Path(surface_file), scale, largest, up)}
     existing = [str(p) for p in files if p.exists()]
     if existing and not force:
         raise InputError(existing[0], "", "already exists; use --force to overwrite")
@@ -513,27 +524,36 @@ def init(name: str, template: str, mesh_file: str | None, scale: float, largest:
         click.echo(f"wrote {path}")
 
 
-def _scene_from_mesh(target: Path, template: str, mesh_file: Path, scale: float, largest: bool) -> str:
-    """The scene text of ``init --from-mesh``, after building its skeleton once (so a bad mesh
-    fails here, in one line); prints what was found."""
+def _scene_from_surface(target: Path, template: str, key: str, surface_file: Path, scale: float,
+                        largest: bool, up: str | None) -> str:
+    """The scene text of ``init --from-mesh`` (``key`` "mesh") or ``--from-points`` ("points"),
+    after building its skeleton once (so a bad file fails here, in one line); prints what was
+    found."""
     from .strands.mesh_input import load_mesh
     from .strands.mesh_skeleton import mesh_skeleton
+    from .strands.point_cloud import loft, read_points
 
+    option = f"--from-{key}"
     if template != "log":
-        raise InputError("--template", template, "--from-mesh builds logs, boards and stumps (one centreline); "
+        raise InputError("--template", template, f"{option} builds logs, boards and stumps (one centreline); "
                          "a branching mesh needs an explicit skeleton")
     if not (math.isfinite(scale) and scale > 0.0):
         raise InputError("--scale", str(scale), "must be a finite number > 0")
+    if largest and key == "points":
+        raise InputError("--largest", "", "applies to --from-mesh only")
     t0 = time.perf_counter()
-    mi = load_mesh(mesh_file, scale, largest, "--from-mesh")
     r_s = tomllib.loads(template_text(template, target.stem))["strands"]["r_s"]
+    if key == "mesh":
+        mi = load_mesh(surface_file, scale, largest, option, up)
+    else:
+        mi = loft(read_points(surface_file, scale, option, up), r_s, str(surface_file))
     skel = mesh_skeleton(mi, r_s)
-    ref = os.path.relpath(mesh_file.resolve(), target.parent.resolve())
+    ref = os.path.relpath(surface_file.resolve(), target.parent.resolve())
     if ref.startswith(".."):  # outside the scene's folder: where it is
-        ref = str(mesh_file.resolve())
-    text = mesh_template_text(template, target.stem, ref, mi, scale, largest)
+        ref = str(surface_file.resolve())
+    text = mesh_template_text(template, target.stem, key, ref, mi, scale, largest, up)
     lo, hi = mi.mesh.bounds
-    click.echo(f"mesh             {mesh_file}: {len(mi.mesh.faces)} faces, volume {mi.mesh.volume:.6g} m^3, "
+    click.echo(f"{key:<17}{surface_file}: {len(mi.mesh.faces)} faces, volume {mi.mesh.volume:.6g} m^3, "
                f"box {np.round(lo, 3).tolist()} .. {np.round(hi, 3).tolist()} m")
     for note in mi.repairs:
         click.echo(f"repaired         {note}")

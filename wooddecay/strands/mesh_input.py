@@ -4,7 +4,10 @@ sat in its file (the ``[skeleton] mesh = "FILE"`` form and ``wooddecay init --fr
 Formats: OBJ, PLY, STL, glTF/GLB (trimesh; a glTF scene's node transforms are applied) and USD
 (.usd, .usda, .usdc, .usdz through usd-core: every ``UsdGeom.Mesh`` prim in world space at the
 default time, polygons fanned into triangles, scaled by the stage's ``metersPerUnit``). OBJ, PLY
-and STL carry no units: they are read as metres unless ``scale`` says otherwise.
+and STL carry no units: they are read as metres unless ``scale`` says otherwise. The model is
+z-up (as our USD stages; our glTF files are y-up by the glTF spec): glTF is turned from y-up, USD
+from its stage's ``upAxis``, OBJ, PLY and STL are taken as z-up unless ``up = "y"`` (Blender
+writes OBJ y-up by default).
 
 Checks, each an :class:`~wooddecay.errors.InputError` naming the file (exit 2): unreadable or
 unknown format, no triangles, non-finite coordinates, several disjoint bodies (unless
@@ -24,6 +27,8 @@ from wooddecay.errors import InputError
 TRIMESH_SUFFIXES = (".obj", ".ply", ".stl", ".glb", ".gltf")
 USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
 SUFFIXES = TRIMESH_SUFFIXES + USD_SUFFIXES
+#: (x, y, z) of a y-up file -> our z-up coordinates: the inverse of export.gltf's Z_TO_Y_UP
+Y_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,7 +49,8 @@ def _read_trimesh(path: Path):
         raise InputError(str(path), "", f"cannot read the mesh: {err}") from None
     if not isinstance(loaded, trimesh.Trimesh):
         raise InputError(str(path), "", "holds no triangle mesh")
-    return np.asarray(loaded.vertices, float), np.asarray(loaded.faces, np.int64)
+    up = "y" if path.suffix.lower() in (".glb", ".gltf") else None
+    return np.asarray(loaded.vertices, float), np.asarray(loaded.faces, np.int64), up
 
 
 def _read_usd(path: Path):
@@ -84,11 +90,14 @@ def _read_usd(path: Path):
         offset += len(p)
     if not points:
         raise InputError(str(path), "", "holds no visible UsdGeom.Mesh with faces")
-    return np.concatenate(points) * unit, np.concatenate(faces)
+    return np.concatenate(points) * unit, np.concatenate(faces), str(UsdGeom.GetStageUpAxis(stage)).lower()
 
 
-def load_mesh(path, scale: float = 1.0, largest: bool = False, source: str | None = None) -> MeshInput:
-    """Read, check and repair the mesh at ``path`` (module docstring); coordinates times ``scale``.
+def load_mesh(path, scale: float = 1.0, largest: bool = False, source: str | None = None,
+              up: str | None = None) -> MeshInput:
+    """Read, check and repair the mesh at ``path`` (module docstring); coordinates times ``scale``,
+    turned to z-up from ``up`` ("y" or "z"; by default the file's own: glTF y, USD its stage's,
+    others z).
 
     ``source`` names the scene key in messages about a missing file or an unknown format."""
     import trimesh
@@ -100,8 +109,10 @@ def load_mesh(path, scale: float = 1.0, largest: bool = False, source: str | Non
     suffix = path.suffix.lower()
     if suffix not in SUFFIXES:
         raise InputError(where, "", f"cannot read '{path.name}': the mesh formats are {', '.join(SUFFIXES)}")
-    vertices, faces = (_read_usd if suffix in USD_SUFFIXES else _read_trimesh)(path)
+    vertices, faces, file_up = (_read_usd if suffix in USD_SUFFIXES else _read_trimesh)(path)
     name = str(path)
+    if (up or file_up) == "y":
+        vertices = vertices @ Y_TO_Z_UP.T
     if len(faces) == 0:
         raise InputError(name, "", "the mesh has no triangles")
     if len(vertices) < 4:

@@ -2,9 +2,10 @@
 
 The nodes of the skeleton graph G (woodstock §3, Fig. 3a) come inline (``[[skeleton.node]]``),
 from a native TOML file with a ``[[node]]`` array, from a TreeQSM cylinder table
-(:mod:`wooddecay.strands.qsm`), optionally scaled, or from a surface mesh (``mesh = "FILE"``:
+(:mod:`wooddecay.strands.qsm`), optionally scaled, from a surface mesh (``mesh = "FILE"``:
 :mod:`wooddecay.strands.mesh_input`, :mod:`wooddecay.strands.mesh_skeleton`; ``scale`` scales the
-mesh, ``largest`` keeps its largest body, ``spacing`` sets the node spacing in m). Errors about the table name the scene file,
+mesh, ``largest`` keeps its largest body, ``spacing`` sets the node spacing in m) or from a
+scanned point cloud (``points = "FILE"``, lofted into a mesh by :mod:`wooddecay.strands.point_cloud`). Errors about the table name the scene file,
 errors inside a skeleton file name that file.
 """
 from __future__ import annotations
@@ -16,8 +17,8 @@ from wooddecay.errors import InputError, format_value, type_name
 from wooddecay.strands.qsm import load_treeqsm
 from wooddecay.strands.skeleton import Skeleton, check_keys, parse_nodes, positive, scale_skeleton
 
-TABLE_KEYS = ("file", "format", "node", "mesh", "scale", "largest", "spacing")
-SOURCES = ("file", "node", "mesh")
+TABLE_KEYS = ("file", "format", "node", "mesh", "points", "scale", "largest", "spacing", "up")
+SOURCES = ("file", "node", "mesh", "points")
 FORMAT_BY_SUFFIX = {".toml": "native", ".csv": "treeqsm", ".txt": "treeqsm"}
 
 
@@ -51,18 +52,29 @@ def _format_of(table: dict, path: Path | None, source: str) -> str:
     return FORMAT_BY_SUFFIX[path.suffix.lower()]
 
 
-def _from_mesh(table: dict, base_dir: Path, source: str, scale: float, resolution: float) -> Skeleton:
+def _from_surface(table: dict, base_dir: Path, source: str, scale: float, resolution: float) -> Skeleton:
+    """``skeleton.mesh`` (a surface mesh) or ``skeleton.points`` (a scan, lofted into one)."""
     from wooddecay.strands.mesh_input import load_mesh
     from wooddecay.strands.mesh_skeleton import mesh_skeleton
+    from wooddecay.strands.point_cloud import loft, read_points
 
-    if not isinstance(table["mesh"], str) or not table["mesh"].strip():
-        raise InputError(source, "skeleton.mesh", f"must be a path string (got {format_value(table['mesh'])})")
+    key = "mesh" if "mesh" in table else "points"
+    if not isinstance(table[key], str) or not table[key].strip():
+        raise InputError(source, f"skeleton.{key}", f"must be a path string (got {format_value(table[key])})")
     largest = table.get("largest", False)
-    if not isinstance(largest, bool):
-        raise InputError(source, "skeleton.largest", f"must be true or false (got {format_value(largest)})")
+    if not isinstance(largest, bool) or (largest and key == "points"):
+        raise InputError(source, "skeleton.largest", f"must be true or false, with skeleton.mesh only (got "
+                         f"{format_value(largest)})")
     spacing = positive(table["spacing"], source, "skeleton.spacing") if "spacing" in table else None
-    mesh = load_mesh(Path(base_dir) / table["mesh"], scale, largest, f"{source}: skeleton.mesh")
-    return mesh_skeleton(mesh, resolution, spacing)
+    up = table.get("up")
+    if up not in (None, "y", "z"):
+        raise InputError(source, "skeleton.up", f'must be "y" or "z" (got {format_value(up)})')
+    path, where = Path(base_dir) / table[key], f"{source}: skeleton.{key}"
+    if key == "mesh":
+        surface = load_mesh(path, scale, largest, where, up)
+    else:
+        surface = loft(read_points(path, scale, where, up), resolution, str(path))
+    return mesh_skeleton(surface, resolution, spacing)
 
 
 def load_skeleton(table, base_dir: Path, source: str, resolution: float = 0.005) -> Skeleton:
@@ -71,11 +83,12 @@ def load_skeleton(table, base_dir: Path, source: str, resolution: float = 0.005)
     Parameters
     ----------
     table : dict
-        Keys ``file`` (path relative to the scene file), ``node`` (inline array of node tables)
-        or ``mesh`` (a surface mesh, relative to the scene file), exactly one of them;
-        ``format`` ("native" | "treeqsm", default from the file extension: .toml native,
-        .csv/.txt treeqsm); ``scale`` (float > 0, default 1); with ``mesh``: ``largest``
-        (bool) and ``spacing`` (m).
+        Keys ``file`` (path relative to the scene file), ``node`` (inline array of node
+        tables), ``mesh`` (a surface mesh) or ``points`` (a scanned point cloud; both relative
+        to the scene file), exactly one of them; ``format`` ("native" | "treeqsm", default
+        from the file extension: .toml native, .csv/.txt treeqsm); ``scale`` (float > 0,
+        default 1); with ``mesh``: ``largest`` (bool); with ``mesh`` or ``points``:
+        ``spacing`` (m) and ``up`` ("y" | "z": the file's up axis, :mod:`.mesh_input`).
     base_dir : Path
         Directory of the scene file.
     source : str
@@ -96,13 +109,14 @@ def load_skeleton(table, base_dir: Path, source: str, resolution: float = 0.005)
         raise InputError(source, "skeleton", f"must be a table (got {type_name(table)})")
     check_keys(table, TABLE_KEYS, (), source, "skeleton")
     if sum(k in table for k in SOURCES) != 1:
-        raise InputError(source, "skeleton", "give exactly one of skeleton.file, [[skeleton.node]] or skeleton.mesh")
+        raise InputError(source, "skeleton", "give exactly one of skeleton.file, [[skeleton.node]], skeleton.mesh "
+                         "or skeleton.points")
     scale = positive(table.get("scale", 1.0), source, "skeleton.scale")
-    if "mesh" in table:
-        return _from_mesh(table, base_dir, source, scale, resolution)
-    for key in ("largest", "spacing"):
+    if "mesh" in table or "points" in table:
+        return _from_surface(table, base_dir, source, scale, resolution)
+    for key in ("largest", "spacing", "up"):
         if key in table:
-            raise InputError(source, f"skeleton.{key}", "applies to skeleton.mesh only")
+            raise InputError(source, f"skeleton.{key}", "applies to skeleton.mesh and skeleton.points only")
     if "node" in table:
         _format_of(table, None, source)
         return scale_skeleton(parse_nodes(table["node"], source, "skeleton.node"), scale, "skeleton.node")
