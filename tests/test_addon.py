@@ -529,3 +529,29 @@ def test_render_rotted_and_sound_wood_differ(blender_user, bake, rot_usd, tmp_pa
     assert d_rotted > MARGIN, (d_rotted, rot, sound)
     assert d_rotted > RATIO * d_sound, (d_rotted, d_sound)
     assert darker > DARKER, darker
+
+
+@pytest.mark.slow
+def test_render_source_mesh_through_the_same_cameras(bake, tmp_path):
+    """render_bake --source: the mesh a bake was built from, rendered in plain grey beside the
+    bake's picture with the cameras fitted to both: two pictures of one size, each showing an
+    object (pixels away from the sky's colour), different from each other."""
+    import trimesh
+    from PIL import Image
+
+    from wooddecay import render
+
+    lo, hi = np.min(bake["frames"][0].mech["x"], axis=0), np.max(bake["frames"][0].mech["x"], axis=0)
+    box = trimesh.creation.box(extents=hi - lo)
+    box.apply_translation((lo + hi) / 2)
+    source = tmp_path / "source.obj"
+    box.export(source)
+    png = tmp_path / "tiny.png"
+    render.render_bake(bake["usd"], png, frame=None, options=("--width", "128", "--height", "72", "--samples", "4",
+                                                              "--azimuth", "-145", "--no-labels", "--max-kb", "0",
+                                                              "--source", str(source)))
+    pictures = [np.asarray(Image.open(p).convert("RGB"), float) for p in (png, tmp_path / "tiny_source.png")]
+    assert pictures[0].shape == pictures[1].shape == (72, 128, 3)
+    for pic in pictures:
+        assert np.mean(np.linalg.norm(pic - pic[0, 0], axis=-1) > 30) > 0.02
+    assert np.mean(np.abs(pictures[0] - pictures[1])) > 2.0

@@ -69,13 +69,53 @@ def parse_args(argv=None):
     ap.add_argument("--fit-box", type=float, nargs=6, default=None, metavar=("X0", "Y0", "Z0", "X1", "Y1", "Z1"),
                     help="fit the cameras and the ground to this box (m) instead of the shown mesh, so renders "
                          "of different bakes or frames share one camera")
+    ap.add_argument("--source", default=None, metavar="MESH",
+                    help="also render this mesh (OBJ, PLY and STL z-up, glTF/GLB, USD: the one the bake's skeleton "
+                         "was built from) in plain wood grey through the same cameras into OUT_source.png; the "
+                         "cameras then hold both")
     ap.add_argument("--no-ground", dest="ground", action="store_false", help="no ground plane")
     common.add_labels_arg(ap, "no captions (near end's mean H_c and H_l; day and mass loss from the "
                               "bake's summary.json)")
     args = common.parse_render_args(ap, argv, max_kb=250)
     if not os.path.isfile(args.usd):
         ap.error(f"no such file: {args.usd}")
+    if args.source is not None and not os.path.isfile(args.source):
+        ap.error(f"no such file: {args.source}")
     return args
+
+
+#: importers of --source meshes by suffix: operator path and its arguments (OBJ, PLY and STL keep
+#: their coordinates: z-up, as wooddecay reads them)
+SOURCE_IMPORT = {".obj": ("wm.obj_import", {"forward_axis": "Y", "up_axis": "Z"}),
+                 ".ply": ("wm.ply_import", {"forward_axis": "Y", "up_axis": "Z"}),
+                 ".stl": ("wm.stl_import", {"forward_axis": "Y", "up_axis": "Z"}),
+                 ".glb": ("import_scene.gltf", {}), ".gltf": ("import_scene.gltf", {}),
+                 ".usd": ("wm.usd_import", {}), ".usda": ("wm.usd_import", {}), ".usdc": ("wm.usd_import", {})}
+SOURCE_COLOR = (0.46, 0.38, 0.30)
+
+
+def import_source(bpy, path):
+    """The --source mesh's objects, in a plain wood-grey material, and their world vertices."""
+    import numpy as np
+
+    suffix = os.path.splitext(path)[1].lower()
+    if suffix not in SOURCE_IMPORT:
+        raise SystemExit(f"render_bake: cannot import --source {path}: the formats are {', '.join(SOURCE_IMPORT)}")
+    before = set(bpy.data.objects)
+    op, kwargs = SOURCE_IMPORT[suffix]
+    group, name = op.split(".")
+    getattr(getattr(bpy.ops, group), name)(filepath=os.path.abspath(path), **kwargs)
+    obs = [ob for ob in bpy.data.objects if ob not in before and ob.type == "MESH"]
+    mat, bsdf = common.principled_material(bpy, "Source", 0.7)
+    bsdf.inputs["Base Color"].default_value = (*SOURCE_COLOR, 1.0)
+    pts = []
+    for ob in obs:
+        ob.data.materials.clear()
+        ob.data.materials.append(mat)
+        m = np.array(ob.matrix_world)
+        co = np.array([v.co[:] for v in ob.data.vertices])
+        pts.append(co @ m[:3, :3].T + m[:3, 3])
+    return obs, np.concatenate(pts) if pts else np.zeros((0, 3))
 
 
 def install_addon(folder):
@@ -182,8 +222,9 @@ def render(bpy, args, t0):
         frame = None
     bpy.context.view_layer.update()
     pos, fields = evaluated_fields(bpy, obs, ("H_c", "H_l"))
+    source, source_pts = import_source(bpy, args.source) if args.source else ([], np.zeros((0, 3)))
     if args.fit_box is None:
-        framed = pos
+        framed = np.concatenate([pos, source_pts])
     else:
         box = np.reshape(args.fit_box, (2, 3))
         framed = np.array([[box[i, 0], box[j, 1], box[k, 2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
@@ -213,14 +254,26 @@ def render(bpy, args, t0):
         else:
             common.paste_panels(panels, args.layout)[0].save(path, optimize=True)
 
+    for ob in source:
+        ob.hide_render = True
     out, t_render = common.render_views(bpy, args.png, n, args.max_kb, view, picture)
+    if source:
+        for ob in source:
+            ob.hide_render = False
+        for ob in obs:
+            ob.hide_render = True
+        stem, ext = os.path.splitext(args.png)
+        shown, t_source = common.render_views(bpy, f"{stem}_source{ext}", n, args.max_kb, view,
+                                              lambda panels, path: common.paste_panels(panels, args.layout)[0].save(path))
+        t_render += t_source
+        print(f"render_bake: {shown} (the source mesh {args.source}, the same cameras)")
     hc = fields.get("H_c")
     hc_text = f"H_c {hc.min():.3f}..{hc.max():.3f}" if hc is not None else "no H_c"
     shown = "last" if frame is None else frame
     print(f"render_bake: {out} ({os.path.getsize(out) // 1024} KB, {args.width}x{args.height}, "
           f"frame {shown}, {len(obs)} mesh(es), {hc_text}, {n} view(s) of {args.samples} samples, "
           f"render {t_render:.1f} s, total {time.perf_counter() - t0:.1f} s)")
-    for cap in captions:
+    for cap in captions[:n]:
         print(f"  {cap}")
 
 
