@@ -2,7 +2,8 @@
 spruce log as an artist would model it (1.2 m along an arch of 4 m radius, 0.13-0.15 m radius with
 bark noise and four knots; cut square at both ends; placed off the origin, lying on z = 0, as in
 a set), and ``bent_log_scan.ply``, the same log as a scanner sees it: SCAN_POINTS points on its
-surface with SCAN_NOISE of noise, none on its underside within 2 cm of the ground.
+surface with SCAN_NOISE of noise, none on its underside within 2 cm of the ground; and
+``forked_branch.glb``, a fallen forked branch (:func:`forked_branch`).
 
 Deterministic (fixed seed). Run: ``python scripts/make_mesh_samples.py``.
 """
@@ -17,6 +18,9 @@ AROUND, ALONG = 48, 40  # vertices around a ring, rings along the log
 LENGTH, BEND = 1.2, 4.0  # m: along the centreline, radius of its bend
 PLACE = np.array([2.0, -1.0, 0.0])  # where the log's root end sits in the artist's set
 SCAN_POINTS, SCAN_NOISE = 6000, 0.001  # points, m
+FORK_PLACE = np.array([0.5, 1.5, 0.0])  # where the forked branch's cut end sits
+#: our z-up coordinates -> glTF's y-up (as wooddecay.export.gltf writes)
+Z_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 
 def bent_log(seed: int = 5):
@@ -34,21 +38,58 @@ def bent_log(seed: int = 5):
     for ks, kt in zip(rng.uniform(0.2, 1.0, 4), rng.uniform(0.0, 2 * np.pi, 4)):  # knots: bumps of 2 cm
         dt = np.angle(np.exp(1j * (theta[None, :] - kt)))
         radius = radius + 0.02 * np.exp(-((s[:, None] - ks) / 0.04) ** 2 - (dt / 0.25) ** 2)
-    ring = (np.cos(theta)[None, :, None] * side[None, None, :] + np.sin(theta)[None, :, None] * up[:, None, :])
+    vertices, faces = tube(centre, side, up, radius)
+    vertices[:, 2] -= vertices[:, 2].min()  # on the ground
+    return vertices + PLACE, faces
+
+
+def tube(centre, side, up, radius):
+    """A closed tube through the rings ``centre[i] + radius[i, j] (cos theta_j side + sin theta_j
+    up[i])`` (``radius`` (rings, around)), capped by fans at both ends: vertices and triangles."""
+    along, around = radius.shape
+    theta = np.linspace(0.0, 2 * np.pi, around, endpoint=False)
+    ring = (np.cos(theta)[None, :, None] * np.broadcast_to(side, (along, 3))[:, None, :]
+            + np.sin(theta)[None, :, None] * up[:, None, :])
     v = centre[:, None, :] + radius[:, :, None] * ring
     vertices = np.vstack([v.reshape(-1, 3), centre[0], centre[-1]])
-    vertices[:, 2] -= vertices[:, 2].min()  # on the ground
-    vertices += PLACE
-    i = np.arange(ALONG - 1)[:, None] * AROUND
-    j = np.arange(AROUND)[None, :]
-    a, b = i + j, i + (j + 1) % AROUND
-    c, d = a + AROUND, b + AROUND
+    i = np.arange(along - 1)[:, None] * around
+    j = np.arange(around)[None, :]
+    a, b = i + j, i + (j + 1) % around
+    c, d = a + around, b + around
     quads = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
-    n = ALONG * AROUND
-    ring0, ring1 = np.arange(AROUND), (ALONG - 1) * AROUND + np.arange(AROUND)
-    cap0 = np.stack([np.full(AROUND, n), np.roll(ring0, -1), ring0], -1)
-    cap1 = np.stack([np.full(AROUND, n + 1), ring1, np.roll(ring1, -1)], -1)
+    n = along * around
+    ring0, ring1 = np.arange(around), (along - 1) * around + np.arange(around)
+    cap0 = np.stack([np.full(around, n), np.roll(ring0, -1), ring0], -1)
+    cap1 = np.stack([np.full(around, n + 1), ring1, np.roll(ring1, -1)], -1)
     return vertices, np.concatenate([quads, cap0, cap1])
+
+
+def straight(start, direction, length, r0, r1, rings=24, around=32):
+    """A straight tube from ``start`` along ``direction`` tapering from radius r0 to r1."""
+    d = np.asarray(direction, float) / np.linalg.norm(direction)
+    side = np.cross([0.0, 0.0, 1.0], d)
+    side /= np.linalg.norm(side)
+    s = np.linspace(0.0, length, rings)
+    radius = np.repeat((r0 + (r1 - r0) * s / length)[:, None], around, axis=1)
+    return tube(np.asarray(start) + s[:, None] * d, side, np.repeat(np.cross(d, side)[None], rings, 0), radius)
+
+
+def forked_branch():
+    """A fallen forked branch as a glTF artist would hand it over (FORK_PLACE, lying on z = 0):
+    a stem 1.1 m long tapering from 6 to 3.5 cm radius and a side branch 0.5 m long (3.5 to 2 cm)
+    leaving it 0.45 m from its cut end at 40 degrees, both on the ground; one closed body (their
+    boolean union)."""
+    import trimesh
+
+    stem = trimesh.Trimesh(*straight([0.0, 0.0, 0.06], [1.0, 0.0, 0.0], 1.1, 0.06, 0.035))
+    a = np.radians(40.0)
+    side = trimesh.Trimesh(*straight([0.45, 0.0, 0.05], [np.cos(a), np.sin(a), -0.03], 0.5, 0.035, 0.02))
+    for m in (stem, side):
+        if m.volume < 0:
+            m.invert()
+    union = trimesh.boolean.union([stem, side], engine="manifold")
+    union.apply_translation(FORK_PLACE - [0.0, 0.0, union.bounds[0, 2]])
+    return union
 
 
 def write_obj(path: Path, vertices, faces) -> None:
@@ -75,6 +116,10 @@ def main() -> None:
     pts = pts[pts[:, 2] > 0.02][:SCAN_POINTS] + SCAN_NOISE * rng.standard_normal((SCAN_POINTS, 3))
     trimesh.PointCloud(np.round(pts, 4)).export(OUT / "bent_log_scan.ply")
     print(f"wrote {OUT / 'bent_log_scan.ply'}: {len(pts)} points")
+    fork = forked_branch()
+    assert fork.is_watertight and fork.volume > 0
+    trimesh.Trimesh(fork.vertices @ Z_TO_Y_UP.T, fork.faces).export(OUT / "forked_branch.glb")
+    print(f"wrote {OUT / 'forked_branch.glb'}: {len(fork.faces)} faces, volume {fork.volume:.5f} m^3 (y-up)")
 
 
 if __name__ == "__main__":

@@ -263,3 +263,31 @@ def test_init_from_mesh_writes_a_scene_that_loads(tmp_path):
     assert np.allclose(scene.skeleton.positions[:, 1:], PLACE[1:], atol=1e-4)
     box = next(i["region"] for i in scene.inoculations if i["region"]["kind"] == "box")
     assert box["max"][2] < PLACE[2] - 0.5 * R  # the ground side of the log as it sits
+
+
+def test_forked_branch_is_traced_with_its_side_branch():
+    """samples/meshes/forked_branch.glb (y-up): one fork; the stem runs from its cut end at
+    FORK_PLACE 1.1 m along x, the side branch ends 0.5 m from its start at 40 degrees."""
+    skel = load_scene(SAMPLES / "forked_branch.toml").skeleton
+    children = np.bincount(skel.parent[skel.parent >= 0], minlength=len(skel.ids))
+    assert np.count_nonzero(children >= 2) == 1 and children.max() == 2
+    leaves = np.flatnonzero(children == 0)
+    assert len(leaves) == 2
+    x = skel.positions
+    assert np.allclose(x[0], [0.5, 1.5, 0.06], atol=0.005)
+    a = np.radians(40.0)
+    side_tip = np.array([0.5 + 0.45 + 0.5 * np.cos(a), 1.5 + 0.5 * np.sin(a)])
+    assert min(np.linalg.norm(x[leaves, :2] - side_tip, axis=1)) < 0.02
+    assert max(x[leaves, 0]) == pytest.approx(1.6, abs=0.005)
+
+
+@pytest.mark.slow
+def test_forked_branch_meshlets_fill_the_mesh():
+    out = subprocess.run([sys.executable, "-m", "wooddecay.cli", "inspect", str(SAMPLES / "forked_branch.toml"),
+                          "--json", "--meshlets"], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    m = json.loads(out.stdout)["meshlets"]
+    src = m["source_mesh"]
+    assert m["closed_fraction"] == 1.0
+    assert abs(src["volume_error"]) < 0.1  # the branches' sweeps overlap at the fork
+    assert src["bark_distance_mean"] < 0.005 and src["bark_distance_max"] < 4 * 0.005

@@ -489,8 +489,8 @@ BOX_HEIGHT = 0.13
 @click.argument("name")
 @click.option("--template", type=click.Choice(TEMPLATES), default="log", show_default=True)
 @click.option("--from-mesh", "mesh_file", type=click.Path(dir_okay=False), default=None,
-              help="Build the skeleton and profiles from this surface mesh (OBJ, PLY, STL, glTF/GLB, USD); "
-                   "the log template only.")
+              help="Build the skeleton and profiles from this surface mesh (OBJ, PLY, STL, glTF/GLB, USD) of a log, "
+                   "stump or branching wood; the log template only.")
 @click.option("--scale", type=float, default=1.0, show_default=True,
               help="With --from-mesh: multiply the mesh's coordinates (e.g. 0.01 for centimetres).")
 @click.option("--from-points", "points_file", type=click.Path(dir_okay=False), default=None,
@@ -535,8 +535,8 @@ def _scene_from_surface(target: Path, template: str, key: str, surface_file: Pat
 
     option = f"--from-{key}"
     if template != "log":
-        raise InputError("--template", template, f"{option} builds logs, boards and stumps (one centreline); "
-                         "a branching mesh needs an explicit skeleton")
+        raise InputError("--template", template, f"{option} writes the log template's settings (a branching "
+                         "mesh too): give --template log")
     if not (math.isfinite(scale) and scale > 0.0):
         raise InputError("--scale", str(scale), "must be a finite number > 0")
     if largest and key == "points":

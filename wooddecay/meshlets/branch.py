@@ -20,7 +20,7 @@ out (:func:`_valid_mirrors`); the cells there end at their neighbours' mirrors. 
 follow a reflex corner exactly: what they miss on one side of it they overhang on the other.
 Where a side branch starts, the mirrors go across the hull of its sites offset by r_s
 (:func:`~wooddecay.meshlets.offset.offset_contour`).
-FAR_RING far sites keep every real cell bounded even where no mirror reaches. ``docs/decisions.md``
+FAR_RING far sites around each section keep every real cell bounded even where no mirror reaches. ``docs/decisions.md``
 (Meshlets) records this choice.
 """
 from __future__ import annotations
@@ -35,8 +35,13 @@ from .offset import offset_contour
 
 #: sites closer than this many r_s to a node's profile get a mirrored ghost site
 GHOST_DEPTH = 4.0
-#: far sites around every branch
-FAR_RING = 8
+#: far sites around every section of a branch, FAR_MARGIN r_s beyond its farthest real site: a
+#: cell no mirror bounds (a strand near the bark at one node of a tapering branch and deeper than
+#: GHOST_DEPTH r_s at another gets none) overhangs the bark by about 3 r_s at most, while the
+#: ring stays clear of the mirrored cells (their bisectors lie r_s out, the ring's 6 r_s out
+#: between its sites)
+FAR_RING = 32
+FAR_MARGIN = 6.0
 #: a corner: the second mirror edge turns by more than this from the nearest one
 CORNER = np.deg2rad(30.0)
 
@@ -195,12 +200,16 @@ def setup_branch(model, b: int) -> Branch | None:
         for c in range(2):
             G[rows_i, j, c] = P[rows_i, i, c] + np.interp(d[rows_i], d[known], offset[known, i, r, c])
     ghost_of = np.array([i for i, _ in ghosts], dtype=np.int64)
-    # a far ring keeps every real cell bounded even where no mirror reaches (a safety net)
-    pts = P[alive]
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    # a far ring keeps every real cell bounded even where no mirror reaches: per section, around
+    # the box of its real sites, FAR_MARGIN r_s beyond the farthest of them
+    real = alive[:, :n, None]
+    lo = np.where(real, P, np.inf).min(axis=1)
+    hi = np.where(real, P, -np.inf).max(axis=1)
+    centre = 0.5 * (lo + hi)
+    reach = np.where(alive[:, :n], np.linalg.norm(P - centre[:, None], axis=2), 0.0).max(axis=1) + FAR_MARGIN * r_s
     ang = 2.0 * np.pi * np.arange(FAR_RING) / FAR_RING
-    ring = 0.5 * (lo + hi) + 4.0 * (float(np.max(hi - lo)) + r_s) * np.stack([np.cos(ang), np.sin(ang)], 1)
-    P = np.concatenate([P, G, np.broadcast_to(ring, (len(d), FAR_RING, 2))], axis=1)
+    ring = centre[:, None] + reach[:, None, None] * np.stack([np.cos(ang), np.sin(ang)], 1)[None]
+    P = np.concatenate([P, G, ring], axis=1)
     alive = np.concatenate([alive, alive[:, ghost_of], np.ones((len(d), FAR_RING), dtype=bool)], axis=1)
     bounds = []
     for i in range(n):

@@ -1,5 +1,6 @@
 """A skeleton and its profiles from a closed surface mesh (:mod:`.mesh_input`): a centreline
-through cross-section centroids for logs, boards and stumps, and at every node the mesh sliced
+through cross-section centroids for logs, boards and stumps, branches traced through the
+cross-sections for a branching mesh (:func:`tree_nodes`), and at every node the mesh sliced
 perpendicular to it, its outer contour resampled as a polygon profile.
 
 Branch-fracture §3.1-3.3 voxelises a scanned branch, takes each cross-section's outer contour and
@@ -41,8 +42,11 @@ from wooddecay.strands.topology import build_topology
 #: end (a slice through the end face itself is degenerate)
 END_INSET = 1e-3
 #: a second contour beside a section's (not inside it) larger than this share of it: the mesh
-#: branches or bends back across the slice
+#: branches across the slice (:func:`tree_nodes`)
 APART = 0.1
+#: a branch's contour continues the chain whose last centroid lies within this many times the
+#: sum of their radii
+TRACK = 1.5
 #: rays per section when comparing a section with its neighbours' interpolation
 RAYS = 180
 #: where between two nodes the slices are compared with the nodes' interpolation
@@ -179,10 +183,10 @@ def centreline(mi: MeshInput, spacing: float | None, resolution: float) -> np.nd
             o = centre + t * axis
             apart: list[float] = []
             poly = section(mesh, o, axis, u, v, apart)
-            if poly is None or max(apart, default=0.0) > APART * profiles.polygon_area(poly):
-                what = "no closed cross-section" if poly is None else f"{len(apart) + 1} separate cross-sections"
-                raise InputError(mi.source, "", f"{what} {t - s0:.3f} m along the mesh's axis: the mesh is not one "
-                                 "log, board or stump along a line (it branches or bends back; give an explicit skeleton)")
+            if poly is None:
+                raise InputError(mi.source, "", f"no closed cross-section {t - s0:.3f} m along the mesh's axis")
+            if max(apart, default=0.0) > APART * profiles.polygon_area(poly):
+                raise _Branches
             c = profiles.polygon_centroid(poly)
             cache[t] = (o + c[0] * u + c[1] * v, profiles.ray_extent(poly, c, angles))
         return cache[t]
@@ -299,12 +303,102 @@ def profile_at(mi: MeshInput, origin, frame, resolution: float, node: str) -> pr
     return profiles.polygon(out if profiles.is_ccw(out) else out[::-1])
 
 
+class _Branches(Exception):
+    """A slice across the principal axis cuts the mesh in several places: it branches."""
+
+
+def _outer_contours(mesh, origin, normal, u, v) -> list[np.ndarray]:
+    """The contours of a slice that lie inside no other (a hollow's cavity does), CCW in (u, v)."""
+    polys = [_planar(loop, origin, u, v) for loop in contour_loops(mesh, origin, normal)]
+    return [p for i, p in enumerate(polys)
+            if not any(j != i and profiles.polygon_area(q) > profiles.polygon_area(p) and profiles.contains(q, p[:1])[0]
+                       for j, q in enumerate(polys))]
+
+
+def tree_nodes(mi: MeshInput, spacing: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """Node positions and parents of a branching mesh (module docstring): slices across the
+    principal axis from the root end, their contours chained from slice to slice (a contour
+    continues the chain whose last centroid is nearest, within TRACK of their radii); where a
+    chain's contour splits, the largest part continues it and each other part starts a branch
+    from the chain's last node; chains end in end nodes like a log's."""
+    mesh = mi.mesh
+    axis = _principal_axis(mesh)
+    u, v = _plane_basis(axis)
+    s = mesh.vertices @ axis
+    s0, s1 = float(s.min()), float(s.max())
+    length = s1 - s0
+    centre = mesh.centroid - (mesh.centroid @ axis) * axis
+    if spacing is None:
+        areas = [max((profiles.polygon_area(p) for p in _outer_contours(mesh, centre + t * axis, axis, u, v)),
+                     default=0.0) for t in np.linspace(s0, s1, 10)[1:-1]]
+        spacing = float(np.mean(np.sqrt(np.array(areas) / np.pi)))
+    n = max(3, math.ceil(length / spacing))
+    pos: list[np.ndarray] = []
+    parent: list[int] = []
+    radius: list[float] = []
+    active: list[int] = []  # the last node of each chain still being traced
+    ends: list[int] = []  # the last node of each finished chain
+    for k, t in enumerate(s0 + length * np.arange(1, n) / n):
+        o = centre + t * axis
+        found = []
+        for poly in _outer_contours(mesh, o, axis, u, v):
+            c = profiles.polygon_centroid(poly)
+            found.append((o + c[0] * u + c[1] * v, math.sqrt(profiles.polygon_area(poly) / math.pi)))
+        if k == 0 and len(found) != 1:
+            raise InputError(mi.source, "", f"{len(found)} cross-sections next to the root end: the mesh must start "
+                             "from one stem (give an explicit skeleton)")
+        claimed: dict[int, list[int]] = {}
+        for j, (c, r) in enumerate(found):
+            near = [(np.linalg.norm(c - pos[a]), a) for a in active if np.linalg.norm(c - pos[a]) < TRACK * (r + radius[a])]
+            if not near and k > 0:
+                raise InputError(mi.source, "", f"a cross-section {t - s0:.3f} m along the mesh's axis joins no branch "
+                                 "before it: a branch bends back along the axis (give an explicit skeleton)")
+            claimed.setdefault(min(near)[1] if near else -1, []).append(j)
+        for a in active:
+            if a not in claimed and any(np.linalg.norm(c - pos[a]) < TRACK * (r + radius[a]) for c, r in found):
+                raise InputError(mi.source, "", f"two branches join {t - s0:.3f} m along the mesh's axis (a loop): "
+                                 "the mesh is not a log or a tree (give an explicit skeleton)")
+        ends += [a for a in active if a not in claimed]
+        active = []
+        for a, js in claimed.items():
+            for j in sorted(js, key=lambda j: -found[j][1]):  # the largest part continues the chain
+                pos.append(found[j][0])
+                parent.append(a)
+                radius.append(found[j][1])
+                active.append(len(pos) - 1)
+    ends += active
+    pos_a, parent_a = np.array(pos), np.array(parent, dtype=np.int64)
+    reach = 1.5 * max(radius)
+
+    def extend(tip: int, back: np.ndarray) -> np.ndarray:
+        t = (pos_a[tip] - back) / np.linalg.norm(pos_a[tip] - back)
+        d = mesh.vertices - pos_a[tip]
+        along = d @ t
+        near = (along > 0) & (along < 2.0 * length / n) & (np.linalg.norm(d - along[:, None] * t, axis=1) <= reach)
+        return _end_node(mesh, pos_a[tip], t, float(along[near].max(initial=0.0)), reach)
+
+    first = np.flatnonzero(parent_a == 0)
+    if len(first) == 0:
+        raise InputError(mi.source, "", "the mesh is too short along its axis for a skeleton")
+    root = extend(0, pos_a[first[0]])
+    ends = [e for e in ends if e > 0]
+    tips = [extend(e, pos_a[parent_a[e]]) for e in ends]
+    # the root's end node first (its parent -1), the traced nodes one index later (the first of
+    # them hangs from the root's end node), then the tips' end nodes
+    all_parent = np.concatenate([[-1], parent_a + 1, np.array(ends, dtype=np.int64) + 1])
+    return np.vstack([root, pos_a, *tips]), all_parent.astype(np.int64)
+
+
 def mesh_skeleton(mi: MeshInput, resolution: float, spacing: float | None = None) -> Skeleton:
-    """The skeleton of a log, board or stump mesh: a centreline and polygon profiles."""
-    pos = centreline(mi, spacing, resolution)
+    """The skeleton of a mesh: a centreline for a log, board or stump, branches for a branching
+    mesh (:func:`tree_nodes`), and polygon profiles."""
+    try:
+        pos = centreline(mi, spacing, resolution)
+        parent = np.arange(-1, len(pos) - 1, dtype=np.int64)
+    except _Branches:
+        pos, parent = tree_nodes(mi, spacing)
     n = len(pos)
     ids = tuple(f"m{i}" for i in range(n))
-    parent = np.arange(-1, n - 1, dtype=np.int64)
     circle = profiles.circle(1.0)
     rough = Skeleton(ids, pos, parent, (circle,) * n, np.zeros(n, bool), mi.source)
     frames = build_topology(rough).frames
