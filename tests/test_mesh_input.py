@@ -291,3 +291,20 @@ def test_forked_branch_meshlets_fill_the_mesh():
     assert m["closed_fraction"] == 1.0
     assert abs(src["volume_error"]) < 0.1  # the branches' sweeps overlap at the fork
     assert src["bark_distance_mean"] < 0.005 and src["bark_distance_max"] < 4 * 0.005
+
+
+@pytest.mark.slow
+def test_a_mesh_scene_bakes(tmp_path):
+    """`wooddecay bake` of the forked branch from its glTF: a USD stage of the wood where the mesh
+    sat (the first frame's points within the mesh's box, widened by r_s)."""
+    from pxr import Usd, UsdGeom
+
+    out = tmp_path / "fb"
+    proc = subprocess.run([sys.executable, "-m", "wooddecay.cli", "bake", str(SAMPLES / "forked_branch.toml"),
+                           "-o", str(out), "--days", "4", "--frames", "2"], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    stage = Usd.Stage.Open(str(out / "forked_branch.usdc"))
+    box = UsdGeom.BBoxCache(0, ["default", "render"]).ComputeWorldBound(stage.GetPseudoRoot()).ComputeAlignedRange()
+    lo, hi = load_mesh(SAMPLES / "forked_branch.glb").mesh.bounds
+    r_s = load_scene(SAMPLES / "forked_branch.toml").strands.r_s
+    assert np.all(np.array(box.GetMin()) >= lo - 4 * r_s) and np.all(np.array(box.GetMax()) <= hi + 4 * r_s)
