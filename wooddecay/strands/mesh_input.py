@@ -93,6 +93,18 @@ def _read_usd(path: Path):
     return np.concatenate(points) * unit, np.concatenate(faces), str(UsdGeom.GetStageUpAxis(stage)).lower()
 
 
+def checked_path(path, source: str | None, what: str, suffixes) -> Path:
+    """``path`` as a Path if it is a file with one of ``suffixes``; else a one-line error naming
+    ``source`` (the scene key or option) or the path."""
+    path = Path(path)
+    where = source or str(path)
+    if not path.is_file():
+        raise InputError(where, "", f"{what} file '{path}' does not exist")
+    if path.suffix.lower() not in suffixes:
+        raise InputError(where, "", f"cannot read '{path.name}': the {what} formats are {', '.join(suffixes)}")
+    return path
+
+
 def load_mesh(path, scale: float = 1.0, largest: bool = False, source: str | None = None,
               up: str | None = None) -> MeshInput:
     """Read, check and repair the mesh at ``path`` (module docstring); coordinates times ``scale``,
@@ -102,13 +114,8 @@ def load_mesh(path, scale: float = 1.0, largest: bool = False, source: str | Non
     ``source`` names the scene key in messages about a missing file or an unknown format."""
     import trimesh
 
-    path = Path(path)
-    where = source or str(path)
-    if not path.is_file():
-        raise InputError(where, "", f"mesh file '{path}' does not exist")
+    path = checked_path(path, source, "mesh", SUFFIXES)
     suffix = path.suffix.lower()
-    if suffix not in SUFFIXES:
-        raise InputError(where, "", f"cannot read '{path.name}': the mesh formats are {', '.join(SUFFIXES)}")
     vertices, faces, file_up = (_read_usd if suffix in USD_SUFFIXES else _read_trimesh)(path)
     name = str(path)
     if (up or file_up) == "y":

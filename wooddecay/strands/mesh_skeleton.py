@@ -165,15 +165,30 @@ def _principal_axis(mesh) -> np.ndarray:
     return axis if axis[int(np.argmax(np.abs(axis)))] > 0 else -axis
 
 
-def centreline(mi: MeshInput, spacing: float | None, resolution: float) -> np.ndarray:
-    """Node positions ``(n + 1, 3)`` along the mesh's centreline (module docstring)."""
-    mesh = mi.mesh
+def _along_axis(mesh):
+    """The principal axis, a basis (u, v) of the planes across it, the mesh's extent s0..s1
+    along it and the point of the axis line at s = 0."""
     axis = _principal_axis(mesh)
     u, v = _plane_basis(axis)
     s = mesh.vertices @ axis
-    s0, s1 = float(s.min()), float(s.max())
+    return axis, u, v, float(s.min()), float(s.max()), mesh.centroid - (mesh.centroid @ axis) * axis
+
+
+def _extend(mesh, tip: np.ndarray, back: np.ndarray, gap: float, reach: float) -> np.ndarray:
+    """The end node beyond ``tip`` on the way from ``back`` (:func:`_end_node`): the surface up
+    to 2 ``gap`` beyond ``tip``, within ``reach`` of the line, bounds how far."""
+    t = (tip - back) / np.linalg.norm(tip - back)
+    d = mesh.vertices - tip
+    along = d @ t
+    near = (along > 0) & (along < 2.0 * gap) & (np.linalg.norm(d - along[:, None] * t, axis=1) <= reach)
+    return _end_node(mesh, tip, t, float(along[near].max(initial=0.0)), reach)
+
+
+def centreline(mi: MeshInput, spacing: float | None, resolution: float) -> np.ndarray:
+    """Node positions ``(n + 1, 3)`` along the mesh's centreline (module docstring)."""
+    mesh = mi.mesh
+    axis, u, v, s0, s1, centre = _along_axis(mesh)
     length = s1 - s0
-    centre = mesh.centroid - (mesh.centroid @ axis) * axis
     angles = np.linspace(-np.pi, np.pi, RAYS, endpoint=False)
     cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
 
@@ -212,16 +227,8 @@ def centreline(mi: MeshInput, spacing: float | None, resolution: float) -> np.nd
             break
         stations = sorted(stations + mids)
     inner = np.array([at(t)[0] for t in stations])
-    ends = []
-    for tip, nxt in ((inner[0], inner[1]), (inner[-1], inner[-2])):
-        t = (tip - nxt) / np.linalg.norm(tip - nxt)
-        d = mesh.vertices - tip
-        along = d @ t
-        # the surface beyond the last interior node, within the log's reach of its centreline
-        near = (along > 0) & (along < 2.0 * length / n) & \
-            (np.linalg.norm(d - along[:, None] * t, axis=1) <= 1.5 * max(radii))
-        far = float(along[near].max(initial=0.0))
-        ends.append(_end_node(mesh, tip, t, far, 1.5 * max(radii)))
+    ends = [_extend(mesh, tip, back, length / n, 1.5 * max(radii)) for tip, back in ((inner[0], inner[1]),
+                                                                                     (inner[-1], inner[-2]))]
     return np.vstack([ends[0], inner, ends[1]])
 
 
@@ -322,12 +329,8 @@ def tree_nodes(mi: MeshInput, spacing: float | None) -> tuple[np.ndarray, np.nda
     chain's contour splits, the largest part continues it and each other part starts a branch
     from the chain's last node; chains end in end nodes like a log's."""
     mesh = mi.mesh
-    axis = _principal_axis(mesh)
-    u, v = _plane_basis(axis)
-    s = mesh.vertices @ axis
-    s0, s1 = float(s.min()), float(s.max())
+    axis, u, v, s0, s1, centre = _along_axis(mesh)
     length = s1 - s0
-    centre = mesh.centroid - (mesh.centroid @ axis) * axis
     if spacing is None:
         areas = [max((profiles.polygon_area(p) for p in _outer_contours(mesh, centre + t * axis, axis, u, v)),
                      default=0.0) for t in np.linspace(s0, s1, 10)[1:-1]]
@@ -369,20 +372,12 @@ def tree_nodes(mi: MeshInput, spacing: float | None) -> tuple[np.ndarray, np.nda
     ends += active
     pos_a, parent_a = np.array(pos), np.array(parent, dtype=np.int64)
     reach = 1.5 * max(radius)
-
-    def extend(tip: int, back: np.ndarray) -> np.ndarray:
-        t = (pos_a[tip] - back) / np.linalg.norm(pos_a[tip] - back)
-        d = mesh.vertices - pos_a[tip]
-        along = d @ t
-        near = (along > 0) & (along < 2.0 * length / n) & (np.linalg.norm(d - along[:, None] * t, axis=1) <= reach)
-        return _end_node(mesh, pos_a[tip], t, float(along[near].max(initial=0.0)), reach)
-
     first = np.flatnonzero(parent_a == 0)
     if len(first) == 0:
         raise InputError(mi.source, "", "the mesh is too short along its axis for a skeleton")
-    root = extend(0, pos_a[first[0]])
+    root = _extend(mesh, pos_a[0], pos_a[first[0]], length / n, reach)
     ends = [e for e in ends if e > 0]
-    tips = [extend(e, pos_a[parent_a[e]]) for e in ends]
+    tips = [_extend(mesh, pos_a[e], pos_a[parent_a[e]], length / n, reach) for e in ends]
     # the root's end node first (its parent -1), the traced nodes one index later (the first of
     # them hangs from the root's end node), then the tips' end nodes
     all_parent = np.concatenate([[-1], parent_a + 1, np.array(ends, dtype=np.int64) + 1])

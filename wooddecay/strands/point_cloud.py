@@ -20,12 +20,10 @@ to hold a contour (the cloud is not one log along a line, or a scan with a gap a
 from __future__ import annotations
 
 import math
-from pathlib import Path
-
 import numpy as np
 
 from wooddecay.errors import InputError
-from wooddecay.strands.mesh_input import Y_TO_Z_UP, MeshInput
+from wooddecay.strands.mesh_input import Y_TO_Z_UP, MeshInput, checked_path
 
 SUFFIXES = (".ply", ".xyz", ".txt", ".csv", ".las")
 #: fewest points a cloud must have
@@ -41,13 +39,8 @@ MIN_FILLED = 0.5
 def read_points(path, scale: float = 1.0, source: str | None = None, up: str | None = None) -> np.ndarray:
     """The cloud's points ``(n, 3)`` in m (times ``scale``), turned to z-up if ``up`` is "y";
     checked (module docstring)."""
-    path = Path(path)
-    where = source or str(path)
-    if not path.is_file():
-        raise InputError(where, "", f"point cloud '{path}' does not exist")
+    path = checked_path(path, source, "point cloud", SUFFIXES)
     suffix = path.suffix.lower()
-    if suffix not in SUFFIXES:
-        raise InputError(where, "", f"cannot read '{path.name}': the point formats are {', '.join(SUFFIXES)}")
     name = str(path)
     try:
         if suffix == ".ply":
