@@ -37,11 +37,11 @@ from .offset import offset_contour
 GHOST_DEPTH = 4.0
 #: far sites around every section of a branch, FAR_MARGIN r_s beyond its farthest real site: a
 #: cell no mirror bounds (a strand near the bark at one node of a tapering branch and deeper than
-#: GHOST_DEPTH r_s at another gets none) overhangs the bark by about 3 r_s at most, while the
-#: ring stays clear of the mirrored cells (their bisectors lie r_s out, the ring's 6 r_s out
-#: between its sites)
-FAR_RING = 32
-FAR_MARGIN = 6.0
+#: GHOST_DEPTH r_s at another gets none) overhangs the bark by about 2 r_s at most, while the
+#: ring stays clear of the mirrored cells (their bisectors lie within r_s of their site's depth,
+#: the ring's at least 2 r_s beyond the outermost sites)
+FAR_RING = 64
+FAR_MARGIN = 4.0
 #: a corner: the second mirror edge turns by more than this from the nearest one
 CORNER = np.deg2rad(30.0)
 
