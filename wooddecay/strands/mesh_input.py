@@ -9,7 +9,8 @@ z-up (as our USD stages; our glTF files are y-up by the glTF spec): glTF is turn
 from its stage's ``upAxis``, OBJ, PLY and STL are taken as z-up unless ``up = "y"`` (Blender
 writes OBJ y-up by default).
 
-Checks, each an :class:`~wooddecay.errors.InputError` naming the file (exit 2): unreadable or
+trimesh's hole filling and winding repair walk the mesh's graph with networkx (a dependency for
+that). Checks, each an :class:`~wooddecay.errors.InputError` naming the file (exit 2): unreadable or
 unknown format, no triangles, non-finite coordinates, several disjoint bodies (unless
 ``largest``: the one of largest area is kept), a body that stays open after repair. Repairs
 trimesh can make (merging duplicate vertices, dropping degenerate faces, filling holes, winding
