@@ -158,8 +158,8 @@ def test_cylinder_meshlets_fill_the_mesh(tmp_path):
 
 @pytest.mark.slow
 def test_sample_bent_log_from_its_mesh():
-    """The shipped bent log: meshlets within 1% of its mesh's volume, bark on its surface (mean and
-    p99 within r_s), placed where the mesh sits."""
+    """The shipped bent log: meshlets within 1% of its mesh's volume, bark on its surface (every
+    bark vertex within r_s), placed where the mesh sits."""
     scene = load_scene(SAMPLES / "bent_log.toml")
     lo, hi = load_mesh(SAMPLES / "bent_log.obj").mesh.bounds
     x = scene.skeleton.positions
@@ -170,7 +170,7 @@ def test_sample_bent_log_from_its_mesh():
     src = json.loads(out.stdout)["meshlets"]["source_mesh"]
     r_s = scene.strands.r_s
     assert abs(src["volume_error"]) < 0.01
-    assert src["bark_distance_mean"] < r_s and src["bark_distance_p99"] < r_s
+    assert src["bark_distance_mean"] < r_s and src["bark_distance_max"] < r_s
 
 
 def _bad_corpus(folder: Path) -> dict[str, list[str]]:
@@ -289,7 +289,7 @@ def test_forked_branch_meshlets_fill_the_mesh():
     m = json.loads(out.stdout)["meshlets"]
     src = m["source_mesh"]
     assert m["closed_fraction"] == 1.0
-    assert abs(src["volume_error"]) < 0.1  # the branches' sweeps overlap at the fork
+    assert abs(src["volume_error"]) < 0.03  # the branches' sweeps overlap at the fork
     assert src["bark_distance_mean"] < 0.005 and src["bark_distance_max"] < 4 * 0.005
 
 

@@ -11,7 +11,9 @@ sites within GHOST_DEPTH r_s of a node's profile are mirrored across it (ghost s
 d_t like the real ones, alive with their strand). A real site's cell then ends at the bisector
 with its mirror, which is the tangent of the profile at the closest boundary point: the cells are
 bounded, the bark surface follows the input profile (concave ones too), and all changes along
-d_t stay continuous (a clipped alpha contour jumps at every alpha event). Near a corner a second
+d_t stay continuous (a clipped alpha contour jumps at every alpha event). A strand near the bark
+at some nodes only (a tapering branch) mirrors across the line square to its outward direction
+there (:func:`_mirror_tapered`). Near a corner a second
 mirror goes across the nearest edge turned by more than CORNER. At a concave profile a mirror
 can cut the wood itself: one that lands inside the profile (across an arm), one across a reflex
 vertex (its bisector is a line through the vertex, which always crosses the wood) and one across
@@ -33,13 +35,13 @@ from scipy.spatial import ConvexHull, QhullError
 from ..strands import profiles
 from .offset import offset_contour
 
-#: sites closer than this many r_s to a node's profile get a mirrored ghost site
+#: sites closer than this many r_s to the profile at each of their nodes get a mirrored ghost
+#: site; those this close at only some nodes (a tapering branch) get one by :func:`_mirror_tapered`
 GHOST_DEPTH = 4.0
 #: far sites around every section of a branch, FAR_MARGIN r_s beyond its farthest real site: a
-#: cell no mirror bounds (a strand near the bark at one node of a tapering branch and deeper than
-#: GHOST_DEPTH r_s at another gets none) overhangs the bark by about 2 r_s at most, while the
-#: ring stays clear of the mirrored cells (their bisectors lie within r_s of their site's depth,
-#: the ring's at least 2 r_s beyond the outermost sites)
+#: cell no mirror bounds overhangs the bark by about 2 r_s at most, while the ring stays clear of
+#: the mirrored cells (their bisectors lie within r_s of their site's depth, the ring's at least
+#: 2 r_s beyond the outermost sites)
 FAR_RING = 64
 FAR_MARGIN = 4.0
 #: a corner: the second mirror edge turns by more than this from the nearest one
@@ -102,6 +104,31 @@ def _valid_mirrors(poly: np.ndarray, pts: np.ndarray, feet: np.ndarray, r_s: flo
     for v, r in zip(a[reflex], reach):
         cut |= np.linalg.norm(feet - v, axis=-1) <= r
     return ~cut
+
+
+def _mirror_tapered(P, offset, nearest, polys, alive, depth, valid, r_s: float) -> None:
+    """Ghosts for the strands near the bark at some node section but deeper than GHOST_DEPTH r_s
+    at another (a tapering branch; in place: ``offset`` rank 0, ``depth``, ``valid``). The
+    nearest edge of a deep site can lie on any side, and mirrors across it cut the wood between
+    sections; instead, at every node section the mirror goes across the line square to the
+    site's outward direction at its nearest section, through the boundary along it, so the
+    ghost stays on that side. A strand whose mirror lands inside a profile gets none."""
+    reach = GHOST_DEPTH * r_s
+    for i in np.flatnonzero((depth[:, 0] >= reach) & (nearest.min(axis=0) < reach)):
+        rows = [k for k in polys if alive[k, i]]
+        k0 = min(rows, key=lambda k: nearest[k, i])
+        out = offset[k0, i, 0]
+        if not np.linalg.norm(out) > 0.0:
+            continue
+        angle = float(np.arctan2(out[1], out[0]))
+        step = {k: float(profiles.ray_extent(polys[k], P[k, i], [angle])[0]) for k in rows}
+        unit = out / np.linalg.norm(out)
+        ghost = {k: P[k, i] + 2.0 * step[k] * unit for k in rows}
+        if all(step[k] > 0.0 and profiles.signed_distance(polys[k], ghost[k][None])[0] <= 0.0 for k in rows):
+            for k in rows:
+                offset[k, i, 0] = ghost[k] - P[k, i]
+            depth[i, 0] = min(nearest[k, i] for k in rows)
+            valid[i, 0] = True
 
 
 def _section_profile(skel, chain, node: int, pts: np.ndarray, r_s: float) -> np.ndarray:
@@ -173,13 +200,17 @@ def setup_branch(model, b: int) -> Branch | None:
     depth = np.full((n, 2), -np.inf)
     valid = np.ones((n, 2), dtype=bool)
     offset = np.full((len(d), n, 2, 2), np.nan)
+    nearest = np.full((len(d), n), np.inf)  # distance to the nearest edge at each node section
+    polys = {}
     for k in np.flatnonzero(is_node):
         idx = np.flatnonzero(alive[k])
-        poly = _section_profile(skel, chain, node_at[float(d[k])], P[k, idx], r_s)
+        poly = polys[k] = _section_profile(skel, chain, node_at[float(d[k])], P[k, idx], r_s)
         foot, dist = _feet(poly, P[k, idx])
         depth[idx] = np.maximum(depth[idx], dist)
+        nearest[k, idx] = dist[:, 0]
         valid[idx] &= _valid_mirrors(poly, P[k, idx], foot, r_s)
         offset[k, idx] = 2.0 * (foot - P[k, idx][:, None])
+    _mirror_tapered(P, offset, nearest, polys, alive, depth, valid, r_s)
     # a run between two nodes: mirrors across the nearer node's profile
     between = {}
     for i in range(n):
