@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from wooddecay.strands.point_cloud import closed_tube
+
 OUT = Path(__file__).resolve().parent.parent / "wooddecay" / "samples" / "meshes"
 AROUND, ALONG = 48, 40  # vertices around a ring, rings along the log
 LENGTH, BEND = 1.2, 4.0  # m: along the centreline, radius of its bend
@@ -45,23 +47,12 @@ def bent_log(seed: int = 5):
 
 def tube(centre, side, up, radius):
     """A closed tube through the rings ``centre[i] + radius[i, j] (cos theta_j side + sin theta_j
-    up[i])`` (``radius`` (rings, around)), capped by fans at both ends: vertices and triangles."""
+    up[i])`` (``radius`` (rings, around)), capped at both ends: vertices and triangles."""
     along, around = radius.shape
     theta = np.linspace(0.0, 2 * np.pi, around, endpoint=False)
     ring = (np.cos(theta)[None, :, None] * np.broadcast_to(side, (along, 3))[:, None, :]
             + np.sin(theta)[None, :, None] * up[:, None, :])
-    v = centre[:, None, :] + radius[:, :, None] * ring
-    vertices = np.vstack([v.reshape(-1, 3), centre[0], centre[-1]])
-    i = np.arange(along - 1)[:, None] * around
-    j = np.arange(around)[None, :]
-    a, b = i + j, i + (j + 1) % around
-    c, d = a + around, b + around
-    quads = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
-    n = along * around
-    ring0, ring1 = np.arange(around), (along - 1) * around + np.arange(around)
-    cap0 = np.stack([np.full(around, n), np.roll(ring0, -1), ring0], -1)
-    cap1 = np.stack([np.full(around, n + 1), ring1, np.roll(ring1, -1)], -1)
-    return vertices, np.concatenate([quads, cap0, cap1])
+    return closed_tube(centre[:, None, :] + radius[:, :, None] * ring, centre[0], centre[-1])
 
 
 def straight(start, direction, length, r0, r1, rings=24, around=32):

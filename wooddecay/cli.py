@@ -529,9 +529,8 @@ def _scene_from_surface(target: Path, template: str, key: str, surface_file: Pat
     """The scene text of ``init --from-mesh`` (``key`` "mesh") or ``--from-points`` ("points"),
     after building its skeleton once (so a bad file fails here, in one line); prints what was
     found."""
-    from .strands.mesh_input import load_mesh
     from .strands.mesh_skeleton import mesh_skeleton
-    from .strands.point_cloud import loft, read_points
+    from .strands.skeleton_loader import load_surface
 
     option = f"--from-{key}"
     if template != "log":
@@ -543,10 +542,7 @@ def _scene_from_surface(target: Path, template: str, key: str, surface_file: Pat
         raise InputError("--largest", "", "applies to --from-mesh only")
     t0 = time.perf_counter()
     r_s = tomllib.loads(template_text(template, target.stem))["strands"]["r_s"]
-    if key == "mesh":
-        mi = load_mesh(surface_file, scale, largest, option, up)
-    else:
-        mi = loft(read_points(surface_file, scale, option, up), r_s, str(surface_file))
+    mi = load_surface(key, surface_file, scale, largest, up, r_s, option)
     skel = mesh_skeleton(mi, r_s)
     ref = os.path.relpath(surface_file.resolve(), target.parent.resolve())
     if ref.startswith(".."):  # outside the scene's folder: where it is

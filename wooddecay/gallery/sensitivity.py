@@ -35,7 +35,7 @@ def run(out: Path, quick: bool, renders: bool, log) -> tuple[dict, list]:
     for name in STUDIED:
         scene_file = FIGURES[name].scene
         base = FIGURES[name].quick if quick else {}
-        runs, frames, usds = {}, {}, {}
+        runs, frames, usds, summaries = {}, {}, {}, {}
         scene = load_scene(SCENES / scene_file, overrides=base)
         variants = {"dt": {}, "dt_half": {"time.dt_bio": scene.time.dt_bio / 2},
                     "sparse2": {"strands.r_s": scene.strands.r_s * math.sqrt(2.0)},
@@ -44,9 +44,7 @@ def run(out: Path, quick: bool, renders: bool, log) -> tuple[dict, list]:
             _, summary, fr, usd, seconds = bake_scene(scene_file, {**base, **overrides}, out / name / v)
             runs[v] = {"overrides": {**base, **overrides}, "signature": summary["frames"][-1]["signature"],
                        "seconds": round(seconds, 1), "elements": summary["counts"]["elements"]}
-            frames[v], usds[v] = fr, usd
-            if v == "dt":
-                rows = frame_rows(summary)
+            frames[v], usds[v], summaries[v] = fr, usd, summary
             log(f"  fig20/{name}/{v}: {seconds:.0f} s")
         entry = {"runs": runs}
         ref = runs["dt"]["signature"]
@@ -54,7 +52,7 @@ def run(out: Path, quick: bool, renders: bool, log) -> tuple[dict, list]:
                                      for v in ("sparse2", "sparse4")}
         if renders:
             last = len(frames["dt"]) - 1
-            for state, k in (("cracking", first_cracks(rows)), ("degraded", last)):
+            for state, k in (("cracking", first_cracks(frame_rows(summaries["dt"]))), ("degraded", last)):
                 pngs = [out / name / f"{v}_{state}.png" for v in ("dt", "dt_half")]
                 box = fit_box([frames[v][k] for v in ("dt", "dt_half")], 2.0 * scene.strands.r_s)
                 for v, png in zip(("dt", "dt_half"), pngs):

@@ -31,6 +31,9 @@ import math
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import ConvexHull, cKDTree
 
 from wooddecay.errors import InputError
 from wooddecay.strands import profiles
@@ -79,10 +82,6 @@ def contour_loops(mesh, origin, normal) -> list[np.ndarray]:
     seg = mesh_plane(mesh, plane_normal=normal, plane_origin=origin)
     if len(seg) == 0:
         return []
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
-
     pts = seg.reshape(-1, 3)
     # the two segments meeting at a mesh edge end at the same point up to rounding: merge within
     # a tolerance (rounding to a grid splits the pairs that straddle a grid line)
@@ -129,7 +128,8 @@ def _planar(loop: np.ndarray, origin, u, v) -> np.ndarray:
     return poly if profiles.is_ccw(poly) else poly[::-1]
 
 
-def _plane_basis(normal) -> tuple[np.ndarray, np.ndarray]:
+def plane_basis(normal) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors (u, v) spanning the plane across ``normal``, with u x v along it."""
     n = np.asarray(normal, float) / np.linalg.norm(normal)
     a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
     u = np.cross(n, a)
@@ -137,39 +137,44 @@ def _plane_basis(normal) -> tuple[np.ndarray, np.ndarray]:
     return u, np.cross(n, u)
 
 
-def section(mesh, origin, normal, u=None, v=None, apart: list | None = None):
-    """The outer contour of the slice through ``origin`` with ``normal``: the one around the
-    origin, else the largest; as a CCW polygon in (u, v) (a basis of the plane if not given),
-    or None if the plane misses the mesh. ``apart`` (a list) receives the areas of the other
-    contours outside it (another branch or arm of the mesh)."""
-    if u is None:
-        u, v = _plane_basis(normal)
+def outer_contours(mesh, origin, normal, u, v) -> list[np.ndarray]:
+    """The contours of the slice through ``origin`` with ``normal`` that lie inside no other (a
+    hollow's cavity does), as CCW polygons in the plane's (u, v) about ``origin``."""
     polys = [_planar(loop, origin, u, v) for loop in contour_loops(mesh, origin, normal)]
-    if not polys:
-        return None
+    return [p for i, p in enumerate(polys)
+            if not any(j != i and profiles.polygon_area(q) > profiles.polygon_area(p) and profiles.contains(q, p[:1])[0]
+                       for j, q in enumerate(polys))]
+
+
+def _main_contour(polys: list[np.ndarray]) -> np.ndarray | None:
+    """Of a slice's outer contours, the one around the slice's origin, else the largest."""
     around = [p for p in polys if profiles.contains(p, np.zeros((1, 2)))[0]]
-    # a hollow log has its cavity's contour inside the bark's: the outer one has the larger area
-    outer = max(around or polys, key=profiles.polygon_area)
-    if apart is not None:
-        apart += [profiles.polygon_area(p) for p in polys if not profiles.contains(outer, p[:1])[0]]
-    return outer
+    return max(around or polys, key=profiles.polygon_area, default=None)
 
 
-def _principal_axis(mesh) -> np.ndarray:
-    w = mesh.area_faces
-    c = mesh.triangles_center
-    mean = (w[:, None] * c).sum(0) / w.sum()
-    d = c - mean
-    cov = (w[:, None] * d).T @ d
-    axis = np.linalg.eigh(cov)[1][:, -1]
+def section(mesh, origin, normal, u=None, v=None):
+    """The outer contour of the slice through ``origin`` with ``normal`` (:func:`_main_contour`),
+    as a CCW polygon in (u, v) (a basis of the plane if not given), or None if the plane misses
+    the mesh."""
+    if u is None:
+        u, v = plane_basis(normal)
+    return _main_contour(outer_contours(mesh, origin, normal, u, v))
+
+
+def principal_axis(points: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+    """The unit direction of largest (weighted) spread of ``points`` (n, 3), its largest
+    component positive."""
+    w = np.ones(len(points)) if weights is None else weights
+    d = points - (w[:, None] * points).sum(0) / w.sum()
+    axis = np.linalg.eigh((w[:, None] * d).T @ d)[1][:, -1]
     return axis if axis[int(np.argmax(np.abs(axis)))] > 0 else -axis
 
 
 def _along_axis(mesh):
     """The principal axis, a basis (u, v) of the planes across it, the mesh's extent s0..s1
     along it and the point of the axis line at s = 0."""
-    axis = _principal_axis(mesh)
-    u, v = _plane_basis(axis)
+    axis = principal_axis(mesh.triangles_center, mesh.area_faces)
+    u, v = plane_basis(axis)
     s = mesh.vertices @ axis
     return axis, u, v, float(s.min()), float(s.max()), mesh.centroid - (mesh.centroid @ axis) * axis
 
@@ -196,11 +201,11 @@ def centreline(mi: MeshInput, spacing: float | None, resolution: float) -> np.nd
         """Centroid and ray extents (about it) of the slice perpendicular to the axis at t."""
         if t not in cache:
             o = centre + t * axis
-            apart: list[float] = []
-            poly = section(mesh, o, axis, u, v, apart)
+            polys = outer_contours(mesh, o, axis, u, v)
+            poly = _main_contour(polys)
             if poly is None:
                 raise InputError(mi.source, "", f"no closed cross-section {t - s0:.3f} m along the mesh's axis")
-            if max(apart, default=0.0) > APART * profiles.polygon_area(poly):
+            if any(p is not poly and profiles.polygon_area(p) > APART * profiles.polygon_area(poly) for p in polys):
                 raise _Branches
             c = profiles.polygon_centroid(poly)
             cache[t] = (o + c[0] * u + c[1] * v, profiles.ray_extent(poly, c, angles))
@@ -262,13 +267,9 @@ def _end_node(mesh, tip, t, far: float, reach: float) -> np.ndarray:
 
 
 def _fill_shallow(poly: np.ndarray, depth: float) -> np.ndarray:
-    """``poly`` with its pockets (the runs between consecutive convex-hull vertices) shallower than
-    ``depth`` flattened onto their hull edge."""
-    from scipy.spatial import ConvexHull
-
-    hull = ConvexHull(poly).vertices  # counter-clockwise
-    if not profiles.is_ccw(poly):
-        raise ValueError("poly must be counter-clockwise")
+    """``poly`` (counter-clockwise) with its pockets (the runs between consecutive convex-hull
+    vertices) shallower than ``depth`` flattened onto their hull edge."""
+    hull = ConvexHull(poly).vertices  # counter-clockwise, as ``poly``
     out = poly.copy()
     n = len(poly)
     for i, j in zip(hull, np.roll(hull, -1)):
@@ -314,14 +315,6 @@ class _Branches(Exception):
     """A slice across the principal axis cuts the mesh in several places: it branches."""
 
 
-def _outer_contours(mesh, origin, normal, u, v) -> list[np.ndarray]:
-    """The contours of a slice that lie inside no other (a hollow's cavity does), CCW in (u, v)."""
-    polys = [_planar(loop, origin, u, v) for loop in contour_loops(mesh, origin, normal)]
-    return [p for i, p in enumerate(polys)
-            if not any(j != i and profiles.polygon_area(q) > profiles.polygon_area(p) and profiles.contains(q, p[:1])[0]
-                       for j, q in enumerate(polys))]
-
-
 def tree_nodes(mi: MeshInput, spacing: float | None) -> tuple[np.ndarray, np.ndarray]:
     """Node positions and parents of a branching mesh (module docstring): slices across the
     principal axis from the root end, their contours chained from slice to slice (a contour
@@ -332,7 +325,7 @@ def tree_nodes(mi: MeshInput, spacing: float | None) -> tuple[np.ndarray, np.nda
     axis, u, v, s0, s1, centre = _along_axis(mesh)
     length = s1 - s0
     if spacing is None:
-        areas = [max((profiles.polygon_area(p) for p in _outer_contours(mesh, centre + t * axis, axis, u, v)),
+        areas = [max((profiles.polygon_area(p) for p in outer_contours(mesh, centre + t * axis, axis, u, v)),
                      default=0.0) for t in np.linspace(s0, s1, 10)[1:-1]]
         spacing = float(np.mean(np.sqrt(np.array(areas) / np.pi)))
     n = max(3, math.ceil(length / spacing))
@@ -344,7 +337,7 @@ def tree_nodes(mi: MeshInput, spacing: float | None) -> tuple[np.ndarray, np.nda
     for k, t in enumerate(s0 + length * np.arange(1, n) / n):
         o = centre + t * axis
         found = []
-        for poly in _outer_contours(mesh, o, axis, u, v):
+        for poly in outer_contours(mesh, o, axis, u, v):
             c = profiles.polygon_centroid(poly)
             found.append((o + c[0] * u + c[1] * v, math.sqrt(profiles.polygon_area(poly) / math.pi)))
         if k == 0 and len(found) != 1:
@@ -394,7 +387,7 @@ def mesh_skeleton(mi: MeshInput, resolution: float, spacing: float | None = None
         pos, parent = tree_nodes(mi, spacing)
     n = len(pos)
     ids = tuple(f"m{i}" for i in range(n))
-    circle = profiles.circle(1.0)
+    circle = profiles.circle(1.0)  # node frames depend on positions and parents only
     rough = Skeleton(ids, pos, parent, (circle,) * n, np.zeros(n, bool), mi.source)
     frames = build_topology(rough).frames
     profs = tuple(profile_at(mi, pos[i], frames[i], resolution, ids[i]) for i in range(n))

@@ -24,6 +24,7 @@ import numpy as np
 
 from wooddecay.errors import InputError
 from wooddecay.strands.mesh_input import Y_TO_Z_UP, MeshInput, checked_path
+from wooddecay.strands.mesh_skeleton import plane_basis, principal_axis
 
 SUFFIXES = (".ply", ".xyz", ".txt", ".csv", ".las")
 #: fewest points a cloud must have
@@ -73,12 +74,8 @@ def loft(points: np.ndarray, resolution: float, source: str) -> MeshInput:
     import trimesh
 
     mean = points.mean(axis=0)
-    axis = np.linalg.eigh(np.cov((points - mean).T))[1][:, -1]
-    axis = axis if axis[int(np.argmax(np.abs(axis)))] > 0 else -axis
-    a = np.array([1.0, 0.0, 0.0]) if abs(axis[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    u = np.cross(axis, a)
-    u /= np.linalg.norm(u)
-    v = np.cross(axis, u)
+    axis = principal_axis(points)
+    u, v = plane_basis(axis)
     s = (points - mean) @ axis
     n_slabs = max(3, int(math.ceil((s.max() - s.min()) / (SLAB * resolution))))
     slab = np.minimum(((s - s.min()) / (s.max() - s.min()) * n_slabs).astype(np.int64), n_slabs - 1)
@@ -104,16 +101,24 @@ def loft(points: np.ndarray, resolution: float, source: str) -> MeshInput:
     for end, nxt, sk in ((0, 1, s.min()), (-1, -2, s.max())):
         shift = (sk - (centres[nxt] - mean) @ axis) * axis
         centres[end], rings[end] = centres[nxt] + shift, rings[nxt] + shift
-    n = len(rings)
-    vertices = np.vstack([np.concatenate(rings), centres[0], centres[-1]])
-    i = np.arange(n - 1)[:, None] * ANGLES
-    j = np.arange(ANGLES)[None, :]
-    a0, a1 = i + j, i + (j + 1) % ANGLES
-    faces = [np.stack([a0, a1, a1 + ANGLES], -1).reshape(-1, 3), np.stack([a0, a1 + ANGLES, a0 + ANGLES], -1).reshape(-1, 3)]
-    first, last = np.arange(ANGLES), (n - 1) * ANGLES + np.arange(ANGLES)
-    faces.append(np.stack([np.full(ANGLES, n * ANGLES), np.roll(first, -1), first], -1))
-    faces.append(np.stack([np.full(ANGLES, n * ANGLES + 1), last, np.roll(last, -1)], -1))
-    mesh = trimesh.Trimesh(vertices, np.concatenate(faces), process=False)
+    mesh = trimesh.Trimesh(*closed_tube(np.array(rings), centres[0], centres[-1]), process=False)
     if mesh.volume < 0:
         mesh.invert()
-    return MeshInput(mesh, (f"lofted a surface through {n} slices of {len(points)} points",), source)
+    return MeshInput(mesh, (f"lofted a surface through {len(rings)} slices of {len(points)} points",), source)
+
+
+def closed_tube(rings: np.ndarray, start, end) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and triangles of the tube through ``rings`` (along, around, 3), each ring a
+    closed loop, capped by fans about the points ``start`` and ``end`` (in the first and the
+    last ring's plane)."""
+    along, around = rings.shape[:2]
+    vertices = np.vstack([rings.reshape(-1, 3), start, end])
+    i = np.arange(along - 1)[:, None] * around
+    j = np.arange(around)[None, :]
+    a0, a1 = i + j, i + (j + 1) % around
+    first, last = np.arange(around), (along - 1) * around + np.arange(around)
+    n = along * around
+    faces = [np.stack([a0, a1, a1 + around], -1).reshape(-1, 3), np.stack([a0, a1 + around, a0 + around], -1).reshape(-1, 3),
+             np.stack([np.full(around, n), np.roll(first, -1), first], -1),
+             np.stack([np.full(around, n + 1), last, np.roll(last, -1)], -1)]
+    return vertices, np.concatenate(faces)

@@ -54,9 +54,7 @@ def _format_of(table: dict, path: Path | None, source: str) -> str:
 
 def _from_surface(table: dict, base_dir: Path, source: str, scale: float, resolution: float) -> Skeleton:
     """``skeleton.mesh`` (a surface mesh) or ``skeleton.points`` (a scan, lofted into one)."""
-    from wooddecay.strands.mesh_input import load_mesh
     from wooddecay.strands.mesh_skeleton import mesh_skeleton
-    from wooddecay.strands.point_cloud import loft, read_points
 
     key = "mesh" if "mesh" in table else "points"
     if not isinstance(table[key], str) or not table[key].strip():
@@ -69,12 +67,21 @@ def _from_surface(table: dict, base_dir: Path, source: str, scale: float, resolu
     up = table.get("up")
     if up not in (None, "y", "z"):
         raise InputError(source, "skeleton.up", f'must be "y" or "z" (got {format_value(up)})')
-    path, where = Path(base_dir) / table[key], f"{source}: skeleton.{key}"
+    path = Path(base_dir) / table[key]
+    return mesh_skeleton(load_surface(key, path, scale, largest, up, resolution, f"{source}: skeleton.{key}"),
+                         resolution, spacing)
+
+
+def load_surface(key: str, path: Path, scale: float, largest: bool, up: str | None, resolution: float, where: str):
+    """The closed surface of a ``mesh`` file (:func:`~wooddecay.strands.mesh_input.load_mesh`)
+    or a ``points`` scan lofted at ``resolution`` (:mod:`wooddecay.strands.point_cloud`);
+    ``where`` names the key or option in messages."""
+    from wooddecay.strands.mesh_input import load_mesh
+    from wooddecay.strands.point_cloud import loft, read_points
+
     if key == "mesh":
-        surface = load_mesh(path, scale, largest, where, up)
-    else:
-        surface = loft(read_points(path, scale, where, up), resolution, str(path))
-    return mesh_skeleton(surface, resolution, spacing)
+        return load_mesh(path, scale, largest, where, up)
+    return loft(read_points(path, scale, where, up), resolution, str(path))
 
 
 def load_skeleton(table, base_dir: Path, source: str, resolution: float = 0.005) -> Skeleton:
