@@ -2,10 +2,11 @@
 then the attributes renamed and the Wood Decay material assigned (DESIGN "Blender add-on").
 
 USD (``bpy.ops.wm.usd_import``): the mesh keeps the primvar names (H_c, H_l, M, R_w, R_b, C,
-wood, ring; faceKind, element, tissue, piece per face); points and the time-sampled primvars
-play back through the MeshSequenceCache modifier Blender adds. glTF (``bpy.ops.import_scene.gltf``):
-one object per piece with ``_H_c``, ``_H_l``, ``_M``, ``_WOOD``, ``_RING``, ``_FACE_KIND``,
-renamed here to the USD names (:data:`.importer.RENAMES`) so one material serves both.
+wood, ring, bark_crack, bark_crack_depth; faceKind, element, tissue, piece per face); points and
+the time-sampled primvars play back through the MeshSequenceCache modifier Blender adds. glTF
+(``bpy.ops.import_scene.gltf``): one object per piece with ``_H_c``, ``_H_l``, ``_M``, ``_WOOD``,
+``_RING``, ``_FACE_KIND``, ``_BARK_CRACK``, ``_BARK_DEPTH``, renamed here to the USD names
+(:data:`.importer.RENAMES`) so one material serves both.
 """
 from __future__ import annotations
 

@@ -6,8 +6,9 @@ importer; this module holds what does not need Blender, so it can be read and te
 
 * :func:`file_format`: ``"usd"`` or ``"gltf"`` from the file name;
 * :data:`RENAMES` and :func:`rename_plan`: the glTF custom attributes ``_H_c``, ``_H_l``,
-  ``_M``, ``_WOOD``, ``_RING``, ``_FACE_KIND`` become ``H_c``, ``H_l``, ``M``, ``wood``,
-  ``ring``, ``faceKind``, the names of the USD primvars, so one material serves both formats;
+  ``_M``, ``_WOOD``, ``_RING``, ``_FACE_KIND``, ``_BARK_CRACK``, ``_BARK_DEPTH`` become ``H_c``,
+  ``H_l``, ``M``, ``wood``, ``ring``, ``faceKind``, ``bark_crack``, ``bark_crack_depth``, the
+  names of the USD primvars, so one material serves both formats;
 * :func:`split_custom_vectors`: a workaround for Blender's glTF importer (4.2 to 5.0), which
   fails with ``ValueError: all the input array dimensions ...`` when a primitive has custom
   attributes of different types (``_WOOD`` VEC3 beside the SCALAR ``_H_c``; it pairs the
@@ -36,6 +37,8 @@ RENAMES = {
     "_WOOD": "wood",
     "_RING": "ring",
     "_FACE_KIND": "faceKind",
+    "_BARK_CRACK": "bark_crack",
+    "_BARK_DEPTH": "bark_crack_depth",
 }
 #: the decay fields every wooddecay mesh carries (vertex attributes in both formats)
 FIELDS = ("H_c", "H_l", "M")

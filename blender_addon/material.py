@@ -18,7 +18,7 @@ SOCKET_TYPES = {FLOAT: "NodeSocketFloat", COLOR: "NodeSocketColor", VECTOR: "Nod
 ATTRIBUTE_OUTPUT = {FLOAT: "Fac", VECTOR: "Vector", COLOR: "Color"}
 #: marks node groups made by this add-on (custom property) and the graph version
 GROUP_TAG = "wooddecay_group"
-GROUP_VERSION = 1
+GROUP_VERSION = 2  # 2: bark cracks (an older group is rebuilt, see group_ok)
 
 
 def _rgba(v):
@@ -83,7 +83,8 @@ def build_group():
     graph = wood_decay_graph()
     tree = bpy.data.node_groups.new(GROUP_NAME, "ShaderNodeTree")
     tree[GROUP_TAG] = GROUP_VERSION
-    tree.description = "Fungal decay of wood driven by the wooddecay attributes H_c, H_l, M, wood, ring, faceKind"
+    tree.description = ("Fungal decay of wood driven by the wooddecay attributes H_c, H_l, M, wood, ring, faceKind, "
+                        "bark_crack, bark_crack_depth")
     for spec in OUTPUTS:
         _interface_socket(tree, spec, "OUTPUT")
     for spec in INPUTS:

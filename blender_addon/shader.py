@@ -28,6 +28,14 @@ primvars; glTF attributes are renamed to them on import, see :mod:`.importer`):
   "Moisture Darkening") and turns glossier ("Moisture Gloss" lowers the roughness).
 * bark (``faceKind`` == 0): furrowed bark colour and roughness; decay shows through it by
   "Bark Decay". Where there is no face kind (an unlinked input) every face is wood.
+* bark cracks (woodification §5: a crack is widest in its middle, V-shaped in depth, its floor
+  dark): ``bark_crack`` is 1 on a crack's centre line and falls linearly to 0 just past its edge,
+  ``bark_crack_depth`` the crack's depth there (metres). The crack floor starts where
+  ``bark_crack`` passes 1 - "Crack Width" (a smoothstep over a short band, so the crack's edge is
+  crisp even where a triangle spans it); there the bark turns towards "Crack Color", darkest on
+  the centre line, and towards "Crack Roughness", and the relief sinks by ``bark_crack`` plus the
+  depth (a groove, V-shaped like the crack). Only bark faces crack; with both attributes 0 or
+  missing (older bakes: the inputs' defaults are 0) the bark is exactly as without cracks.
 
 Outputs: the BSDF (Principled) and, for compositing or AOVs, the colour, roughness and the decay
 factor max(b, w).
@@ -65,6 +73,10 @@ DATA = (
            "Rest wood-local coordinates (r, phi, s): attribute wood", "wood"),
     Socket("Ring", FLOAT, 0.0, 0.0, 10000.0, "Ring age (years): attribute ring", "ring"),
     Socket("Face Kind", FLOAT, 1.0, 0.0, 2.0, "0 bark, 1 side, 2 cap: attribute faceKind", "faceKind"),
+    Socket("Bark Crack", FLOAT, 0.0, 0.0, 1.0,
+           "1 on a bark crack's centre line, 0 past its edge: attribute bark_crack", "bark_crack"),
+    Socket("Crack Depth", FLOAT, 0.0, 0.0, 0.1,
+           "Depth of the bark crack (m), V-shaped across it: attribute bark_crack_depth", "bark_crack_depth"),
 )
 
 #: the artist's controls
@@ -98,6 +110,10 @@ CONTROLS = (
     Socket("Bark Scale", FLOAT, 60.0, 0.0, 10000.0, "Scale of the bark furrows (1/m)"),
     Socket("Bark Roughness", FLOAT, 0.9, 0.0, 1.0, "Roughness of bark"),
     Socket("Bark Decay", FLOAT, 0.6, 0.0, 1.0, "How much decay shows through the bark"),
+    Socket("Crack Color", COLOR, (0.03, 0.017, 0.009), description="Colour of the floor of a bark crack"),
+    Socket("Crack Width", FLOAT, 0.5, 0.0, 1.0,
+           "Part of a bark crack's band (Bark Crack above 1 - width) that shows its dark floor"),
+    Socket("Crack Roughness", FLOAT, 1.0, 0.0, 1.0, "Roughness of the floor of a bark crack"),
     Socket("Bump Strength", FLOAT, 0.3, 0.0, 1.0, "Strength of the grain, fibre, crack and bark relief"),
 )
 
@@ -114,6 +130,12 @@ INPUTS = DATA + CONTROLS
 BLACK = (0.012, 0.008, 0.005)
 #: bump height per unit of the height signal (m)
 BUMP_DISTANCE = 0.0015
+#: band of Bark Crack over which a crack's floor fades in (smoothstep from 1 - Crack Width)
+CRACK_EDGE = 0.15
+#: darkness of a crack's floor at its edge relative to its centre line (darkest mid-crack)
+CRACK_EDGE_DARKNESS = 0.5
+#: deepest groove the crack depth cuts into the relief (height units, BUMP_DISTANCE each)
+CRACK_GROOVE_MAX = 4.0
 
 
 # --------------------------------------------------------------------------- graph description
@@ -287,8 +309,17 @@ def wood_decay_graph() -> Graph:
                        label="bark brown rot")
     bark_color = g.mix(g.math("MULTIPLY", white, g.math("MULTIPLY", In("Bark Decay"), 0.5)), bark_color,
                        In("White Rot Color"), label="bark white rot")
+    # bark cracks: a dark, rough floor from 1 - Crack Width of Bark Crack on, darkest on the
+    # centre line; everything scales with Bark Crack, so 0 (or no attribute) changes nothing
+    crack_start = g.math("SUBTRACT", 1.0, In("Crack Width"), label="crack floor start")
+    floor = g.map_range(In("Bark Crack"), crack_start, g.math("ADD", crack_start, CRACK_EDGE),
+                        interpolation="SMOOTHSTEP", label="crack floor")
+    centre = g.math("ADD", CRACK_EDGE_DARKNESS, g.math("MULTIPLY", In("Bark Crack"), 1.0 - CRACK_EDGE_DARKNESS))
+    bark_color = g.mix(g.math("MULTIPLY", floor, centre), bark_color, In("Crack Color"), label="bark crack colour")
+    bark_rough = g.mix_float(floor, In("Bark Roughness"), In("Crack Roughness"), label="bark crack roughness")
+
     color = g.mix(bark, color, bark_color, label="bark")
-    rough = g.mix_float(bark, rough, In("Bark Roughness"), label="bark roughness")
+    rough = g.mix_float(bark, rough, bark_rough, label="bark roughness")
 
     # moisture: darker and glossier
     wet = g.map_range(In("M"), In("Moisture Dry"), In("Moisture Wet"), label="wetness")
@@ -296,10 +327,13 @@ def wood_decay_graph() -> Graph:
     rough = g.math("MULTIPLY", rough, g.math("SUBTRACT", 1.0, g.math("MULTIPLY", wet, In("Moisture Gloss"))),
                    clamp=True, label="wet roughness")
 
-    # relief: grain and fibres, cracks sunk, bark furrows
+    # relief: grain and fibres, cracks sunk, bark furrows and bark cracks
     height = g.math("ADD", g.math("MULTIPLY", grain, 0.3), g.math("MULTIPLY", fibres, white))
     height = g.math("SUBTRACT", height, crack)
     bark_height = g.math("ADD", furrow, g.math("MULTIPLY", scales, 0.3))
+    depth = g.math("MINIMUM", g.math("DIVIDE", In("Crack Depth"), BUMP_DISTANCE), CRACK_GROOVE_MAX)
+    groove = g.math("ADD", In("Bark Crack"), depth, label="crack groove")
+    bark_height = g.math("SUBTRACT", bark_height, groove, label="bark relief")
     height = g.mix_float(bark, height, bark_height, label="height")
     bump = g.add("ShaderNodeBump", {"Strength": In("Bump Strength"), "Distance": BUMP_DISTANCE, "Height": height},
                  "relief")

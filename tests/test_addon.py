@@ -42,6 +42,10 @@ TIMEOUT = 300
 #: this (measured ~0.26) and by more than RATIO times what the sound end moves (measured ~0.03);
 #: the rotted end must also get darker by more than DARKER in mean luminance (measured ~0.15)
 MARGIN, RATIO, DARKER = 0.12, 3.0, 0.06
+#: the bark crack render: bark with bark_crack = 1 must be darker than bark with 0 by more than
+#: CRACK_DARKER in mean luminance (sRGB, 0..1); bark with bark_crack = 0 and bark without the
+#: attribute (an older bake) may differ by at most SAME
+CRACK_DARKER, SAME = 0.05, 0.002
 
 
 def load_pure(name: str):
@@ -127,6 +131,48 @@ def evaluated(ob, frame):
     ev.to_mesh_clear()
     return out
 
+def setup_render(samples, threads, location, target, ortho_scale, size):
+    """Orthographic camera at ``location`` looking at ``target``, a sun, a grey world, Cycles on
+    the CPU without denoising, a transparent film, ``size`` = (width, height) pixels."""
+    import mathutils
+    sc = bpy.context.scene
+    cam = bpy.data.objects.new("camera", bpy.data.cameras.new("camera"))
+    cam.data.type, cam.data.ortho_scale = "ORTHO", ortho_scale
+    sc.collection.objects.link(cam)
+    cam.location = location
+    cam.rotation_euler = (mathutils.Vector(target) - cam.location).to_track_quat("-Z", "Y").to_euler()
+    sc.camera = cam
+    sun = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
+    sun.data.energy = 3.0
+    sun.rotation_euler = (math.radians(50), 0.0, math.radians(-60))
+    sc.collection.objects.link(sun)
+    sc.world = bpy.data.worlds.new("world")
+    sc.world.use_nodes = True
+    sc.world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.3, 0.3, 0.3, 1.0)
+    r = sc.render
+    r.engine = "CYCLES"
+    sc.cycles.device, sc.cycles.samples, sc.cycles.use_denoising = "CPU", samples, False
+    r.threads_mode, r.threads = "FIXED", threads
+    r.resolution_x, r.resolution_y = size
+    r.resolution_percentage = 100
+    r.film_transparent = True
+    sc.view_settings.view_transform = "Standard"
+    r.image_settings.file_format, r.image_settings.color_mode = "PNG", "RGBA"
+
+def render_still(path, shown):
+    """Render to the PNG ``path`` with only the meshes in ``shown``; (pixels (h, w, 4) of the
+    saved PNG, seconds)."""
+    for o in bpy.data.objects:
+        if o.type == "MESH":
+            o.hide_render = o not in shown
+    bpy.context.scene.render.filepath = path
+    t = time.perf_counter()
+    bpy.ops.render.render(write_still=True)
+    seconds = time.perf_counter() - t
+    img = bpy.data.images.load(path)
+    w, h = img.size
+    return np.array(img.pixels[:], dtype=np.float32).reshape(h, w, 4), seconds
+
 def describe(mat):
     group = next((n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeGroup"), None) if mat and mat.use_nodes else None
     d = {"name": mat.name if mat else None, "group": None}
@@ -166,7 +212,8 @@ INSPECT = PRELUDE + r'''
     g = {"result": sorted(result), "objects": [o.name for o in obs]}
     g["attributes"] = sorted({a.name for o in obs for a in o.data.attributes if not a.name.startswith(".")})
     g["values"] = {k: np.sort(np.concatenate([values(o.data, k) for o in obs])).tolist()
-                   for k in ("H_c", "H_l", "M", "ring", "faceKind") if all(k in o.data.attributes for o in obs)}
+                   for k in ("H_c", "H_l", "M", "ring", "faceKind", "bark_crack", "bark_crack_depth")
+                   if all(k in o.data.attributes for o in obs)}
     if all("wood" in o.data.attributes for o in obs):
         W = np.concatenate([values(o.data, "wood") for o in obs])
         g["wood"] = W[np.lexsort(W.T[::-1])].tolist()
@@ -179,6 +226,7 @@ INSPECT = PRELUDE + r'''
     f["result"] = sorted(result)
     group = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeGroup")
     f["face_kind_default"] = group.inputs["Face Kind"].default_value
+    f["bark_crack_default"] = group.inputs["Bark Crack"].default_value
     res["fallback"] = f
     res["materials"] = sorted(m.name for m in bpy.data.materials if m.users)
     res["groups"] = sorted(t.name for t in bpy.data.node_groups)
@@ -195,41 +243,11 @@ RENDER = PRELUDE + r'''
     logs = {"rot": import_file(rot)[0], "sound": import_file(sound)[0]}
     sc = bpy.context.scene
     sc.frame_set(sc.frame_end)  # the last frame of each bake (a cache holds its last sample)
-    import mathutils
-    cam = bpy.data.objects.new("camera", bpy.data.cameras.new("camera"))
-    cam.data.type, cam.data.ortho_scale = "ORTHO", 0.36
-    sc.collection.objects.link(cam)
-    cam.location = (-0.35, -0.8, 0.5)  # above and in front of the root end (x = 0): it is on the left
-    cam.rotation_euler = (mathutils.Vector((0.15, 0.0, 0.06)) - cam.location).to_track_quat("-Z", "Y").to_euler()
-    sc.camera = cam
-    sun = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
-    sun.data.energy = 3.0
-    sun.rotation_euler = (math.radians(50), 0.0, math.radians(-60))
-    sc.collection.objects.link(sun)
-    sc.world = bpy.data.worlds.new("world")
-    sc.world.use_nodes = True
-    sc.world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.3, 0.3, 0.3, 1.0)
-    r = sc.render
-    r.engine = "CYCLES"
-    sc.cycles.device, sc.cycles.samples, sc.cycles.use_denoising = "CPU", samples, False
-    r.threads_mode, r.threads = "FIXED", threads
-    r.resolution_x = r.resolution_y = 128
-    r.resolution_percentage = 100
-    r.film_transparent = True
-    sc.view_settings.view_transform = "Standard"
-    r.image_settings.file_format, r.image_settings.color_mode = "PNG", "RGBA"
+    # above and in front of the root end (x = 0): it is on the left
+    setup_render(samples, threads, (-0.35, -0.8, 0.5), (0.15, 0.0, 0.06), 0.36, (128, 128))
     res["seconds"] = {}
     for name in ("rot", "sound"):
-        for other, obs in logs.items():
-            for o in obs:
-                o.hide_render = other != name
-        r.filepath = os.path.join(png_dir, f"{name}.png")
-        t = time.perf_counter()
-        bpy.ops.render.render(write_still=True)
-        res["seconds"][name] = time.perf_counter() - t
-        img = bpy.data.images.load(r.filepath)
-        w, h = img.size
-        px = np.array(img.pixels[:], dtype=np.float32).reshape(h, w, 4)
+        px, res["seconds"][name] = render_still(os.path.join(png_dir, f"{name}.png"), logs[name])
         cover = px[..., 3] > 0.9
         cols = np.flatnonzero(cover.any(0))
         x0, x1 = int(cols.min()), int(cols.max()) + 1
@@ -237,6 +255,34 @@ RENDER = PRELUDE + r'''
         regions = {"rotted_end": (x0, x0 + third), "sound_end": (x1 - third, x1)}
         out = {"bbox": [x0, x1], "pixels": int(cover.sum())}
         for key, (a, b) in regions.items():
+            m = cover.copy(); m[:, :a] = False; m[:, b:] = False
+            out[key] = px[m][:, :3].mean(0).tolist()
+            out[key + "_pixels"] = int(m.sum())
+        res[name] = out
+except Exception:
+    res["error"] = traceback.format_exc()
+    finish(1)
+finish(0)
+'''
+
+
+CRACK_RENDER = PRELUDE + r'''
+    crack, plain, png_dir = sys.argv[2], sys.argv[3], sys.argv[4]
+    samples, threads = int(sys.argv[5]), int(sys.argv[6])
+    enable()
+    patches = {"crack": import_file(crack)[0], "plain": import_file(plain)[0]}
+    res["materials"] = {k: describe(obs[0].material_slots[0].material) for k, obs in patches.items()}
+    sc = bpy.context.scene
+    sc.frame_set(sc.frame_end)
+    setup_render(samples, threads, (0.0, 0.0, 1.0), (0.0, 0.0, 0.0), 0.26, (128, 64))  # from above
+    res["seconds"] = {}
+    for name, obs in patches.items():
+        px, res["seconds"][name] = render_still(os.path.join(png_dir, f"{name}.png"), obs)
+        cover = px[..., 3] > 0.9
+        cols = np.flatnonzero(cover.any(0))
+        mid = (int(cols.min()) + int(cols.max()) + 1) // 2
+        out = {"pixels": int(cover.sum())}
+        for key, (a, b) in {"left": (0, mid - 2), "right": (mid + 2, px.shape[1])}.items():
             m = cover.copy(); m[:, :a] = False; m[:, b:] = False
             out[key] = px[m][:, :3].mean(0).tolist()
             out[key + "_pixels"] = int(m.sum())
@@ -281,12 +327,13 @@ def bake(tmp_path_factory):
     mesh = wd.build_meshlets(model)
     usd = export_usd(out / "tiny.usdc", model, mesh, frames)
     glb = export_gltf(out / "tiny.glb", model, mesh, frames[-1])
-    # the same GLB without the face kind and ring attributes
+    # the same GLB without the face kind, ring and bark crack attributes
     importer = load_pure("importer")
     doc, binary = importer.read_glb(Path(glb).read_bytes())
+    drop = ("_FACE_KIND", "_RING", "_BARK_CRACK", "_BARK_DEPTH")
     for m in doc["meshes"]:
         for prim in m["primitives"]:
-            prim["attributes"] = {k: v for k, v in prim["attributes"].items() if k not in ("_FACE_KIND", "_RING")}
+            prim["attributes"] = {k: v for k, v in prim["attributes"].items() if k not in drop}
     plain = out / "plain.glb"
     plain.write_bytes(importer.write_glb(doc, binary))
     return {"usd": Path(usd), "glb": Path(glb), "glb_plain": plain, "scene": scene, "frames": frames}
@@ -302,6 +349,60 @@ def rot_usd(tmp_path_factory) -> Path:
     frames = list(wd.Simulation(model, mechanics=False).run())
     mesh = wd.build_meshlets(model)
     return Path(export_usd(out / "rot.usdc", model, mesh, frames))
+
+
+def bark_patches_usd(path: Path, crack: bool) -> Path:
+    """Two flat 10 x 10 cm patches of bark in the z = 0 plane, side by side along x, 1 cm apart,
+    as a bake's ``/World/<scene>/Wood`` mesh (quads; faceKind 0; H_c, H_l, M = 1, 1, 0.3 and,
+    with ``crack``, bark_crack and bark_crack_depth time-sampled at frames 0 and 1). Both patches
+    have the same wood coordinates (the same bark texture); with ``crack`` the right one lies in
+    a crack (bark_crack 1, depth 5 mm), the left one does not (0)."""
+    from pxr import Sdf, UsdGeom, Vt
+
+    from wooddecay.export import stage as stage_mod
+
+    n, size, r = 10, 0.1, 0.1  # quads a side, patch size (m), bark radius (m)
+    u = np.linspace(0.0, size, n + 1)
+    X, Y = (a.ravel() for a in np.meshgrid(u, u - size / 2, indexing="ij"))
+    ij = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    quad = np.stack([ij[:-1, :-1], ij[1:, :-1], ij[1:, 1:], ij[:-1, 1:]], axis=-1).reshape(-1, 4)
+    shift = size + 0.01
+    P = np.concatenate([np.stack([X - shift, Y, 0 * X], 1), np.stack([X + 0.01, Y, 0 * X], 1)])
+    faces = np.concatenate([quad, quad + len(X)])
+    wood = np.tile(np.stack([np.full_like(X, r), Y / r, X], 1), (2, 1))  # (r, phi, s)
+    side = np.repeat([0.0, 1.0], len(X))  # 0 left patch, 1 right patch
+
+    stage, root = stage_mod.new_stage("bark")
+    stage.SetStartTimeCode(0.0)
+    stage.SetEndTimeCode(1.0)
+    mesh = UsdGeom.Mesh.Define(stage, f"{root}/Wood")
+    mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    mesh.CreateFaceVertexCountsAttr(Vt.IntArray([4] * len(faces)))
+    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(faces.astype(np.int32).ravel()))
+    mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(P.astype(np.float32)))
+    pv = UsdGeom.PrimvarsAPI(mesh)
+    T = Sdf.ValueTypeNames
+    pv.CreatePrimvar("wood", T.Float3Array, UsdGeom.Tokens.vertex).Set(
+        Vt.Vec3fArray.FromNumpy(wood.astype(np.float32)))
+    pv.CreatePrimvar("ring", T.FloatArray, UsdGeom.Tokens.vertex).Set(
+        Vt.FloatArray.FromNumpy(np.zeros(len(P), np.float32)))
+    pv.CreatePrimvar("faceKind", T.IntArray, UsdGeom.Tokens.uniform).Set(Vt.IntArray([0] * len(faces)))
+    fields = {"H_c": np.ones_like(side), "H_l": np.ones_like(side), "M": np.full_like(side, 0.3)}
+    if crack:
+        fields |= {"bark_crack": side, "bark_crack_depth": 0.005 * side}
+    for name, values in fields.items():
+        primvar = pv.CreatePrimvar(name, T.FloatArray, UsdGeom.Tokens.vertex)
+        for frame in (0.0, 1.0):
+            primvar.Set(Vt.FloatArray.FromNumpy(values.astype(np.float32)), frame)
+    stage.GetRootLayer().Export(str(path))
+    return path
+
+
+@pytest.fixture(scope="module")
+def bark_patches(tmp_path_factory) -> dict:
+    """:func:`bark_patches_usd` with the bark crack primvars ("crack") and without ("plain")."""
+    out = tmp_path_factory.mktemp("bark_patches")
+    return {k: bark_patches_usd(out / f"{k}.usda", k == "crack") for k in ("crack", "plain")}
 
 
 @pytest.fixture(scope="module")
@@ -327,6 +428,12 @@ def glb_attribute(path: Path, name: str) -> np.ndarray:
         for prim in mesh["primitives"]:
             arrays.append(decode(doc, binary, prim["attributes"][name]))
     return np.concatenate(arrays)
+
+
+def glb_names(path: Path) -> list[str]:
+    """The vertex attribute names of the GLB's primitives."""
+    doc, _ = load_pure("importer").read_glb(path.read_bytes())
+    return sorted({k for mesh in doc["meshes"] for prim in mesh["primitives"] for k in prim["attributes"]})
 
 
 def decode(doc, binary, index) -> np.ndarray:
@@ -385,6 +492,11 @@ def test_importer_helpers():
         importer.file_format("x.obj")
     plan = dict(importer.rename_plan(["_H_c", "_H_l", "_M", "_WOOD", "position", "M"]))
     assert plan == {"_H_c": "H_c", "_H_l": "H_l", "_WOOD": "wood"}  # "M" taken: "_M" stays
+    # the bark crack attributes get the USD primvar names the material reads
+    plan = dict(importer.rename_plan(["_BARK_CRACK", "_BARK_DEPTH", "_FACE_KIND"]))
+    assert plan == {"_BARK_CRACK": "bark_crack", "_BARK_DEPTH": "bark_crack_depth", "_FACE_KIND": "faceKind"}
+    shader = load_pure("shader")
+    assert set(importer.RENAMES.values()) == {s.attribute for s in shader.DATA}, "a renamed attribute nothing reads"
 
 
 def test_glb_split_keeps_the_bytes(bake, tmp_path):
@@ -416,8 +528,16 @@ def test_shader_graph_is_complete():
     assert set(g.outputs) == {s.name for s in shader.OUTPUTS}
     names = {s.name for s in shader.CONTROLS}
     for control in ("Base Color", "Ring Contrast", "Brown Rot Strength", "White Rot Strength",
-                    "Moisture Darkening", "Bark Color"):
+                    "Moisture Darkening", "Bark Color", "Crack Color", "Crack Width", "Crack Roughness"):
         assert control in names
+    # the bark cracks: two attribute inputs whose defaults (older bakes) are "no crack", and a
+    # near-black crack floor
+    data = {s.name: s for s in shader.DATA}
+    assert data["Bark Crack"].attribute == "bark_crack" and data["Crack Depth"].attribute == "bark_crack_depth"
+    assert data["Bark Crack"].default == 0.0 and data["Crack Depth"].default == 0.0
+    controls = {s.name: s for s in shader.CONTROLS}
+    assert max(controls["Crack Color"].default) < 0.05
+    assert 0.0 < controls["Crack Width"].default < 1.0
 
 
 def test_extension_installs_and_enables(imported, blender_user):
@@ -473,7 +593,12 @@ def test_gltf_import_attributes(imported, bake):
     assert 0.0 <= v["H_c"][0] and v["H_c"][-1] <= 1.0 and 0.0 <= v["H_l"][0] and v["H_l"][-1] <= 1.0
     m = bake["scene"].moisture
     assert m["M_2"] - 1e-5 <= v["M"][0] and v["M"][-1] <= m["M_1"] + 1e-5
-    for name, gname in (("H_c", "_H_c"), ("H_l", "_H_l"), ("M", "_M"), ("ring", "_RING")):
+    pairs = [("H_c", "_H_c"), ("H_l", "_H_l"), ("M", "_M"), ("ring", "_RING")]
+    # the bark crack attributes, where the exporter writes them
+    present = set(glb_names(bake["glb"]))
+    pairs += [(name, gname) for name, gname in (("bark_crack", "_BARK_CRACK"), ("bark_crack_depth", "_BARK_DEPTH"))
+              if gname in present]
+    for name, gname in pairs:
         np.testing.assert_allclose(v[name], np.sort(glb_attribute(bake["glb"], gname)), atol=1e-6)
     W = glb_attribute(bake["glb"], "_WOOD")
     np.testing.assert_allclose(g["wood"], W[np.lexsort(W.T[::-1])], atol=1e-6)
@@ -488,11 +613,15 @@ def test_material_has_wood_decay_group(imported, fmt):
     reads the attributes through Attribute nodes; the file's preview material is gone."""
     mats = imported[fmt]["material"]
     assert mats
+    attributes = set(imported[fmt]["attributes"])
     for d in mats:
         assert d["name"].startswith("Wood Decay") and d["group"] == "Wood Decay", d
         assert d["surface"]
-        assert d["linked"] == {"H_c": "H_c", "H_l": "H_l", "M": "M", "Wood": "wood", "Ring": "ring",
-                               "Face Kind": "faceKind"}
+        linked = {"H_c": "H_c", "H_l": "H_l", "M": "M", "Wood": "wood", "Ring": "ring", "Face Kind": "faceKind"}
+        # the bark crack inputs read their attributes where the bake has them
+        linked |= {k: a for k, a in (("Bark Crack", "bark_crack"), ("Crack Depth", "bark_crack_depth"))
+                   if a in attributes}
+        assert d["linked"] == linked
         for control in ("Brown Rot Strength", "White Rot Strength", "Moisture Darkening", "Ring Contrast",
                         "Base Color", "Bark Color"):
             assert control in d["inputs"]
@@ -502,12 +631,12 @@ def test_material_has_wood_decay_group(imported, fmt):
 
 
 def test_gltf_without_face_kind_falls_back(imported):
-    """Without a face kind (or ring) the material still builds: those group inputs stay unlinked
-    and Face Kind keeps its default 1 (wood, no bark)."""
+    """Without a face kind (or ring, or bark cracks) the material still builds: those group
+    inputs stay unlinked, Face Kind keeps its default 1 (wood, no bark) and Bark Crack its 0."""
     f = imported["fallback"]
     assert f["result"] == ["FINISHED"] and f["group"] == "Wood Decay"
     assert f["linked"] == {"H_c": "H_c", "H_l": "H_l", "M": "M", "Wood": "wood"}
-    assert f["face_kind_default"] == 1.0
+    assert f["face_kind_default"] == 1.0 and f["bark_crack_default"] == 0.0
 
 
 @pytest.mark.slow
@@ -529,6 +658,31 @@ def test_render_rotted_and_sound_wood_differ(blender_user, bake, rot_usd, tmp_pa
     assert d_rotted > MARGIN, (d_rotted, rot, sound)
     assert d_rotted > RATIO * d_sound, (d_rotted, d_sound)
     assert darker > DARKER, darker
+
+
+@pytest.mark.slow
+def test_render_bark_cracks_are_darker(blender_user, bark_patches, tmp_path):
+    """128x64 Cycles render (CPU, 16 samples, 2 threads) from above of two patches of bark with
+    the same texture, the right one in a crack (bark_crack 1), the left one not (0): the right one
+    is darker by more than CRACK_DARKER in mean luminance. The same patches without the bark
+    crack primvars (an older bake) render as the uncracked one did, and alike on both sides."""
+    res = run_blender(CRACK_RENDER, bark_patches["crack"], bark_patches["plain"], tmp_path, 16, 2, user=blender_user)
+    assert res["materials"]["crack"]["linked"]["Bark Crack"] == "bark_crack"
+    assert res["materials"]["crack"]["linked"]["Crack Depth"] == "bark_crack_depth"
+    assert "Bark Crack" not in res["materials"]["plain"]["linked"]
+    crack, plain = res["crack"], res["plain"]
+    for r in (crack, plain):
+        assert r["left_pixels"] > 1500 and r["right_pixels"] > 1500, r
+    luma = np.array([0.2126, 0.7152, 0.0722])
+    darker = float(luma @ np.subtract(crack["left"], crack["right"]))
+    same = float(np.abs(np.subtract(crack["left"], plain["left"])).max())
+    sides = float(luma @ np.subtract(plain["left"], plain["right"]))
+    print(f"render seconds {res['seconds']}; cracked bark darker by {darker:.3f} (sRGB luminance "
+          f"{luma @ crack['left']:.3f} -> {luma @ crack['right']:.3f}); uncracked vs no attribute {same:.4f}; "
+          f"left vs right without cracks {sides:+.4f}")
+    assert darker > CRACK_DARKER, (darker, crack)
+    assert same <= SAME, (same, crack, plain)
+    assert abs(sides) < CRACK_DARKER / 4, (sides, plain)
 
 
 @pytest.mark.slow

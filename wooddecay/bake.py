@@ -51,6 +51,7 @@ def save_frame(path: Path, frame: Frame) -> None:
     """One frame's fields and rod state, atomically."""
     arrays = {f"field_{k}": v for k, v in frame.fields.items()}
     arrays.update({f"mech_{k}": v for k, v in frame.mech.items()})
+    arrays.update({f"bark_{k}": v for k, v in frame.bark.items()})
     meta = {"index": frame.index, "t_days": frame.t_days, "diagnostics": frame.diagnostics}
     tmp = path.with_name(f".{path.name}.tmp")
     with open(tmp, "wb") as fh:
@@ -63,8 +64,9 @@ def load_frame(path: Path) -> Frame:
         meta = json.loads(str(z["meta"]))
         fields = {k: z[f"field_{k}"].copy() for k in FIELDS}
         mech = {k: z[f"mech_{k}"].copy() for k in _MECH_KEYS if f"mech_{k}" in z.files}
+        bark = {k: z[f"bark_{k}"].copy() for k in ("cracked", "shed") if f"bark_{k}" in z.files}
     return Frame(index=meta["index"], t_days=meta["t_days"], fields=fields, mech=mech,
-                 diagnostics=meta["diagnostics"])
+                 diagnostics=meta["diagnostics"], bark=bark)
 
 
 def frame_summary(frame: Frame) -> dict:

@@ -30,14 +30,16 @@ from .strands.materials import Materials
 from .strands.profiles import narrow_area, signed_distance
 from .strands.regions import region_mask
 from .strands.reg import build_reg, csr_adjacency, transport_graph
-from .strands.rings import TISSUES, age_of, classify_tissue, profile_years, radial_coordinate, year_noise
+from .bark.sheet import BarkSheet, build_sheet, recent_growth
+from .strands.rings import (TISSUES, age_of, classify_tissue, cumulative_widths, profile_years, radial_coordinate,
+                            year_noise)
 from .strands.strands import build_strands
 from .strands.skeleton import Skeleton
 from .strands.topology import Topology, build_topology
 from .strands.weakpoints import weak_point_field
 
 #: random streams, one per build stage (index into the seed sequence)
-_STREAMS = {"strands": 1, "sampling": 2, "rings": 3, "bsp": 4, "weakpoints": 5}
+_STREAMS = {"strands": 1, "sampling": 2, "rings": 3, "bsp": 4, "weakpoints": 5, "bark": 6}
 
 
 def stage_rng(seed: int, stage: str) -> np.random.Generator:
@@ -140,6 +142,8 @@ class WoodModel:
     # per-tissue parameters, inoculations resolved on the elements, and the solvers' static data
     materials: Materials
     inoculations: tuple[Inoculation, ...] = ()
+    bark: BarkSheet | None = None  # the bark crack sheet ([bark] cracks, and the wood has bark)
+    bark_setup: dict = field(default_factory=dict)  # the resolved [bark] section
     bio: BioSetup | None = None
     mech: MechSetup | None = None
     coupling: CouplingSetup | None = None
@@ -372,6 +376,14 @@ def build_model(scene) -> WoodModel:
                            mask=region_mask(model, ld["region"])) for ld in scene.loads)
         mech = mechanics.prepare(model, config, _collider_rows(scene), loads)
         model = replace(model, bio=bio, mech=mech, coupling=coupling.prepare(model))
+    with _timed(sec, "bark"):
+        bark = scene.bark.as_dict()
+        if bark["cracks"] and rg.bark_thickness > 0.0:
+            tree_years = int(years.max())
+            recent = np.array([recent_growth(cumulative_widths(int(y), rg.weibull_c, noise, tree_years), bark["bark_years"])
+                               for y in years])
+            model = replace(model, bark=build_sheet(model, bark, recent, rg.eccentricity, stage_rng(scene.seed, "bark")),
+                            bark_setup=bark)
     for v in vars(model).values():  # the model is static: solvers change a SimState, never it
         if isinstance(v, np.ndarray):
             v.flags.writeable = False

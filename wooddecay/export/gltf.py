@@ -14,7 +14,8 @@
   does in USD) and the application-specific ``_H_c``, ``_H_l``, ``_M`` (FLOAT SCALAR), ``_WOOD``
   (VEC3, rest wood-local r, phi, s), ``_RING`` (ring age) and ``_FACE_KIND`` (0 bark, 1 side,
   2 cap, as a float: glTF has no per-face attributes, but every vertex here belongs to faces of
-  one kind, see below);
+  one kind, see below), ``_BARK_CRACK`` and ``_BARK_DEPTH`` (the bark's cracks,
+  :mod:`wooddecay.bark.surface`; its grooves are in ``POSITION``);
 * normals: a meshlet vertex is split into one copy per facet group it touches (face kind and
   neighbour element: the bark, each side wall, each cap), and each copy gets the area-weighted
   normal of its group's faces. Walls stay sharp, curved bark stays smooth, and the vertex count
@@ -36,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import check_output, write_bytes
+from ..bark import surface
 from ..meshlets import skin as skin_mod
 from ..meshlets.visibility import visible_faces
 from ..sim.state import FIELDS
@@ -130,7 +132,8 @@ def gltf_document(model, mesh, frame, version: str = "", link=None) -> tuple[dic
         link = skin_mod.links(model, mesh)
     mech = frame.mech or None
     keep = np.flatnonzero(visible_faces(model, mesh, mech))
-    P, F = skin_mod.frame_arrays(model, mesh, link, frame)
+    crack, depth, offset = surface.frame_bark(model, mesh, frame)
+    P, F = skin_mod.frame_arrays(model, mesh, link, frame, offset)
     if not (np.all(np.isfinite(P)) and np.all(np.isfinite(F))):
         raise ValueError(f"frame {frame.index}: non-finite points or fields, nothing to export")
     component = mech["component"] if mech else np.zeros(model.n_elements, dtype=np.int64)
@@ -158,6 +161,7 @@ def gltf_document(model, mesh, frame, version: str = "", link=None) -> tuple[dic
     cols = {
         "_H_c": fields[:, ix["H_c"]], "_H_l": fields[:, ix["H_l"]], "_M": fields[:, ix["M"]],
         "_WOOD": mesh.wood[src], "_RING": mesh.ring[src], "_FACE_KIND": kind,
+        "_BARK_CRACK": crack[src], "_BARK_DEPTH": depth[src],
     }
     color = rot_color(fields[:, ix["H_c"]], fields[:, ix["H_l"]], fields[:, ix["M"]])
     buf = _Bin()

@@ -8,7 +8,8 @@
 * ``/World/<scene>/Wood``: one Mesh of all meshlets as disjoint closed shells (triangles,
   subdivisionScheme none, static topology), ``points`` and ``extent`` time-sampled (the skinned
   meshlets of :mod:`wooddecay.meshlets.skin`); vertex primvars H_c, H_l, M, R_w, R_b, C
-  (time-sampled, interpolated with the skinning weights) and ``displayColor`` (a rot preview, see
+  (time-sampled, interpolated with the skinning weights), ``bark_crack`` and ``bark_crack_depth``
+  (time-sampled, :mod:`wooddecay.bark.surface`; the bark's grooves are in ``points``) and ``displayColor`` (a rot preview, see
   :func:`wooddecay.export.colors.rot_color`); static ``wood`` (float3 rest wood-local r, phi, s)
   and ``ring``; uniform int ``element``, ``tissue``, ``faceKind`` (0 bark, 1 side, 2 cap) and
   time-sampled ``piece`` (the connected component of the face's element);
@@ -28,11 +29,15 @@ from pathlib import Path
 
 import numpy as np
 
+from ..bark import surface
 from ..meshlets import skin as skin_mod
 from ..meshlets.visibility import visible_faces
 from ..sim.state import FIELDS
 from . import stage as stage_mod
 from .colors import rot_color
+
+#: the bark's vertex primvars (:mod:`wooddecay.bark.surface`)
+BARK_PRIMVARS = ("bark_crack", "bark_crack_depth")
 
 
 def export_usd(path, model, mesh, frames, version: str = "") -> Path:
@@ -75,17 +80,20 @@ def export_usd(path, model, mesh, frames, version: str = "") -> Path:
         pv.CreatePrimvar(name, T.IntArray, UsdGeom.Tokens.uniform).Set(
             Vt.IntArray.FromNumpy(np.asarray(values, dtype=np.int32)))
     piece = pv.CreatePrimvar("piece", T.IntArray, UsdGeom.Tokens.uniform)
-    fields = {f: pv.CreatePrimvar(f, T.FloatArray, UsdGeom.Tokens.vertex) for f in FIELDS}
+    fields = {f: pv.CreatePrimvar(f, T.FloatArray, UsdGeom.Tokens.vertex) for f in FIELDS + BARK_PRIMVARS}
     color = wood.CreateDisplayColorPrimvar(UsdGeom.Tokens.vertex)
     points, extent = wood.CreatePointsAttr(), wood.CreateExtentAttr()
     for fr in frames:
         t = float(fr.index)
-        P, F = skin_mod.frame_arrays(model, mesh, link, fr)
+        crack, depth, offset = surface.frame_bark(model, mesh, fr)
+        P, F = skin_mod.frame_arrays(model, mesh, link, fr, offset)
         P, F = P[used].astype(np.float32), F[used].astype(np.float32)
         points.Set(Vt.Vec3fArray.FromNumpy(P), t)
         extent.Set(Vt.Vec3fArray([Gf.Vec3f(*P.min(0).tolist()), Gf.Vec3f(*P.max(0).tolist())]), t)
         for k, f in enumerate(FIELDS):
             fields[f].Set(Vt.FloatArray.FromNumpy(np.ascontiguousarray(F[:, k])), t)
+        for f, v in zip(BARK_PRIMVARS, (crack, depth)):
+            fields[f].Set(Vt.FloatArray.FromNumpy(v[used].astype(np.float32)), t)
         ix = {f: k for k, f in enumerate(FIELDS)}
         color.Set(Vt.Vec3fArray.FromNumpy(rot_color(F[:, ix["H_c"]], F[:, ix["H_l"]], F[:, ix["M"]])), t)
         comp = fr.mech["component"][fe] if fr.mech else np.zeros(len(fe))

@@ -28,10 +28,12 @@ skins one :class:`~wooddecay.sim.driver.Frame` (points and its six fields), as b
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numba as nb
 import numpy as np
 
-from ..quaternion import rotate, rotate_np
+from ..quaternion import conj_np, rotate, rotate_np
 from ..sim.coupling import crumble_scale
 from ..sim.state import FIELDS
 
@@ -163,9 +165,14 @@ def skin(model, mesh, link, x, q, component, edge_ok, element_ok, scale, fields)
     return out_p, out_f
 
 
-def frame_arrays(model, mesh, link, frame):
+def frame_arrays(model, mesh, link, frame, offset=None):
     """Skinned points (V, 3) and fields (V, 6, in the order of ``FIELDS``) of one frame; without
-    mechanics (empty ``frame.mech``) the rest pose. Crumbled wood dwindles in both."""
+    mechanics (empty ``frame.mech``) the rest pose. Crumbled wood dwindles in both. ``offset``
+    (V, 3) moves the rest positions first (the bark's grooves, :mod:`wooddecay.bark.surface`)."""
+    if offset is not None and offset.any():
+        rows = np.repeat(np.arange(len(mesh.points)), np.diff(mesh.skin_indptr))
+        local = mesh.skin_local + rotate_np(conj_np(model.rest_quat[mesh.skin_element]), offset[rows])
+        mesh = replace(mesh, skin_local=local)
     fields = np.stack([frame.fields[f] for f in FIELDS], axis=1)
     scale = crumble_scale(model.coupling, frame.fields["H_c"], frame.fields["H_l"])
     if frame.mech:

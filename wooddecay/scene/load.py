@@ -34,6 +34,7 @@ from typing import Any
 from wooddecay.errors import InputError, did_you_mean, format_value, type_name
 from wooddecay.scene.schema import (
     ARRAY_TABLES,
+    BARK_SPECIES,
     CONNECT_FACTOR,
     DAYS_PER_YEAR,
     DRAFT_SCALE,
@@ -303,6 +304,10 @@ def _resolve(data: dict, ctx: _Ctx, base_dir: Path, path: Path | None, default_n
         strands["connect_radius"] = CONNECT_FACTOR * strands["r_s"]
     else:
         check_connect_radius(strands, ctx.src)
+    bark = values["bark"]
+    for name, value in BARK_SPECIES[bark["species"]].items():
+        if bark[name] is None:
+            bark[name] = value
     check_moisture(values["fungi"], values["moisture"], ctx.src, prefix="", given=None)
     time = values["time"]
     if time["years"] > 0.0:

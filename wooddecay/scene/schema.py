@@ -232,11 +232,39 @@ _SCHEMA: dict[str, list[tuple]] = {
         ("rest_speed", 0.01, "m/s", "(0, 10]", "Adaptive schedule: mechanics goes on in chunks of N_mech substeps until a chunk splits no piece and no piece's centre of mass moved faster than this, on average or at its end (a piece falling from rest is at g N_mech dt_mech = 2.5 cm/s after one chunk)."),
         ("max_mechanics", 0.05, "s", "(0, 1000]", "Adaptive schedule: most seconds of mechanics in one macro step; a piece still moving goes on in the next (0.05 s: 1.5 s of mechanics between the frames of a year of 24 frames at dt_bio 0.5 day)."),
     ],
+    "bark": [
+        ("species", "spruce", "", "", "Bark crack preset (woodification §5, Fig. 10): sets pattern, threshold, tip_gain and noise where they are not given: 'oak' long vertical fissures, 'spruce' and 'pine' a net of scaly plates, 'birch' horizontal bands, 'beech' smooth bark that rarely cracks.", "enum:spruce|pine|oak|birch|beech"),
+        ("cracks", True, "", "", "Simulate bark cracks and shedding (sim/bark.py); false leaves the bark whole."),
+        ("pattern", None, "", "", "Anisotropy of the crack stress (woodification Fig. 10): 'fissures' (circumferential tension: cracks along the grain), 'plates' (both directions: a net), 'bands' (tension along the grain: horizontal cracks), 'none' (isotropic); default from species.", "enum:fissures|plates|bands|none"),
+        ("threshold", None, "", "(0, 10]", "Crack threshold: the largest principal tensile strain of a bark vertex's separation tensor above which it cracks (Iben and O'Brien 2006); default from species.", "float"),
+        ("tip_gain", None, "", "[0, 100]", "Extra stress at crack tips as a factor on their separation (cracks grow rather than multiply, woodification §5); default from species.", "float"),
+        ("noise", None, "", "[0, 0.9]", "Relative amplitude of the coherent noise on the threshold (where cracks start); default from species.", "float"),
+        ("growth", 0.3, "", "[0, 100]", "Weight of the growth strain: the circumferential expansion recorded by the outer rings over the bark's life (woodification §4, Eqs. 2-3)."),
+        ("drying", 1.0, "", "[0, 100]", "Weight of the drying strain of the bark: its shrinkage S (S_T, s) (M_0 - M)^+ on the wood beneath (woodstock Eq. 16)."),
+        ("bark_years", 8, "year", "[1, 1000]", "Years of growth the outer bark has lived through (its growth strain is the outer rings' expansion over them)."),
+        ("shadow", 0.02, "m", "(0, 1]", "Stress shadow of a crack: the bark's stress across a crack is relieved by exp(-d / shadow) at distance d from it (shear lag on the wood beneath), so cracks keep their distance."),
+        ("spacing", 1.0, "r_s", "[0.25, 10]", "Edge length of the bark crack mesh in strand radii."),
+        ("crack_width", 0.006, "m", "(0, 0.1]", "Width of a crack in its middle (it narrows to its tips, woodification §5)."),
+        ("crack_depth", 1.0, "", "(0, 10]", "Crack depth at its middle as a multiple of its width, at most the bark thickness (V-shaped profile)."),
+        ("groove_width", 0.004, "m", "[0, 0.1]", "Cracks wider than this are cut into the mesh as grooves (the bark vertices move in by the crack depth); 0: never."),
+        ("shedding", 0.5, "1/year", "[0, 100]", "Rate at which the bark's bond to the wood weakens with decay (1 - H) and wet/dry cycles (moisture change); a plate bounded by cracks falls when its bond is gone."),
+        ("plate_area", 0.03, "m^2", "(0, 100]", "Largest piece of bark, bounded by cracks, that comes off as one plate."),
+    ],
     "export": [
         ("usd", True, "", "", "Write the USD stage <name>.usdc."),
         ("gltf", True, "", "", "Write the glTF binary <name>.glb."),
         ("gltf_frame", -1, "", "any", "Frame exported to glTF; negative counts from the end (-1 = last)."),
     ],
+}
+
+#: [bark] species presets: the keys a scene leaves out (woodification Fig. 10 patterns). Thresholds
+#: are tensile strains of the separation tensor; the growth strain of the outer bark is 0.05-0.3.
+BARK_SPECIES: dict[str, dict[str, Any]] = {
+    "spruce": {"pattern": "plates", "threshold": 0.03, "tip_gain": 3.0, "noise": 0.4},
+    "pine": {"pattern": "plates", "threshold": 0.04, "tip_gain": 2.5, "noise": 0.5},
+    "oak": {"pattern": "fissures", "threshold": 0.02, "tip_gain": 4.0, "noise": 0.3},
+    "birch": {"pattern": "bands", "threshold": 0.03, "tip_gain": 3.0, "noise": 0.4},
+    "beech": {"pattern": "none", "threshold": 0.5, "tip_gain": 1.0, "noise": 0.2},
 }
 
 #: Factor applied to strand lengths (r_s, rod_length, connect_radius) by ``quality = "draft"``.

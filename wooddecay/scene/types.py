@@ -120,6 +120,7 @@ class Scene:
     wood: Section
     mechanics: Section
     time: Section
+    bark: Section
     export: Section
     tissues: FrozenMap  # tissue -> FrozenMap of overrides (all four tissues present)
     inoculations: tuple[FrozenMap, ...]
@@ -187,10 +188,10 @@ class Scene:
 
     @cached_property
     def settle_hash(self) -> str:
-        """:attr:`hash` without the keys the settled rods do not depend on: [time], [export], [climate] and
+        """:attr:`hash` without the keys the settled rods do not depend on: [time], [export], [climate], [bark] and
         the scene's name and description (the key of the settled-state cache,
         :mod:`wooddecay.sim.settled`)."""
-        return _digest(self._identity_free(("time", "export", "climate")))
+        return _digest(self._identity_free(("time", "export", "climate", "bark")))
 
     @cached_property
     def model_hash(self) -> str:

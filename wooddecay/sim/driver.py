@@ -3,7 +3,8 @@
 Each macro step: ``N_mech`` mechanics substeps of ``dt_mech`` (lines 4-8,
 :mod:`wooddecay.sim.mechanics`), one biology step of ``dt_bio`` (lines 9-11,
 :mod:`wooddecay.sim.biology`), then the coupling of moisture and decay back to the rods
-(lines 12-13, :mod:`wooddecay.sim.coupling`). ``mechanics=False`` runs the biology alone (years of
+(lines 12-13, :mod:`wooddecay.sim.coupling`) and the bark (:mod:`wooddecay.sim.bark`: cracks,
+bonds, plates that shed). ``mechanics=False`` runs the biology alone (years of
 decay on a static model). Frames are yielded at ``model.time.frames`` times evenly spaced over
 [0, model.time.days] (the first frame is the initial state when frames > 1). Every solver has
 the shape ``solver(model, state, dt)``: the model holds everything static (``model.bio``,
@@ -33,31 +34,33 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from . import biology, coupling, schedule, settled
+from . import bark, biology, coupling, schedule, settled
 from . import mechanics as mech
 from .diagnostics import diagnostics
 from .signature import signature
 from .state import FIELDS, SimState, initial_state, inoculate
 from .threads import ThreadChoice
 
-CHECKPOINT_VERSION = 7
+CHECKPOINT_VERSION = 8
 
 
 @dataclass(frozen=True, eq=False)
 class Frame:
     """A snapshot: frame index, time, copies of the fields, of the rod state (``mech``: x, q,
-    component, element_ok, edge_ok, integrity; empty without mechanics) and the diagnostics."""
+    component, element_ok, edge_ok, integrity; empty without mechanics), the diagnostics and of
+    the bark (``bark``: cracked sheet edges and shed faces; empty without a bark sheet)."""
 
     index: int
     t_days: float
     fields: dict
     mech: dict
     diagnostics: dict
+    bark: dict = field(default_factory=dict)
 
 
 def frame_times(days: float, frames: int) -> np.ndarray:
@@ -91,6 +94,7 @@ class Simulation:
         #: keeps it current; it is checkpointed)
         self.wall_seconds = 0.0
         self.settled = "no"  # "settled", or "cached" when loaded from ``settle_cache``
+        self.state.bark = bark.initial(model, self.state)
         if mechanics:
             coupling.step(model, self.state)
             if settle:
@@ -128,6 +132,7 @@ class Simulation:
         inoculate(model, state)
         if self.mechanics:
             coupling.step(model, state)
+        bark.step(model, state, dt_bio)
         d = self._diagnostics()
         if self.mechanics:
             d["mechanics"].update(step)
@@ -189,10 +194,12 @@ class Simulation:
             rods = {k: getattr(ms, k).copy() for k in ("x", "q", "component", "element_ok", "edge_ok", "integrity")}
         d = self._diagnostics()
         if self.mechanics:
-            d["signature"] = signature(self.model, self.state)
+            d["signature"] = signature(self.model, self.state) | bark.statistics(self.model, self.state.bark)
             d["mechanics"]["strain_excess"] = mech.strain_excess(self.model.mech, self.state.mech)
+        sheet = {} if self.state.bark is None else {"cracked": self.state.bark.crack.cracked.copy(),
+                                                      "shed": self.state.bark.shed.copy()}
         return Frame(index=index, t_days=self.state.t_days,
-                     fields={f: getattr(self.state, f).copy() for f in FIELDS}, mech=rods, diagnostics=d)
+                     fields={f: getattr(self.state, f).copy() for f in FIELDS}, mech=rods, diagnostics=d, bark=sheet)
 
     def run(self):
         """Yield a frame at every frame time after the last one yielded (module docstring)."""
@@ -214,6 +221,8 @@ class Simulation:
         arrays = {f"field_{f}": getattr(s, f) for f in FIELDS}
         if self.mechanics:
             arrays.update({f"mech_{k}": v for k, v in s.mech.arrays().items()})
+        if s.bark is not None:
+            arrays.update({f"bark_{k}": v for k, v in s.bark.arrays().items()})
         meta = {"version": CHECKPOINT_VERSION, "scene_hash": self.model.info.hash, "mechanics": self.mechanics,
                 "frame": self.last_frame, "t_days": s.t_days, "clamp_count": s.clamp_count,
                 "applied": sorted(s.applied), "history": self.history,
@@ -240,6 +249,8 @@ class Simulation:
         s.t_days, s.clamp_count, s.applied = meta["t_days"], meta["clamp_count"], set(meta["applied"])
         if sim.mechanics:
             s.mech.restore({k: arrays[f"mech_{k}"] for k in s.mech.arrays()}, meta["t_seconds"], meta["failures"])
+        if s.bark is not None:
+            s.bark = bark.BarkState.from_arrays({k: arrays[f"bark_{k}"] for k in s.bark.arrays()})
         sim.history = meta["history"]
         sim.last_frame = meta["frame"]
         sim.wall_seconds = float(meta["wall_seconds"])

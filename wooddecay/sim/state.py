@@ -34,6 +34,7 @@ class SimState:
     clamp_count: int = 0
     applied: set = field(default_factory=set)  # inoculations already applied (by index)
     mech: object = None  # the rods' MechState (wooddecay.sim.mechanics), None for biology only
+    bark: object = None  # the bark's BarkState (wooddecay.sim.bark), None without a bark sheet
 
     @property
     def integrity(self):
@@ -51,7 +52,8 @@ class SimState:
     def copy(self) -> "SimState":
         return SimState(**{k: v.copy() for k, v in self.fields().items()}, t_days=self.t_days,
                         clamp_count=self.clamp_count, applied=set(self.applied),
-                        mech=None if self.mech is None else self.mech.copy())
+                        mech=None if self.mech is None else self.mech.copy(),
+                        bark=None if self.bark is None else self.bark.copy())
 
 
 @dataclass(frozen=True)

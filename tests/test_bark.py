@@ -1,0 +1,193 @@
+"""Bark cracks and shedding (wooddecay.bark, wooddecay.sim.bark; SPEC §10, woodification §5)."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numba
+import numpy as np
+import pytest
+
+import wooddecay as wd
+from wooddecay.bake import bake
+from wooddecay.bark import cracks, shedding, surface
+from wooddecay.bark.sheet import recent_growth
+from wooddecay.meshlets.checks import closed_oriented
+from wooddecay.meshlets.sweep import build_meshlets
+from wooddecay.sim import bark
+from wooddecay.sim.driver import Simulation
+
+from .conftest import SAMPLES
+
+
+def _model(**sets):
+    return wd.build_model(wd.load_scene(SAMPLES / "tiny.toml", overrides=sets))
+
+
+@pytest.fixture(scope="module")
+def tiny_bark():
+    return _model()
+
+
+def _load(sheet, st, eps, tip_gain=3.0, shadow=0.02, stages=10):
+    for k in range(1, stages + 1):
+        cracks.grow(sheet, st, eps * k / stages, tip_gain, shadow)
+
+
+def test_tensor_algebra_matches_numpy():
+    rng = np.random.default_rng(3)
+    T = rng.normal(size=(200, 3))
+    l1, l2, e = cracks.eig2(T)
+    for k in range(len(T)):
+        A = np.array([[T[k, 0], T[k, 2]], [T[k, 2], T[k, 1]]])
+        w, v = np.linalg.eigh(A)
+        assert np.allclose([l2[k], l1[k]], w)
+        assert abs(abs(e[k] @ v[:, 1]) - 1.0) < 1e-9
+    # a crack with normal n leaves only the stress along it: Pi sigma Pi = (t.sigma.t) t t^T
+    n = np.array([np.cos(0.4), np.sin(0.4)])
+    t = np.array([-n[1], n[0]])
+    S = np.tile([n[0] ** 2, n[1] ** 2, n[0] * n[1]], (len(T), 1))
+    out = cracks.relieved(T, S)
+    along = T[:, 0] * t[0] ** 2 + T[:, 1] * t[1] ** 2 + 2 * T[:, 2] * t[0] * t[1]
+    assert np.allclose(out, along[:, None] * np.array([t[0] ** 2, t[1] ** 2, t[0] * t[1]]))
+
+
+def test_recent_growth_is_the_outer_rings_share():
+    Q = np.linspace(0.0, 1.0, 11)  # ten equal rings
+    assert recent_growth(Q, 3) == pytest.approx(0.3)
+    assert recent_growth(Q, 50) == pytest.approx(1.0)
+
+
+def test_circumferential_tension_cracks_along_the_axis(tiny_bark):
+    sheet = replace(tiny_bark.bark, pattern=(1.0, 0.0))  # pure tension around the cylinder
+    st = cracks.CrackState.empty(sheet)
+    _load(sheet, st, np.full(sheet.n_faces, 0.1))
+    stats = cracks.statistics(sheet, st.cracked)
+    assert stats["bark_crack_count"] >= 2
+    assert stats["bark_crack_along_grain"] > 0.8
+    # tension along the grain cracks around the cylinder instead
+    sheet = replace(tiny_bark.bark, pattern=(0.0, 1.0))
+    st = cracks.CrackState.empty(sheet)
+    _load(sheet, st, np.full(sheet.n_faces, 0.1))
+    assert cracks.statistics(sheet, st.cracked)["bark_crack_along_grain"] < 0.2
+
+
+def test_zero_stress_never_cracks(tiny_bark):
+    sheet = tiny_bark.bark
+    st = cracks.CrackState.empty(sheet)
+    _load(sheet, st, np.zeros(sheet.n_faces))
+    assert not st.cracked.any()
+    model = _model(**{"bark.growth": 0.0, "bark.drying": 0.0})
+    sim = Simulation(model, mechanics=False)
+    for _ in sim.run():
+        pass
+    assert bark.statistics(model, sim.state.bark)["bark_crack_count"] == 0
+
+
+def test_patterns_differ_measurably():
+    share = {}
+    for species in ("oak", "spruce"):
+        model = _model(**{"bark.species": species, "bark.growth": 0.05})
+        st = bark.initial(model, wd.Simulation(model, mechanics=False).state)
+        share[species] = bark.statistics(model, st)["bark_crack_along_grain"]
+    assert share["oak"] > share["spruce"] + 0.15
+
+
+def test_cracks_do_not_depend_on_threads():
+    runs = []
+    for n in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
+        numba.set_num_threads(n)
+        model = _model(**{"climate.preset": "dry", "time.days": 120, "bark.growth": 1.0})
+        sim = Simulation(model, mechanics=False)
+        for _ in sim.run():
+            pass
+        runs.append(sim.state.bark.arrays())
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    for k in runs[0]:
+        assert np.array_equal(runs[0][k], runs[1][k]), k
+    assert runs[0]["cracked"].any()
+
+
+def test_drying_adds_cracks():
+    model = _model(**{"climate.preset": "dry", "time.days": 180, "bark.growth": 0.05})
+    sim = Simulation(model, mechanics=False)
+    counts = [bark.statistics(model, sim.state.bark)["bark_crack_length_m"]]
+    for _ in sim.run():
+        counts.append(bark.statistics(model, sim.state.bark)["bark_crack_length_m"])
+    assert counts[-1] > counts[0] * 1.2
+    assert counts == sorted(counts)  # cracks never heal
+
+
+def test_grooves_keep_meshlets_closed_and_shared(tiny_bark):
+    model = replace(tiny_bark, bark_setup={**tiny_bark.bark_setup, "groove_width": 1e-4})
+    mesh = build_meshlets(model)
+    st = cracks.CrackState.empty(model.bark)
+    _load(model.bark, st, np.full(model.bark.n_faces, 0.1))
+    crack, depth, width = surface.crack_fields(model, mesh, st.cracked)
+    assert crack.max() == pytest.approx(1.0, abs=0.3) and depth.max() > 0.0
+    assert not crack[~surface.bark_vertices(mesh)].any()
+    off = surface.groove_offsets(model, mesh, depth, width)
+    moved = np.linalg.norm(off, axis=1)
+    assert moved.max() > 0.0 and moved.max() <= 0.5 * min(model.bark_thickness, model.r_s) + 1e-12
+    grooved = replace(mesh, points=mesh.points + off)
+    assert closed_oriented(grooved).all()
+    # every copy of a shared vertex moves alike: the meshlets still meet without gaps
+    order = np.argsort(mesh.vertex_shared, kind="stable")
+    sh, P = mesh.vertex_shared[order], grooved.points[order]
+    same = sh[1:] == sh[:-1]
+    assert np.abs(P[1:][same] - P[:-1][same]).max() < 1e-12
+    # the grooves point inwards: every grooved meshlet keeps a positive volume
+    F = grooved.faces
+    X = grooved.points
+    vol = np.einsum("ij,ij->i", X[F[:, 0]], np.cross(X[F[:, 1]], X[F[:, 2]])) / 6.0
+    assert (np.bincount(grooved.face_element, weights=vol) > 0).all()
+
+
+def test_plates_shed_and_come_loose(tiny_bark):
+    model = tiny_bark
+    sheet = model.bark
+    st = cracks.CrackState.empty(sheet)
+    _load(sheet, st, np.full(sheet.n_faces, 0.1))
+    label = shedding.plates(sheet, st.cracked, np.zeros(sheet.n_faces, dtype=bool))
+    bond = np.full(sheet.n_faces, -1.0)
+    off = shedding.falling(sheet, label, bond, plate_area=1.0)
+    assert off.any()
+    assert not shedding.falling(sheet, label, np.ones(sheet.n_faces), 1.0).any()
+    edge_cut, link_cut = shedding.cuts(model, sheet, label, off)
+    # after the cuts no intact pair or link joins a shed plate's element to another plate's or the wood
+    plate = np.where(sheet.element_face >= 0, np.where(off[sheet.element_face], label[sheet.element_face], -1), -1)
+    i, j = model.reg_edges.T
+    assert (plate[i][~edge_cut] == plate[j][~edge_cut]).all()
+    e1 = model.coupling.link_next
+    assert (plate[~link_cut] == plate[e1][~link_cut]).all()
+    assert edge_cut.any()
+
+
+def test_bonds_weaken_with_decay_and_cycles():
+    b = np.ones(3)
+    one = np.ones(3)
+    out = shedding.weaken(b, 1.0, 365.25, np.array([1.0, 0.0, 1.0]), np.array([1.0, 0.0, 1.0]),
+                          np.array([0.0, 0.0, 0.4]), np.full(3, 0.2))
+    assert out == pytest.approx([1.0, 0.0, 0.0])
+    assert (shedding.weaken(b, 0.0, 10.0, 0 * one, 0 * one, one, one) == 1.0).all()
+
+
+def test_bake_exports_crack_primvars_and_signature(tmp_path):
+    scene = wd.load_scene(SAMPLES / "tiny.toml", overrides={"bark.growth": 2.0, "time.frames": 2})
+    summary = bake(scene, tmp_path)
+    sig = summary["frames"][-1]["signature"]
+    assert sig["bark_crack_count"] > 0 and sig["bark_crack_length_m"] > 0
+    assert 0.0 <= sig["bark_crack_along_grain"] <= 1.0 and sig["bark_shed_fraction"] == 0.0
+    from pxr import Usd, UsdGeom
+
+    stage = Usd.Stage.Open(str(tmp_path / "tiny.usdc"))
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/World/tiny/Wood"))
+    pv = UsdGeom.PrimvarsAPI(mesh)
+    crack = np.array(pv.GetPrimvar("bark_crack").Get(1.0))
+    assert crack.max() > 0.5 and np.array(pv.GetPrimvar("bark_crack_depth").Get(1.0)).max() > 0.0
+    import json
+    import struct
+
+    raw = (tmp_path / "tiny.glb").read_bytes()
+    n = struct.unpack_from("<I", raw, 12)[0]
+    gltf = json.loads(raw[20:20 + n])
+    assert all("_BARK_CRACK" in p["attributes"] for m in gltf["meshes"] for p in m["primitives"])

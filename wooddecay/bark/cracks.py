@@ -1,0 +1,234 @@
+"""Bark cracks on the sheet (woodification §5 after Iben and O'Brien 2006; SPEC §10).
+
+Stress. The bark is a thin layer bonded to the wood; its loading strain eps per face is the
+growth strain of the rings (woodification §4, :mod:`.sheet`) plus its drying shrinkage
+S S_T (M_0 - M)^+ (woodstock Eq. 16 on the bark tissue), weighted by [bark] growth and drying.
+The species pattern gives the loading its orientation: sigma_inf = eps (P_t t t^T + P_l l l^T)
+(woodification Fig. 10: vertical, horizontal or mixed stress). A crack relieves the stress across
+it: each face keeps a shadow tensor S = sum over crack edges of w n n^T (n the edge's normal in
+the sheet, w = exp(-|r.n| / shadow) max(0, 1 - |r.t| / L) for the face centroid at r from the
+edge's midpoint, t its direction and L its length: the along-crack hat of consecutive edges sums
+to one beside a straight crack and fades within one edge past its tip), and its stress is
+sigma = Pi sigma_inf Pi with Pi = I - clip(S, 0, 1) (eigenvalues clipped): beside a crack only
+the stress along it remains (traction-free crack faces); the stress returns over the shadow
+length, the shear lag of a film on a substrate, which sets the crack spacing.
+
+Separation and cracking. Per vertex the separation tensor is the mean of the tensile parts of the
+stresses of its faces (Iben and O'Brien's separation tensor, without their force split); where
+its largest eigenvalue, times (1 + tip_gain) at the tip of a crack (the extra stress at tips that
+makes cracks grow rather than multiply), exceeds the vertex's threshold and every neighbour's
+excess, a crack edge is inserted perpendicular to its eigenvector: the vertex's edge best aligned
+with the crack direction (within 60 degrees), on both sides for a new crack, forward for a tip.
+The new edges cast their shadows and the search repeats until no vertex cracks. All of it is
+array code in a fixed order: the result does not depend on threads.
+
+Crack components are connected sets of crack edges; a crack vertex's width is ``crack_width``
+times min(1, d / taper), d the distance along its crack to the nearer end (cracks open most in
+the middle, woodification §5), with noise; its depth is ``crack_depth`` times the width, at most
+the bark thickness.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components, dijkstra
+
+#: a crack edge follows the crack direction within 60 degrees
+ALIGN = 0.5
+#: a crack narrows over this many sheet edges towards its tips
+TAPER_EDGES = 5.0
+#: share of a crack's length within 30 degrees of the grain counts as along the grain
+ALONG_GRAIN = np.cos(np.radians(30.0))
+
+
+@dataclass(eq=False)
+class CrackState:
+    """What changes on the sheet: cracked edges and each face's shadow tensor (S_tt, S_ll, S_tl)."""
+
+    cracked: np.ndarray  # (E,) bool
+    shadow: np.ndarray  # (F, 3)
+
+    @classmethod
+    def empty(cls, sheet) -> "CrackState":
+        return cls(cracked=np.zeros(len(sheet.edges), dtype=bool), shadow=np.zeros((sheet.n_faces, 3)))
+
+
+def loading(sheet, eps: np.ndarray) -> np.ndarray:
+    """sigma_inf (F, 3) as (tt, ll, tl) for the faces' loading strains ``eps``."""
+    P_t, P_l = sheet.pattern
+    return np.stack([eps * P_t, eps * P_l, np.zeros_like(eps)], 1)
+
+
+def eig2(T: np.ndarray):
+    """Eigenvalues (larger, smaller) and the unit eigenvector of the larger of symmetric 2x2
+    tensors given as (N, 3) rows (tt, ll, tl)."""
+    a, d, b = T[:, 0], T[:, 1], T[:, 2]
+    mean, half = 0.5 * (a + d), np.hypot(0.5 * (a - d), b)
+    l1, l2 = mean + half, mean - half
+    theta = 0.5 * np.arctan2(2.0 * b, a - d)
+    return l1, l2, np.stack([np.cos(theta), np.sin(theta)], 1)
+
+
+def _from_eig(l1, l2, e):
+    """(N, 3) tensors with eigenvalues l1 along e and l2 across it."""
+    c, s = e[:, 0], e[:, 1]
+    return np.stack([l1 * c * c + l2 * s * s, l1 * s * s + l2 * c * c, (l1 - l2) * c * s], 1)
+
+
+def _mul(A, B):
+    """Products of 2x2 matrices given as (N, 4) rows (00, 01, 10, 11)."""
+    return np.stack([A[:, 0] * B[:, 0] + A[:, 1] * B[:, 2], A[:, 0] * B[:, 1] + A[:, 1] * B[:, 3],
+                     A[:, 2] * B[:, 0] + A[:, 3] * B[:, 2], A[:, 2] * B[:, 1] + A[:, 3] * B[:, 3]], 1)
+
+
+def relieved(sigma_inf: np.ndarray, shadow: np.ndarray) -> np.ndarray:
+    """sigma = Pi sigma_inf Pi, Pi = I - clip(S, 0, 1) (module docstring)."""
+    l1, l2, e = eig2(shadow)
+    Pi = _from_eig(1.0 - np.clip(l1, 0.0, 1.0), 1.0 - np.clip(l2, 0.0, 1.0), e)
+    Pm = Pi[:, [0, 2, 2, 1]]
+    out = _mul(_mul(Pm, sigma_inf[:, [0, 2, 2, 1]]), Pm)
+    return np.stack([out[:, 0], out[:, 3], 0.5 * (out[:, 1] + out[:, 2])], 1)
+
+
+def separation(sheet, sigma: np.ndarray) -> np.ndarray:
+    """(V, 3) mean tensile part of the stresses of each vertex's faces."""
+    l1, l2, e = eig2(sigma)
+    plus = _from_eig(np.maximum(l1, 0.0), np.maximum(l2, 0.0), e)
+    vf = sheet.vertex_faces
+    valid = vf >= 0
+    total = np.where(valid[..., None], plus[np.maximum(vf, 0)], 0.0).sum(1)
+    return total / np.maximum(valid.sum(1), 1)[:, None]
+
+
+def crack_degree(sheet, cracked: np.ndarray) -> np.ndarray:
+    """Crack edges at each vertex."""
+    return np.bincount(sheet.edges[cracked].ravel(), minlength=len(sheet.phi))
+
+
+def _outgoing(sheet, v: np.ndarray):
+    """Incident edges of vertices ``v`` (K columns, -1 padded) and their unit directions from v."""
+    ve = sheet.vertex_edges[v]
+    k = np.maximum(ve, 0)
+    sign = np.where(sheet.edges[k, 0] == v[:, None], 1.0, -1.0)
+    return ve, sheet.edge_dir[k] * sign[..., None]
+
+
+def _new_edges(sheet, st: CrackState, sigma: np.ndarray, tip_gain: float) -> np.ndarray:
+    """The crack edges one search inserts (module docstring), sorted, unique."""
+    deg = crack_degree(sheet, st.cracked)
+    l1, _, e1 = eig2(separation(sheet, sigma))
+    excess = l1 * (1.0 + tip_gain * (deg == 1)) - sheet.threshold
+    excess[deg >= 2] = -np.inf
+    ve = sheet.vertex_edges
+    other = np.where(ve >= 0, sheet.edges[np.maximum(ve, 0)].sum(-1) - np.arange(len(ve))[:, None], -1)
+    nbr = np.where(other >= 0, excess[np.maximum(other, 0)], -np.inf)
+    cand = np.flatnonzero((excess > 0.0) & (excess >= nbr.max(1)))
+    if len(cand) == 0:
+        return np.zeros(0, dtype=np.int64)
+    edges, u = _outgoing(sheet, cand)
+    free = (edges >= 0) & ~st.cracked[np.maximum(edges, 0)]
+    c = np.stack([-e1[cand, 1], e1[cand, 0]], 1)
+    # a tip continues away from its crack edge
+    tip = deg[cand] == 1
+    crack_dir = np.where(st.cracked[np.maximum(edges, 0)][..., None] & (edges >= 0)[..., None], u, 0.0).sum(1)
+    flip = tip & ((c * crack_dir).sum(1) > 0.0)
+    c[flip] *= -1.0
+    score = (u * c[:, None, :]).sum(-1)
+    ahead = ~tip[:, None] | ((u * crack_dir[:, None, :]).sum(-1) < 0.0)
+    picks = []
+    for sgn, allowed in ((1.0, np.ones(len(cand), dtype=bool)), (-1.0, ~tip)):
+        sc = np.where(free & ahead & allowed[:, None], sgn * score, -np.inf)
+        k = np.argmax(sc, axis=1)
+        ok = sc[np.arange(len(cand)), k] >= ALIGN
+        picks.append(edges[np.arange(len(cand)), k][ok])
+    return np.unique(np.concatenate(picks))
+
+
+def cast_shadows(sheet, st: CrackState, new: np.ndarray, shadow_length: float) -> None:
+    """Add the shadows of the crack edges ``new`` to the faces near them (module docstring)."""
+    if len(new) == 0:
+        return
+    reach = 4.0 * shadow_length + sheet.h
+    eb = sheet.vertex_branch[sheet.edges[new, 0]]
+    for b in np.unique(eb):
+        tree, rows, y0 = sheet.face_trees[int(b)]
+        sel = new[eb == b]
+        P = sheet.period[b]
+        mids = np.stack([sheet.edge_mid[sel, 0] % P, np.clip(sheet.edge_mid[sel, 1] - y0, 0.0, None)], 1)
+        hits = tree.query_ball_point(mids, reach)
+        cnt = np.array([len(x) for x in hits])
+        if cnt.sum() == 0:
+            continue
+        f = rows[np.concatenate([np.sort(np.asarray(x, dtype=np.int64)) for x in hits])]
+        k = np.repeat(sel, cnt)
+        r = sheet.face_xy[f] - sheet.edge_mid[k]
+        r[:, 0] = (r[:, 0] + 0.5 * P) % P - 0.5 * P
+        t = sheet.edge_dir[k]
+        n = np.stack([-t[:, 1], t[:, 0]], 1)
+        w = np.exp(-np.abs((r * n).sum(1)) / shadow_length) * np.clip(
+            1.0 - np.abs((r * t).sum(1)) / sheet.edge_length[k], 0.0, None)
+        add = w[:, None] * np.stack([n[:, 0] ** 2, n[:, 1] ** 2, n[:, 0] * n[:, 1]], 1)
+        np.add.at(st.shadow, f, add)
+
+
+def grow(sheet, st: CrackState, eps: np.ndarray, tip_gain: float, shadow_length: float,
+         max_searches: int = 1000) -> int:
+    """Insert crack edges under the loading strains ``eps`` (F,) until no vertex cracks (module
+    docstring); returns the number of edges inserted."""
+    total = 0
+    sigma_inf = loading(sheet, eps)
+    for _ in range(max_searches):
+        new = _new_edges(sheet, st, relieved(sigma_inf, st.shadow), tip_gain)
+        if len(new) == 0:
+            break
+        st.cracked[new] = True
+        cast_shadows(sheet, st, new, shadow_length)
+        total += len(new)
+    return total
+
+
+def components(sheet, cracked: np.ndarray):
+    """Crack components: (the cracked edges, the component of each, their count)."""
+    ce = np.flatnonzero(cracked)
+    if len(ce) == 0:
+        return ce, np.zeros(0, dtype=np.int64), 0
+    nv = len(sheet.phi)
+    a, b = sheet.edges[ce, 0], sheet.edges[ce, 1]
+    g = sp.coo_matrix((np.ones(len(ce)), (a, b)), shape=(nv, nv)).tocsr()
+    _, label = connected_components(g, directed=False)
+    _, comp = np.unique(label[a], return_inverse=True)
+    return ce, comp.ravel(), int(comp.max()) + 1
+
+
+def widths(sheet, cracked: np.ndarray, crack_width: float) -> np.ndarray:
+    """(V,) crack width at each vertex (0 off the cracks): ``crack_width`` min(1, d / taper), d the
+    distance along the crack to its nearer end (module docstring)."""
+    out = np.zeros(len(sheet.phi))
+    ce = np.flatnonzero(cracked)
+    if len(ce) == 0:
+        return out
+    nv = len(sheet.phi)
+    a, b = sheet.edges[ce, 0], sheet.edges[ce, 1]
+    g = sp.coo_matrix((sheet.edge_length[ce], (a, b)), shape=(nv, nv)).tocsr()
+    deg = np.bincount(np.concatenate([a, b]), minlength=nv)
+    ends = np.flatnonzero(deg == 1)
+    taper = TAPER_EDGES * sheet.h
+    on = deg > 0
+    if len(ends):
+        d = dijkstra(g, directed=False, indices=ends, min_only=True)
+    else:
+        d = np.full(nv, np.inf)
+    out[on] = crack_width * np.minimum(1.0, d[on] / taper) * sheet.width_noise[on]
+    return out
+
+
+def statistics(sheet, cracked: np.ndarray) -> dict:
+    """Crack count (components), total length (m) and the share of it within 30 degrees of the
+    grain."""
+    ce, _, count = components(sheet, cracked)
+    length = float(sheet.edge_length[ce].sum())
+    along = float(sheet.edge_length[ce][np.abs(sheet.edge_dir[ce, 1]) >= ALONG_GRAIN].sum())
+    return {"bark_crack_count": count, "bark_crack_length_m": round(length, 6),
+            "bark_crack_along_grain": round(along / length, 6) if length > 0 else 0.0}

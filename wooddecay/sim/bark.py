@@ -1,0 +1,120 @@
+"""The bark solver of the simulation loop: cracks from growth and drying, bonds, shedding (SPEC §10).
+
+``initial(model, state)`` loads the sheet (:mod:`wooddecay.bark.sheet`) with the growth strain
+its rings record, in ``GROWTH_STAGES`` equal increments (the bark cracked over the tree's life,
+so earlier cracks shadow later ones, :mod:`wooddecay.bark.cracks`), then with the drying strain
+of the moisture at day 0. ``step(model, state, dt)`` after each biology step and coupling:
+the loading strain of each face from its element's moisture, cracks grown under it, the bonds
+weakened (:mod:`wooddecay.bark.shedding`), the plates whose bond is gone shed, and the cuts of
+every shed plate applied to the rods (integrity and limits 0 on the cut pairs and links; the
+coupling recomputes them every step, so the cuts are applied after it every time).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..bark import cracks, shedding
+
+#: increments in which the growth strain is applied at day 0
+GROWTH_STAGES = 20
+
+
+@dataclass(eq=False)
+class BarkState:
+    """The sheet's cracks (:class:`~wooddecay.bark.cracks.CrackState`), every face's bond, whether
+    it has shed and the moisture it last saw, and the rods' cuts of the shed plates."""
+
+    crack: cracks.CrackState
+    bond: np.ndarray  # (F,)
+    shed: np.ndarray  # (F,) bool
+    M_last: np.ndarray  # (F,)
+    edge_cut: np.ndarray  # (m,) bool
+    link_cut: np.ndarray  # (n,) bool
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {"cracked": self.crack.cracked, "shadow": self.crack.shadow, "bond": self.bond, "shed": self.shed,
+                "M_last": self.M_last, "edge_cut": self.edge_cut, "link_cut": self.link_cut}
+
+    def copy(self) -> "BarkState":
+        return BarkState.from_arrays({k: v.copy() for k, v in self.arrays().items()})
+
+    @classmethod
+    def from_arrays(cls, a: dict) -> "BarkState":
+        return cls(crack=cracks.CrackState(cracked=a["cracked"], shadow=a["shadow"]), bond=a["bond"], shed=a["shed"],
+                   M_last=a["M_last"], edge_cut=a["edge_cut"], link_cut=a["link_cut"])
+
+
+def drying_strain(model, M_face: np.ndarray) -> np.ndarray:
+    """S S_T (M_0 - M)^+ of each face's element (woodstock Eq. 16 on the bark)."""
+    fe = model.bark.face_element
+    mat = model.materials.per_element
+    return mat("S")[fe] * mat("S_T")[fe] * np.maximum(mat("M_0")[fe] - M_face, 0.0)
+
+
+def _strain(model, M_face: np.ndarray) -> np.ndarray:
+    return model.bark.growth + float(model.bark_setup["drying"]) * drying_strain(model, M_face)
+
+
+def _grow(model, st: BarkState, eps: np.ndarray) -> None:
+    b = model.bark_setup
+    cracks.grow(model.bark, st.crack, eps, float(b["tip_gain"]), float(b["shadow"]))
+
+
+def initial(model, state) -> BarkState | None:
+    """The bark at day 0 (module docstring); None without a sheet."""
+    sheet = model.bark
+    if sheet is None:
+        return None
+    M_face = state.M[sheet.face_element]
+    st = BarkState(crack=cracks.CrackState.empty(sheet), bond=np.ones(sheet.n_faces),
+                   shed=np.zeros(sheet.n_faces, dtype=bool), M_last=M_face.copy(),
+                   edge_cut=np.zeros(model.n_edges, dtype=bool), link_cut=np.zeros(model.n_elements, dtype=bool))
+    for k in range(1, GROWTH_STAGES + 1):
+        _grow(model, st, sheet.growth * (k / GROWTH_STAGES))
+    _grow(model, st, _strain(model, M_face))
+    return st
+
+
+def step(model, state, dt_days: float) -> None:
+    """One bark step after the biology and the coupling (module docstring)."""
+    st: BarkState | None = state.bark
+    if st is None:
+        return
+    sheet, b = model.bark, model.bark_setup
+    fe = sheet.face_element
+    M_face = state.M[fe]
+    _grow(model, st, _strain(model, M_face))
+    st.bond = shedding.weaken(st.bond, float(b["shedding"]), dt_days, state.H_c[fe], state.H_l[fe],
+                              M_face - st.M_last, model.materials.per_element("M_0")[fe])
+    st.M_last = M_face
+    label = shedding.plates(sheet, st.crack.cracked, st.shed)
+    off = shedding.falling(sheet, label, st.bond, float(b["plate_area"]))
+    if off.any():
+        st.shed |= off
+        edge_cut, link_cut = shedding.cuts(model, sheet, label, off)
+        st.edge_cut |= edge_cut
+        st.link_cut |= link_cut
+    if state.mech is not None:
+        apply_cuts(state.mech, st)
+
+
+def apply_cuts(ms, st: BarkState) -> None:
+    """Integrity and strain limits 0 on the pairs and links the shed plates cut."""
+    ms.integrity[st.edge_cut] = 0.0
+    ms.limit_edge[st.edge_cut] = 0.0
+    ms.link_integrity[st.link_cut] = 0.0
+    ms.limit_elem[st.link_cut] = 0.0
+
+
+def statistics(model, st: BarkState | None) -> dict:
+    """The bark's part of the signature: crack count, length (m), along-grain share and the shed
+    share of the bark's area."""
+    if st is None:
+        return {"bark_crack_count": 0, "bark_crack_length_m": 0.0, "bark_crack_along_grain": 0.0,
+                "bark_shed_fraction": 0.0}
+    out = cracks.statistics(model.bark, st.crack.cracked)
+    area = model.bark.face_area
+    out["bark_shed_fraction"] = round(float(area[st.shed].sum() / area.sum()), 6)
+    return out
