@@ -3,7 +3,8 @@ and the material that feeds it from the mesh attributes (DESIGN "Blender add-on"
 
 * :func:`ensure_group` builds (or reuses) the "Wood Decay" ShaderNodeTree node group;
 * :func:`build_material` makes a material: one Attribute node per attribute present on the
-  meshes, the "Wood Decay" group node (all the controls), Material Output.
+  meshes, the crack map's nodes when the bake has one (:func:`crack_map_nodes`), the "Wood
+  Decay" group node (all the controls), Material Output.
 """
 from __future__ import annotations
 
@@ -19,6 +20,10 @@ ATTRIBUTE_OUTPUT = {FLOAT: "Fac", VECTOR: "Vector", COLOR: "Color"}
 #: marks node groups made by this add-on (custom property) and the graph version
 GROUP_TAG = "wooddecay_group"
 GROUP_VERSION = 2  # 2: bark cracks (an older group is rebuilt, see group_ok)
+#: the UV map of the bake's crack map (wooddecay.bark.texture)
+CRACK_UV = "barkUV"
+#: strength of the procedural furrows where the crack map draws the simulated cracks
+CRACK_MAP_FURROWS = 0.25
 
 
 def _rgba(v):
@@ -125,10 +130,12 @@ def ensure_group():
     return build_group()
 
 
-def build_material(attributes, name: str = MATERIAL_NAME):
+def build_material(attributes, name: str = MATERIAL_NAME, crack_map: str | None = None):
     """A material whose "Wood Decay" group node reads the mesh attributes in ``attributes``
     (names); data inputs whose attribute is missing keep their defaults (sound, dry wood, no
-    bark)."""
+    bark). With ``crack_map`` (the bake's ``<stem>_bark.png``) and the ``barkUV`` map, the
+    group's Bark Crack input comes from it (:func:`crack_map_nodes`) instead of the coarser
+    per-vertex ``bark_crack``."""
     mat = bpy.data.materials.new(name)
     mat.use_nodes = True
     tree = mat.node_tree
@@ -153,8 +160,52 @@ def build_material(attributes, name: str = MATERIAL_NAME):
         node.location = (-260.0, -row * 110.0)
         row += 1
         tree.links.new(node.outputs[ATTRIBUTE_OUTPUT[spec.kind]], group.inputs[spec.name])
+    if crack_map is not None and CRACK_UV in attributes:
+        tree.links.new(crack_map_nodes(tree, crack_map), group.inputs["Bark Crack"])
+        group.inputs["Bark Furrows"].default_value = CRACK_MAP_FURROWS
     mat["wooddecay"] = True
     return mat
+
+
+def crack_map_nodes(tree, path: str):
+    """Nodes reading the crack map (wooddecay.bark.texture) at ``barkUV``: G (the crack's
+    V-profile, linear) where R (the frame the crack opened, closest texel, x 65535) is at most the
+    current frame (a Value node driven by ``frame``). Returns the output socket."""
+    img = bpy.data.images.load(path, check_existing=True)
+    img.colorspace_settings.name = "Non-Color"
+    uv = tree.nodes.new("ShaderNodeUVMap")
+    uv.uv_map = CRACK_UV
+    uv.location = (-900.0, 300.0)
+    tex = {}
+    for k, interp in enumerate(("Closest", "Linear")):
+        t = tree.nodes.new("ShaderNodeTexImage")
+        t.image, t.interpolation, t.extension = img, interp, "REPEAT"
+        t.location = (-700.0, 300.0 - 280.0 * k)
+        tree.links.new(uv.outputs["UV"], t.inputs["Vector"])
+        sep = tree.nodes.new("ShaderNodeSeparateColor")
+        sep.location = (-420.0, 300.0 - 280.0 * k)
+        tree.links.new(t.outputs["Color"], sep.inputs["Color"])
+        tex[interp] = sep
+    frame = tree.nodes.new("ShaderNodeValue")
+    frame.label = "frame"
+    frame.location = (-420.0, 520.0)
+    fc = frame.outputs[0].driver_add("default_value")
+    fc.driver.expression = "frame"
+
+    def math(op, a, b, x):
+        m = tree.nodes.new("ShaderNodeMath")
+        m.operation = op
+        m.location = (x, 420.0)
+        for sock, v in zip(m.inputs, (a, b)):
+            if isinstance(v, (int, float)):
+                sock.default_value = v
+            else:
+                tree.links.new(v, sock)
+        return m.outputs[0]
+
+    opened = math("MULTIPLY", tex["Closest"].outputs["Red"], 65535.0, -260.0)
+    shown = math("LESS_THAN", opened, math("ADD", frame.outputs[0], 0.5, -260.0), -120.0)
+    return math("MULTIPLY", shown, tex["Linear"].outputs["Green"], 20.0)
 
 
 def group_node(mat):

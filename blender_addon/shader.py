@@ -108,6 +108,8 @@ CONTROLS = (
     Socket("Rot Roughness", FLOAT, 0.95, 0.0, 1.0, "Roughness of rotted wood"),
     Socket("Bark Color", COLOR, (0.13, 0.095, 0.07), description="Bark colour"),
     Socket("Bark Scale", FLOAT, 60.0, 0.0, 10000.0, "Scale of the bark furrows (1/m)"),
+    Socket("Bark Furrows", FLOAT, 1.0, 0.0, 1.0,
+           "Strength of the procedural bark furrows (lowered where the bake's crack map draws the cracks)"),
     Socket("Bark Roughness", FLOAT, 0.9, 0.0, 1.0, "Roughness of bark"),
     Socket("Bark Decay", FLOAT, 0.6, 0.0, 1.0, "How much decay shows through the bark"),
     Socket("Crack Color", COLOR, (0.03, 0.017, 0.009), description="Colour of the floor of a bark crack"),
@@ -302,6 +304,8 @@ def wood_decay_graph() -> Graph:
     plates = g.add("ShaderNodeTexVoronoi", {"Vector": bark_p, "Scale": In("Bark Scale")}, "bark plates",
                    voronoi_dimensions="3D", feature="DISTANCE_TO_EDGE")
     furrow = g.map_range(Out(plates, "Distance"), 0.0, 0.12, label="plates")  # 0 in a furrow, 1 on a plate
+    furrow = g.math("SUBTRACT", 1.0, g.math("MULTIPLY", In("Bark Furrows"), g.math("SUBTRACT", 1.0, furrow)),
+                    label="furrow strength")
     scales = g.noise(bark_p, g.math("MULTIPLY", In("Bark Scale"), 5.0), detail=4.0, label="bark grit")
     bark_color = g.value(In("Bark Color"), g.math("ADD", g.math("MULTIPLY", furrow, 0.8),
                                                   g.math("MULTIPLY", scales, 0.6)), label="bark colour")

@@ -185,6 +185,12 @@ def describe(mat):
                        if s.is_linked and s.links[0].from_node.bl_idname == "ShaderNodeAttribute"}
         d["surface"] = any(l.from_node == group and l.to_node.bl_idname == "ShaderNodeOutputMaterial"
                            for l in mat.node_tree.links)
+        images = [n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage"]
+        d["crack_map"] = sorted({(os.path.basename(n.image.filepath), n.interpolation) for n in images if n.image})
+        d["crack_map_uv"] = sorted({n.uv_map for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeUVMap"})
+        d["frame_driver"] = [fc.driver.expression for fc in (mat.node_tree.animation_data.drivers
+                             if mat.node_tree.animation_data else [])]
+        d["bark_furrows"] = group.inputs["Bark Furrows"].default_value
     return d
 
 try:
@@ -608,7 +614,7 @@ def test_gltf_import_attributes(imported, bake):
 
 
 @pytest.mark.parametrize("fmt", ["usd", "gltf"])
-def test_material_has_wood_decay_group(imported, fmt):
+def test_material_has_wood_decay_group(imported, bake, fmt):
     """Every imported mesh gets the Wood Decay material: its group node holds the controls and
     reads the attributes through Attribute nodes; the file's preview material is gone."""
     mats = imported[fmt]["material"]
@@ -618,9 +624,18 @@ def test_material_has_wood_decay_group(imported, fmt):
         assert d["name"].startswith("Wood Decay") and d["group"] == "Wood Decay", d
         assert d["surface"]
         linked = {"H_c": "H_c", "H_l": "H_l", "M": "M", "Wood": "wood", "Ring": "ring", "Face Kind": "faceKind"}
-        # the bark crack inputs read their attributes where the bake has them
+        # the bark crack inputs read their attributes where the bake has them; a USD bake's Bark
+        # Crack comes from its crack map instead (barkUV, R closest and G linear, the frame driver)
         linked |= {k: a for k, a in (("Bark Crack", "bark_crack"), ("Crack Depth", "bark_crack_depth"))
                    if a in attributes}
+        if fmt == "usd":
+            linked.pop("Bark Crack")
+            png = Path(bake["usd"]).stem + "_bark.png"
+            assert d["crack_map"] == [[png, "Closest"], [png, "Linear"]]
+            assert d["crack_map_uv"] == ["barkUV"] and d["frame_driver"] == ["frame"]
+            assert d["bark_furrows"] < 1.0
+        else:
+            assert d["crack_map"] == [] and d["bark_furrows"] == 1.0
         assert d["linked"] == linked
         for control in ("Brown Rot Strength", "White Rot Strength", "Moisture Darkening", "Ring Contrast",
                         "Base Color", "Bark Color"):

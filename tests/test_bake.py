@@ -36,7 +36,7 @@ def baked(tmp_path_factory):
 
 def test_bake_writes_usd_glb_and_summary(baked):
     names = sorted(p.name for p in baked.iterdir() if not p.name.startswith("."))
-    assert names == ["summary.json", "tiny.glb", "tiny.usdc"]
+    assert names == ["summary.json", "tiny.glb", "tiny.usdc", "tiny_bark.png"]
     s = json.loads((baked / "summary.json").read_text())
     assert s["counts"]["frames"] == 3 and s["counts"]["meshlets"] == s["counts"]["elements"]
     assert set(s["seconds"]) == {"build", "simulation", "meshing", "export"}

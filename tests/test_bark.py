@@ -9,7 +9,8 @@ import pytest
 
 import wooddecay as wd
 from wooddecay.bake import bake
-from wooddecay.bark import cracks, shedding, surface
+from wooddecay.bark import cracks, shedding, surface, texture
+from wooddecay.export.png import png16
 from wooddecay.bark.sheet import recent_growth
 from wooddecay.meshlets.checks import closed_oriented
 from wooddecay.meshlets.sweep import build_meshlets
@@ -148,18 +149,35 @@ def test_plates_shed_and_come_loose(tiny_bark):
     st = cracks.CrackState.empty(sheet)
     _load(sheet, st, np.full(sheet.n_faces, 0.1))
     label = shedding.plates(sheet, st.cracked, np.zeros(sheet.n_faces, dtype=bool))
-    bond = np.full(sheet.n_faces, -1.0)
-    off = shedding.falling(sheet, label, bond, plate_area=1.0)
+    plate_area = 0.01
+    out, off, breaks = shedding.falling(sheet, label, np.full(sheet.n_faces, -1.0), plate_area)
     assert off.any()
-    assert not shedding.falling(sheet, label, np.ones(sheet.n_faces), 1.0).any()
-    edge_cut, link_cut = shedding.cuts(model, sheet, label, off)
-    # after the cuts no intact pair or link joins a shed plate's element to another plate's or the wood
-    plate = np.where(sheet.element_face >= 0, np.where(off[sheet.element_face], label[sheet.element_face], -1), -1)
+    # plates larger than plate_area broke into plates of about it, along new cracks
+    area = np.bincount(out[off], weights=sheet.face_area[off])
+    assert area[area > 0].max() <= 2.5 * plate_area
+    assert len(breaks) and not st.cracked[breaks].all()
+    held = shedding.falling(sheet, label, np.ones(sheet.n_faces), plate_area)[1]
+    assert not held.any()
+    edge_cut, link_cut, plate = shedding.cuts(model, sheet, out, off)
+    assert (plate >= 0).sum() > 0.5 * (sheet.element_face >= 0).sum()
+    # after the cuts no intact pair or link joins an element to another plate or to the wood
     i, j = model.reg_edges.T
     assert (plate[i][~edge_cut] == plate[j][~edge_cut]).all()
     e1 = model.coupling.link_next
     assert (plate[~link_cut] == plate[e1][~link_cut]).all()
-    assert edge_cut.any()
+    # and no element needs cuts at both its strand links (two failures side by side part nothing)
+    e = np.arange(model.n_elements)
+    e0 = np.where((e > 0) & (model.strand[np.maximum(e - 1, 0)] == model.strand), e - 1, e)
+    assert not (link_cut & link_cut[e0] & (e0 != e)).any()
+
+
+def test_partition_spreads_plates_along_the_grain(tiny_bark):
+    sheet = tiny_bark.bark
+    faces = np.arange(sheet.n_faces)
+    piece = shedding.partition(sheet, faces, 6)
+    assert set(np.unique(piece)) == set(range(6))
+    area = np.bincount(piece, weights=sheet.face_area)
+    assert area.max() < 3.0 * area.min()
 
 
 def test_bonds_weaken_with_decay_and_cycles():
@@ -184,6 +202,11 @@ def test_bake_exports_crack_primvars_and_signature(tmp_path):
     pv = UsdGeom.PrimvarsAPI(mesh)
     crack = np.array(pv.GetPrimvar("bark_crack").Get(1.0))
     assert crack.max() > 0.5 and np.array(pv.GetPrimvar("bark_crack_depth").Get(1.0)).max() > 0.0
+    uv = pv.GetPrimvar("barkUV")
+    assert uv.GetInterpolation() == UsdGeom.Tokens.faceVarying
+    assert len(uv.Get()) == 3 * len(mesh.GetFaceVertexCountsAttr().Get())
+    png = tmp_path / stage.GetRootLayer().customLayerData["bark_texture"]
+    assert png.name == "tiny_bark.png" and (_decode_png16(png.read_bytes())[..., 0] == 0).any()
     import json
     import struct
 
@@ -191,3 +214,54 @@ def test_bake_exports_crack_primvars_and_signature(tmp_path):
     n = struct.unpack_from("<I", raw, 12)[0]
     gltf = json.loads(raw[20:20 + n])
     assert all("_BARK_CRACK" in p["attributes"] for m in gltf["meshes"] for p in m["primitives"])
+
+
+def _decode_png16(data: bytes) -> np.ndarray:
+    import struct
+    import zlib
+
+    w, h = struct.unpack(">II", data[16:24])
+    i, idat = 8, b""
+    while i < len(data):
+        n = struct.unpack(">I", data[i:i + 4])[0]
+        if data[i + 4:i + 8] == b"IDAT":
+            idat += data[i + 8:i + 8 + n]
+        i += 12 + n
+    rows = np.frombuffer(zlib.decompress(idat), dtype=np.uint8).reshape(h, 1 + 6 * w)
+    assert (rows[:, 0] == 0).all()
+    return rows[:, 1:].copy().view(">u2").reshape(h, w, 3).astype(np.uint16)
+
+
+def test_png16_round_trip():
+    rgb = np.random.default_rng(5).integers(0, 65536, (7, 9, 3)).astype(np.uint16)
+    assert np.array_equal(_decode_png16(png16(rgb)), rgb)
+
+
+def test_crack_map_shows_each_crack_from_its_frame(tiny_bark):
+    from types import SimpleNamespace
+
+    sheet = tiny_bark.bark
+    st = cracks.CrackState.empty(sheet)
+    first = np.zeros(len(sheet.edges), dtype=bool)
+    _load(sheet, st, np.full(sheet.n_faces, 0.05))
+    first[:] = st.cracked
+    _load(sheet, st, np.full(sheet.n_faces, 0.1))
+    frames = [SimpleNamespace(index=k, bark={"cracked": c}) for k, c in enumerate((first * False, first, st.cracked))]
+    rgb = texture.crack_map(tiny_bark, frames)
+    opened, g = rgb[..., 0], rgb[..., 1]
+    assert set(np.unique(opened)) == {1, 2, texture.NEVER}
+    assert (g[opened == texture.NEVER] == 0).all() and (g[opened < texture.NEVER] > 0).all()
+    # the share of texels in a crack follows its length: more cracks by frame 2 than by 1
+    assert (opened == 2).sum() > 0 and (opened == 1).sum() > 0
+    # the atlas spans the sheet: one texel per h / TEXELS_PER_EDGE around and along
+    texel = sheet.h / texture.TEXELS_PER_EDGE
+    assert rgb.shape[1] == int(np.ceil(sheet.period.max() / texel))
+    assert abs(rgb.shape[0] * texel - np.ptp(sheet.s)) < 2 * texel
+
+
+def test_bark_uv_unwraps_faces_across_the_seam(tiny_bark):
+    mesh = build_meshlets(tiny_bark)
+    F = mesh.faces[mesh.face_kind == surface.BARK]
+    uv = texture.bark_uv(tiny_bark, mesh, F).reshape(-1, 3, 2)
+    assert np.ptp(uv[..., 0], axis=1).max() < 0.25  # no face stretches around the branch
+    assert uv[..., 1].min() >= 0.0 and uv[..., 1].max() <= 1.0

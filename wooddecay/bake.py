@@ -4,7 +4,8 @@
 the rest meshlets (:func:`wooddecay.meshlets.sweep.build_meshlets`) and the exporters, and writes
 into ``out``:
 
-* ``<name>.usdc`` (:func:`wooddecay.export.usd.export_usd`), ``<name>.glb`` (the last frame,
+* ``<name>.usdc`` (:func:`wooddecay.export.usd.export_usd`) with the bark's crack map
+  ``<name>_bark.png`` beside it (:mod:`wooddecay.bark.texture`), ``<name>.glb`` (the last frame,
   :func:`wooddecay.export.gltf.export_gltf`) and ``summary.json`` (counts, seconds per stage (the
   simulation's summed over the runs a resumed bake continues), threads,
   the schedule's macro steps, mechanics solves and seconds (:meth:`Simulation.schedule_summary`)
@@ -165,7 +166,8 @@ def _bake(scene, out: Path, resume: bool, quality: str, progress, threads: int |
         "counts": {"strands": model.n_strands, "elements": model.n_elements, "reg_edges": model.n_edges,
                    "meshlets": mesh.count, "meshlet_faces": mesh.n_faces, "frames": len(frames)},
         "seconds": {k: round(v, 3) for k, v in seconds.items()},
-        "outputs": {p.name: {"path": str(p), "bytes": p.stat().st_size} for p in (usd, glb)},
+        "outputs": {p.name: {"path": str(p), "bytes": p.stat().st_size}
+                    for p in (usd, glb, usd.with_name(f"{usd.stem}_bark.png")) if p.exists()},
         "frames": [frame_summary(f) for f in frames],
         "notes": list(model.notes),
     }

@@ -26,7 +26,8 @@ def test_stage_and_glb_from_model_meshlets_and_saved_frames_equal_the_bake(tmp_p
     frames = [load_frame(p) for p in sorted((out / ".bake").glob("frame_*.npz"))]
     assert len(frames) == 3
     mesh = wd.build_meshlets(model)
-    usd = wd.export_usd(tmp_path / "again.usdc", model, mesh, frames, version=__version__)
+    (tmp_path / "again").mkdir()
+    usd = wd.export_usd(tmp_path / "again" / "tiny.usdc", model, mesh, frames, version=__version__)
     glb = wd.export_gltf(tmp_path / "again.glb", model, mesh, frames[-1], version=__version__)
     assert wd.compare_usd(out / "tiny.usdc", usd, rtol=0, atol=0) == []
     assert glb.read_bytes() == (out / "tiny.glb").read_bytes()

@@ -115,11 +115,11 @@ def _outgoing(sheet, v: np.ndarray):
     return ve, sheet.edge_dir[k] * sign[..., None]
 
 
-def _new_edges(sheet, st: CrackState, sigma: np.ndarray, tip_gain: float) -> np.ndarray:
+def _new_edges(sheet, st: CrackState, sigma: np.ndarray, tip_gain: float, threshold: np.ndarray) -> np.ndarray:
     """The crack edges one search inserts (module docstring), sorted, unique."""
     deg = crack_degree(sheet, st.cracked)
     l1, _, e1 = eig2(separation(sheet, sigma))
-    excess = l1 * (1.0 + tip_gain * (deg == 1)) - sheet.threshold
+    excess = l1 * (1.0 + tip_gain * (deg == 1)) - threshold
     excess[deg >= 2] = -np.inf
     ve = sheet.vertex_edges
     other = np.where(ve >= 0, sheet.edges[np.maximum(ve, 0)].sum(-1) - np.arange(len(ve))[:, None], -1)
@@ -174,13 +174,15 @@ def cast_shadows(sheet, st: CrackState, new: np.ndarray, shadow_length: float) -
 
 
 def grow(sheet, st: CrackState, eps: np.ndarray, tip_gain: float, shadow_length: float,
-         max_searches: int = 1000) -> int:
+         threshold: np.ndarray | None = None, max_searches: int = 1000) -> int:
     """Insert crack edges under the loading strains ``eps`` (F,) until no vertex cracks (module
-    docstring); returns the number of edges inserted."""
+    docstring), against the sheet's thresholds or ``threshold`` (V,); returns the number of edges
+    inserted."""
     total = 0
     sigma_inf = loading(sheet, eps)
+    threshold = sheet.threshold if threshold is None else threshold
     for _ in range(max_searches):
-        new = _new_edges(sheet, st, relieved(sigma_inf, st.shadow), tip_gain)
+        new = _new_edges(sheet, st, relieved(sigma_inf, st.shadow), tip_gain, threshold)
         if len(new) == 0:
             break
         st.cracked[new] = True

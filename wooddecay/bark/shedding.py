@@ -1,13 +1,19 @@
 """Bark that sheds: plates bounded by cracks come off when their bond to the wood is gone (SPEC §10).
 
-Every face of the sheet has a bond b in [0, 1] to the wood beneath, 1 at first. Per step of dt
-days it weakens by ``shedding`` (per year) times the decay of its element, (1 - (H_c + H_l) / 2)
-dt / 365.25, plus its wet/dry cycling, |dM| / (2 M_0) (a full swing from dry to M_0 and back is
-one unit): bark loosens on rotting, weathering wood. A plate is a connected set of faces that
-no crack separates; one of at most ``plate_area`` whose mean bond has reached 0 comes off. Its
-bark elements (those lying on its faces) are cut from every other element: the REG pairs and the
-strand links between them get integrity 0, so the failure pass separates them
-(:mod:`wooddecay.sim.failure`) and the plate falls as a piece of debris.
+Every face of the sheet has a bond b to the wood beneath, about 1 at first (with noise of a
+plate's size, :mod:`.sheet`). Per step of dt days it weakens by ``shedding`` (per year) times the
+decay of its element, (1 - (H_c + H_l) / 2) dt / 365.25, plus its wet/dry cycling,
+|dM| / (2 M_0) (a full swing from dry to M_0 and back is one unit): bark loosens on rotting,
+weathering wood.
+
+A plate is a connected set of faces that no crack separates (nor a gap of one edge between two
+cracks). One larger than ``plate_area`` is split into plates of about that area (sites spread by
+farthest-point sampling, longer along the grain). A plate whose mean bond has reached 0 comes off,
+unless it is smaller than an eighth of ``plate_area`` (a scale that small holds on); where it
+broke from the rest of its plate the sheet gets new cracks. The elements of the bark layer under
+it (:mod:`.sheet`) are cut from every other element: the REG pairs and the strand links between
+them get integrity 0, so the failure pass separates them (:mod:`wooddecay.sim.failure`) and the
+plate falls as a piece of debris.
 """
 from __future__ import annotations
 
@@ -16,6 +22,12 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 DAYS_PER_YEAR = 365.25
+#: a loose plate smaller than plate_area / MIN_PLATE_SHARE holds on (too small to come off alone)
+MIN_PLATE_SHARE = 8.0
+#: plates a loose sheet breaks into are this much longer along the grain than across
+ELONGATION = 2.0
+#: passes that move elements cut at both their strand links into the run before them
+MAX_REASSIGN = 16
 
 
 def weaken(bond: np.ndarray, rate: float, dt_days: float, H_c: np.ndarray, H_l: np.ndarray, dM: np.ndarray,
@@ -27,9 +39,13 @@ def weaken(bond: np.ndarray, rate: float, dt_days: float, H_c: np.ndarray, H_l: 
 
 
 def plates(sheet, cracked: np.ndarray, shed: np.ndarray) -> np.ndarray:
-    """(F,) plate label of every face still on (connected across edges no crack cuts), -1 shed."""
+    """(F,) plate label of every face still on, -1 shed: faces connected across edges that no crack
+    cuts and that do not bridge two crack vertices (a gap of one edge between cracks holds no
+    plate together)."""
     ef = sheet.edge_faces
-    keep = (ef[:, 1] >= 0) & ~cracked
+    on_crack = np.bincount(sheet.edges[cracked].ravel(), minlength=len(sheet.phi)) > 0
+    bridge = on_crack[sheet.edges[:, 0]] & on_crack[sheet.edges[:, 1]]
+    keep = (ef[:, 1] >= 0) & ~cracked & ~bridge
     a, b = ef[keep, 0], ef[keep, 1]
     on = ~shed[a] & ~shed[b]
     F = sheet.n_faces
@@ -38,25 +54,77 @@ def plates(sheet, cracked: np.ndarray, shed: np.ndarray) -> np.ndarray:
     return np.where(shed, -1, label)
 
 
-def falling(sheet, label: np.ndarray, bond: np.ndarray, plate_area: float) -> np.ndarray:
-    """(F,) faces of the plates that come off now: at most ``plate_area`` and mean bond <= 0."""
+def falling(sheet, label: np.ndarray, bond: np.ndarray, plate_area: float):
+    """The plates that come off now (module docstring). A plate larger than ``plate_area`` is
+    split into ceil(area / plate_area) plates (:func:`partition`) first; a plate comes off when its
+    mean bond is <= 0 and it is at least ``plate_area`` / MIN_PLATE_SHARE (smaller scales hold
+    on). Returns the plate labels (split plates relabelled), the faces that come off and the sheet
+    edges along which they broke from the rest of their plate (new cracks)."""
     on = label >= 0
-    n = int(label.max(initial=-1)) + 1
+    if not on.any():
+        return label, on, np.zeros(0, dtype=np.int64)
+    n = int(label.max()) + 1
     area = np.bincount(label[on], weights=sheet.face_area[on], minlength=n)
-    mean_bond = np.bincount(label[on], weights=(bond * sheet.face_area)[on], minlength=n) / np.maximum(area, 1e-300)
-    off = (area <= plate_area) & (mean_bond <= 0.0)
-    return on & off[np.maximum(label, 0)]
+    out = label.copy()
+    for p in np.flatnonzero(area > plate_area):
+        faces = np.flatnonzero(label == p)
+        out[faces] = int(out.max()) + 1 + partition(sheet, faces, int(np.ceil(area[p] / plate_area)))
+    _, out[on] = np.unique(out[on], return_inverse=True)
+    n = int(out.max()) + 1
+    area = np.bincount(out[on], weights=sheet.face_area[on], minlength=n)
+    mean_bond = np.bincount(out[on], weights=(bond * sheet.face_area)[on], minlength=n) / np.maximum(area, 1e-300)
+    loose = (mean_bond <= 0.0) & (area >= plate_area / MIN_PLATE_SHARE)
+    off = on & loose[np.maximum(out, 0)]
+    a, b = sheet.edge_faces[:, 0], np.maximum(sheet.edge_faces[:, 1], 0)
+    joined = (sheet.edge_faces[:, 1] >= 0) & on[a] & on[b] & (label[a] == label[b])
+    breaks = np.flatnonzero(joined & (off[a] | off[b]) & (out[a] != out[b]))
+    return out, off, breaks
 
 
-def cuts(model, sheet, label: np.ndarray, off: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def partition(sheet, faces: np.ndarray, k: int) -> np.ndarray:
+    """(len(faces),) piece in [0, k) of each face of one plate: the nearest of k sites spread by
+    farthest-point sampling from its first face, distances along the grain counted 1 / ELONGATION
+    (plates longer along the grain, as bark's are)."""
+    P = sheet.period[sheet.face_branch[faces[0]]]
+    xy = sheet.face_xy[faces]
+
+    def dist(i):
+        dx = (xy[:, 0] - xy[i, 0] + 0.5 * P) % P - 0.5 * P
+        return np.hypot(dx, (xy[:, 1] - xy[i, 1]) / ELONGATION)
+
+    d = dist(0)
+    near, piece = d.copy(), np.zeros(len(faces), dtype=np.int64)
+    for j in range(1, min(k, len(faces))):
+        i = int(np.argmax(near))
+        d = dist(i)
+        closer = d < near
+        piece[closer], near[closer] = j, d[closer]
+    return piece
+
+
+def cuts(model, sheet, label: np.ndarray, off: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """REG pairs (m,) and strand links (n,) to cut so that the plates of the faces ``off`` come
-    loose: those between an element of such a plate and any element not in the same plate."""
+    loose, and the plate each element goes with (n,; -1: it stays on the wood): those between an element of such a plate and any element not in the same plate. A strand
+    link is cut by failing the element before it, and two failures side by side separate nothing
+    (:mod:`wooddecay.sim.failure`), so an element that would be cut at both its links goes with
+    the element before it (a lone plate element stays on the wood, a lone element between two
+    plates goes with the first)."""
+    n = model.n_elements
     ef = sheet.element_face
-    plate = np.full(model.n_elements, -1, dtype=np.int64)
+    plate = np.full(n, -1, dtype=np.int64)
     on = ef >= 0
     plate[on] = np.where(off[ef[on]], label[ef[on]], -1)
+    e = np.arange(n)
+    e1 = model.coupling.link_next
+    e0 = np.where((e > 0) & (model.strand[np.maximum(e - 1, 0)] == model.strand), e - 1, e)
+    for _ in range(MAX_REASSIGN):
+        cut_before = (e0 != e) & (plate[e0] != plate) & ((plate[e0] >= 0) | (plate >= 0))
+        cut_after = (e1 != e) & (plate[e1] != plate) & ((plate[e1] >= 0) | (plate >= 0))
+        both = cut_before & cut_after
+        if not both.any():
+            break
+        plate[both] = plate[e0[both]]
     i, j = model.reg_edges[:, 0], model.reg_edges[:, 1]
     edge_cut = (plate[i] != plate[j]) & ((plate[i] >= 0) | (plate[j] >= 0))
-    e1 = model.coupling.link_next
-    link_cut = (plate != plate[e1]) & ((plate >= 0) | (plate[e1] >= 0))
-    return edge_cut, link_cut
+    link_cut = (e1 != e) & (plate != plate[e1]) & ((plate >= 0) | (plate[e1] >= 0))
+    return edge_cut, link_cut, plate

@@ -12,8 +12,8 @@ sheet edges, sampled every quarter edge) and that crack's width w there
   V-shaped depth (woodification §5).
 
 Grooves: where the crack is wider than ``groove_width`` the bark vertices move inwards by the
-depth, along the mean normal of their bark faces (at most half the bark thickness and half r_s,
-so no cell turns inside out). The offset is applied to the rest position before skinning, to every
+depth, along the mean normal of their bark faces (at most half the bark thickness, half r_s and
+a quarter of the vertex's shortest edge, so no cell turns inside out and no face folds over). The offset is applied to the rest position before skinning, to every
 copy of a shared vertex alike, so the meshlets stay closed and keep sharing their faces.
 """
 from __future__ import annotations
@@ -96,8 +96,16 @@ def groove_offsets(model, mesh, depth: np.ndarray, width: np.ndarray) -> np.ndar
         np.add.at(acc, shared[F[:, k]], n)
     normal = acc[shared]
     normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
-    cap = 0.5 * min(model.bark_thickness, model.r_s)
-    out[cut] = -normal[cut] * np.minimum(depth[cut], cap)[:, None]
+    # at most half the bark thickness and r_s, and a quarter of the shortest edge at the vertex,
+    # so no face folds over
+    E = mesh.faces.reshape(-1)
+    nxt = np.roll(mesh.faces, -1, axis=1).reshape(-1)
+    length = np.linalg.norm(P[nxt] - P[E], axis=1)
+    shortest = np.full(len(acc), np.inf)
+    np.minimum.at(shortest, shared[E], length)
+    np.minimum.at(shortest, shared[nxt], length)
+    cap = np.minimum(0.5 * min(model.bark_thickness, model.r_s), 0.25 * shortest[shared])
+    out[cut] = -normal[cut] * np.minimum(depth[cut], cap[cut])[:, None]
     return out
 
 

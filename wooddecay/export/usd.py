@@ -9,7 +9,9 @@
   subdivisionScheme none, static topology), ``points`` and ``extent`` time-sampled (the skinned
   meshlets of :mod:`wooddecay.meshlets.skin`); vertex primvars H_c, H_l, M, R_w, R_b, C
   (time-sampled, interpolated with the skinning weights), ``bark_crack`` and ``bark_crack_depth``
-  (time-sampled, :mod:`wooddecay.bark.surface`; the bark's grooves are in ``points``) and ``displayColor`` (a rot preview, see
+  (time-sampled, :mod:`wooddecay.bark.surface`; the bark's grooves are in ``points``), the
+  face-varying ``barkUV`` into the crack map ``<stem>_bark.png`` written beside the stage
+  (:mod:`wooddecay.bark.texture`; customLayerData ``bark_texture`` names it) and ``displayColor`` (a rot preview, see
   :func:`wooddecay.export.colors.rot_color`); static ``wood`` (float3 rest wood-local r, phi, s)
   and ``ring``; uniform int ``element``, ``tissue``, ``faceKind`` (0 bark, 1 side, 2 cap) and
   time-sampled ``piece`` (the connected component of the face's element);
@@ -29,12 +31,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..bark import surface
+from ..bark import surface, texture
 from ..meshlets import skin as skin_mod
 from ..meshlets.visibility import visible_faces
 from ..sim.state import FIELDS
 from . import stage as stage_mod
 from .colors import rot_color
+from .png import write_png16
 
 #: the bark's vertex primvars (:mod:`wooddecay.bark.surface`)
 BARK_PRIMVARS = ("bark_crack", "bark_crack_depth")
@@ -76,6 +79,13 @@ def export_usd(path, model, mesh, frames, version: str = "") -> Path:
         Vt.Vec3fArray.FromNumpy(mesh.wood[used].astype(np.float32)))
     pv.CreatePrimvar("ring", T.FloatArray, UsdGeom.Tokens.vertex).Set(
         Vt.FloatArray.FromNumpy(mesh.ring[used].astype(np.float32)))
+    rgb = texture.crack_map(model, frames)
+    if rgb is not None:
+        png = path.with_name(f"{path.stem}_bark.png")
+        write_png16(png, rgb, "bark crack map")
+        stage.GetRootLayer().customLayerData = {**stage.GetRootLayer().customLayerData, "bark_texture": png.name}
+        pv.CreatePrimvar("barkUV", T.TexCoord2fArray, UsdGeom.Tokens.faceVarying).Set(
+            Vt.Vec2fArray.FromNumpy(texture.bark_uv(model, mesh, mesh.faces[keep]).astype(np.float32)))
     for name, values in (("element", fe), ("tissue", model.tissue[fe]), ("faceKind", mesh.face_kind[keep])):
         pv.CreatePrimvar(name, T.IntArray, UsdGeom.Tokens.uniform).Set(
             Vt.IntArray.FromNumpy(np.asarray(values, dtype=np.int32)))

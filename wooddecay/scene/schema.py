@@ -244,10 +244,10 @@ _SCHEMA: dict[str, list[tuple]] = {
         ("bark_years", 8, "year", "[1, 1000]", "Years of growth the outer bark has lived through (its growth strain is the outer rings' expansion over them)."),
         ("shadow", 0.02, "m", "(0, 1]", "Stress shadow of a crack: the bark's stress across a crack is relieved by exp(-d / shadow) at distance d from it (shear lag on the wood beneath), so cracks keep their distance."),
         ("spacing", 1.0, "r_s", "[0.25, 10]", "Edge length of the bark crack mesh in strand radii."),
-        ("crack_width", 0.006, "m", "(0, 0.1]", "Width of a crack in its middle (it narrows to its tips, woodification §5)."),
+        ("crack_width", 0.008, "m", "(0, 0.1]", "Width of a crack in its middle (it narrows to its tips, woodification §5)."),
         ("crack_depth", 1.0, "", "(0, 10]", "Crack depth at its middle as a multiple of its width, at most the bark thickness (V-shaped profile)."),
-        ("groove_width", 0.004, "m", "[0, 0.1]", "Cracks wider than this are cut into the mesh as grooves (the bark vertices move in by the crack depth); 0: never."),
-        ("shedding", 0.5, "1/year", "[0, 100]", "Rate at which the bark's bond to the wood weakens with decay (1 - H) and wet/dry cycles (moisture change); a plate bounded by cracks falls when its bond is gone."),
+        ("groove_width", 0.0, "m", "[0, 0.1]", "Cracks wider than this are cut into the mesh as grooves (the bark vertices move in by the crack depth, wooddecay/bark/surface.py); 0 (the default): never, the crack map and the shader's bump draw them."),
+        ("shedding", 0.2, "1/year", "[0, 100]", "Rate at which the bark's bond to the wood weakens with decay (1 - H) and wet/dry cycles (moisture change); a plate bounded by cracks falls when its bond is gone."),
         ("plate_area", 0.03, "m^2", "(0, 100]", "Largest piece of bark, bounded by cracks, that comes off as one plate."),
     ],
     "export": [

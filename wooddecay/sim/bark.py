@@ -1,6 +1,7 @@
 """The bark solver of the simulation loop: cracks from growth and drying, bonds, shedding (SPEC §10).
 
-``initial(model, state)`` loads the sheet (:mod:`wooddecay.bark.sheet`) with the growth strain
+``initial(model, state)`` gives every face of the sheet its initial bond to the wood
+(:attr:`~wooddecay.bark.sheet.BarkSheet.bond`) and loads the sheet (:mod:`wooddecay.bark.sheet`) with the growth strain
 its rings record, in ``GROWTH_STAGES`` equal increments (the bark cracked over the tree's life,
 so earlier cracks shadow later ones, :mod:`wooddecay.bark.cracks`), then with the drying strain
 of the moisture at day 0. ``step(model, state, dt)`` after each biology step and coupling:
@@ -68,7 +69,7 @@ def initial(model, state) -> BarkState | None:
     if sheet is None:
         return None
     M_face = state.M[sheet.face_element]
-    st = BarkState(crack=cracks.CrackState.empty(sheet), bond=np.ones(sheet.n_faces),
+    st = BarkState(crack=cracks.CrackState.empty(sheet), bond=sheet.bond.copy(),
                    shed=np.zeros(sheet.n_faces, dtype=bool), M_last=M_face.copy(),
                    edge_cut=np.zeros(model.n_edges, dtype=bool), link_cut=np.zeros(model.n_elements, dtype=bool))
     for k in range(1, GROWTH_STAGES + 1):
@@ -90,10 +91,13 @@ def step(model, state, dt_days: float) -> None:
                               M_face - st.M_last, model.materials.per_element("M_0")[fe])
     st.M_last = M_face
     label = shedding.plates(sheet, st.crack.cracked, st.shed)
-    off = shedding.falling(sheet, label, st.bond, float(b["plate_area"]))
+    label, off, breaks = shedding.falling(sheet, label, st.bond, float(b["plate_area"]))
+    breaks = breaks[~st.crack.cracked[breaks]]
+    st.crack.cracked[breaks] = True
+    cracks.cast_shadows(sheet, st.crack, breaks, float(b["shadow"]))
     if off.any():
         st.shed |= off
-        edge_cut, link_cut = shedding.cuts(model, sheet, label, off)
+        edge_cut, link_cut, _ = shedding.cuts(model, sheet, label, off)
         st.edge_cut |= edge_cut
         st.link_cut |= link_cut
     if state.mech is not None:

@@ -1,0 +1,62 @@
+"""Cost of the bark (wooddecay.bark, wooddecay.sim.bark) on samples/log.toml: building the sheet,
+the growth cracks at day 0, one bark step of a drying log (dt_bio days, cracks growing), a biology
+step for comparison, and the export's crack fields and grooves of one frame.
+
+    python benchmarks/bark.py [REPEAT]      (default 5)
+
+Prints ``name value unit`` lines, each the median of REPEAT runs after a warm-up, with its spread.
+"""
+from __future__ import annotations
+
+import statistics
+import sys
+
+import numpy as np
+
+import wooddecay as wd
+from wooddecay.bark import surface
+from wooddecay.bark.sheet import build_sheet
+from wooddecay.meshlets.sweep import build_meshlets
+from wooddecay.sim import bark, biology
+
+from timing import SAMPLES, spread, times
+
+
+def main() -> None:
+    repeat = int(sys.argv[1]) if len(sys.argv) > 1 else 5
+    scene = wd.load_scene(SAMPLES / "log.toml", overrides={"climate.preset": "dry"})
+    model = wd.build_model(scene)
+    sim = wd.Simulation(model, mechanics=False)
+    state = sim.state
+    sheet = model.bark
+    print(f"sheet_faces {sheet.n_faces}")
+    recent = np.full(len(model.skeleton.ids), 0.1)
+    t = times(lambda: build_sheet(model, model.bark_setup, recent, 0.15, np.random.default_rng(0)), repeat)
+    print(f"sheet_build_s {statistics.median(t):.4f} s {spread(t)}")
+    t = times(lambda: bark.initial(model, state), repeat)
+    print(f"growth_cracks_s {statistics.median(t):.4f} s {spread(t)}")
+    for _ in range(60):  # dry it for four months so that its steps crack
+        sim.macro_step(model.time.dt_bio)
+    snapshot = state.copy()
+
+    def bark_step():
+        s = snapshot.copy()
+        bark.step(model, s, model.time.dt_bio)
+
+    def bio_step():
+        s = snapshot.copy()
+        biology.step(model, s, model.time.dt_bio)
+
+    t = times(bark_step, repeat)
+    print(f"bark_step_s {statistics.median(t):.4f} s {spread(t)}")
+    t = times(bio_step, repeat)
+    print(f"biology_step_s {statistics.median(t):.4f} s {spread(t)}")
+    mesh = build_meshlets(model)
+    frame = sim.frame(1)
+    t = times(lambda: surface.frame_bark(model, mesh, frame), repeat)
+    print(f"export_crack_fields_per_frame_s {statistics.median(t):.4f} s {spread(t)}")
+    print(f"crack_length_m {bark.statistics(model, state.bark)['bark_crack_length_m']:.2f} m")
+
+
+if __name__ == "__main__":
+    main()
