@@ -68,6 +68,8 @@ def falling(sheet, label: np.ndarray, bond: np.ndarray, plate_area: float):
     out = label.copy()
     for p in np.flatnonzero(area > plate_area):
         faces = np.flatnonzero(label == p)
+        if bond[faces].min() > 0.0:  # no part of it can come off yet
+            continue
         out[faces] = int(out.max()) + 1 + partition(sheet, faces, int(np.ceil(area[p] / plate_area)))
     _, out[on] = np.unique(out[on], return_inverse=True)
     n = int(out.max()) + 1

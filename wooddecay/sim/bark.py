@@ -31,12 +31,14 @@ class BarkState:
     bond: np.ndarray  # (F,)
     shed: np.ndarray  # (F,) bool
     M_last: np.ndarray  # (F,)
+    eps_seen: np.ndarray  # (F,) the largest loading strain each face has cracked under
     edge_cut: np.ndarray  # (m,) bool
     link_cut: np.ndarray  # (n,) bool
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {"cracked": self.crack.cracked, "shadow": self.crack.shadow, "bond": self.bond, "shed": self.shed,
-                "M_last": self.M_last, "edge_cut": self.edge_cut, "link_cut": self.link_cut}
+                "M_last": self.M_last, "eps_seen": self.eps_seen, "edge_cut": self.edge_cut,
+                "link_cut": self.link_cut}
 
     def copy(self) -> "BarkState":
         return BarkState.from_arrays({k: v.copy() for k, v in self.arrays().items()})
@@ -44,7 +46,7 @@ class BarkState:
     @classmethod
     def from_arrays(cls, a: dict) -> "BarkState":
         return cls(crack=cracks.CrackState(cracked=a["cracked"], shadow=a["shadow"]), bond=a["bond"], shed=a["shed"],
-                   M_last=a["M_last"], edge_cut=a["edge_cut"], link_cut=a["link_cut"])
+                   M_last=a["M_last"], eps_seen=a["eps_seen"], edge_cut=a["edge_cut"], link_cut=a["link_cut"])
 
 
 def drying_strain(model, M_face: np.ndarray) -> np.ndarray:
@@ -59,6 +61,12 @@ def _strain(model, M_face: np.ndarray) -> np.ndarray:
 
 
 def _grow(model, st: BarkState, eps: np.ndarray) -> None:
+    """Cracks under the loading ``eps``; none can start where no face's loading rose above what
+    it already cracked under (each face's stress is linear in its loading, the shadows only grow),
+    so then the search is skipped."""
+    if (eps <= st.eps_seen).all():
+        return
+    st.eps_seen = np.maximum(st.eps_seen, eps)
     b = model.bark_setup
     cracks.grow(model.bark, st.crack, eps, float(b["tip_gain"]), float(b["shadow"]))
 
@@ -70,7 +78,7 @@ def initial(model, state) -> BarkState | None:
         return None
     M_face = state.M[sheet.face_element]
     st = BarkState(crack=cracks.CrackState.empty(sheet), bond=sheet.bond.copy(),
-                   shed=np.zeros(sheet.n_faces, dtype=bool), M_last=M_face.copy(),
+                   shed=np.zeros(sheet.n_faces, dtype=bool), M_last=M_face.copy(), eps_seen=np.zeros(sheet.n_faces),
                    edge_cut=np.zeros(model.n_edges, dtype=bool), link_cut=np.zeros(model.n_elements, dtype=bool))
     for k in range(1, GROWTH_STAGES + 1):
         _grow(model, st, sheet.growth * (k / GROWTH_STAGES))

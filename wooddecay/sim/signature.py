@@ -24,6 +24,9 @@ components):
 * ``debris_footprint_m2``: the area of the convex hull of the element centres seen from above;
   ``debris_height_m``: from the lowest to the highest point of the wood (centre -+ radius): a
   log lying intact keeps its diameter, a pile is lower and wider.
+
+The driver adds the bark's ``bark_crack_count``, ``bark_crack_length_m``, ``bark_crack_along_grain``
+and ``bark_shed_fraction`` (:func:`wooddecay.sim.bark.statistics`).
 """
 from __future__ import annotations
 
