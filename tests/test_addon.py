@@ -173,6 +173,21 @@ def render_still(path, shown):
     w, h = img.size
     return np.array(img.pixels[:], dtype=np.float32).reshape(h, w, 4), seconds
 
+def covered_columns(px):
+    """First and one past the last image column the object covers."""
+    cols = np.flatnonzero((px[..., 3] > 0.9).any(0))
+    return int(cols.min()), int(cols.max()) + 1
+
+def column_means(px, bounds):
+    """Mean colour and pixel count of the covered pixels in each column range of ``bounds``."""
+    cover = px[..., 3] > 0.9
+    out = {"pixels": int(cover.sum())}
+    for key, (a, b) in bounds.items():
+        m = cover.copy(); m[:, :a] = False; m[:, b:] = False
+        out[key] = px[m][:, :3].mean(0).tolist()
+        out[key + "_pixels"] = int(m.sum())
+    return out
+
 def describe(mat):
     group = next((n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeGroup"), None) if mat and mat.use_nodes else None
     d = {"name": mat.name if mat else None, "group": None}
@@ -254,17 +269,10 @@ RENDER = PRELUDE + r'''
     res["seconds"] = {}
     for name in ("rot", "sound"):
         px, res["seconds"][name] = render_still(os.path.join(png_dir, f"{name}.png"), logs[name])
-        cover = px[..., 3] > 0.9
-        cols = np.flatnonzero(cover.any(0))
-        x0, x1 = int(cols.min()), int(cols.max()) + 1
+        x0, x1 = covered_columns(px)
         third = (x1 - x0) // 3
-        regions = {"rotted_end": (x0, x0 + third), "sound_end": (x1 - third, x1)}
-        out = {"bbox": [x0, x1], "pixels": int(cover.sum())}
-        for key, (a, b) in regions.items():
-            m = cover.copy(); m[:, :a] = False; m[:, b:] = False
-            out[key] = px[m][:, :3].mean(0).tolist()
-            out[key + "_pixels"] = int(m.sum())
-        res[name] = out
+        res[name] = {"bbox": [x0, x1], **column_means(px, {"rotted_end": (x0, x0 + third),
+                                                            "sound_end": (x1 - third, x1)})}
 except Exception:
     res["error"] = traceback.format_exc()
     finish(1)
@@ -284,15 +292,9 @@ CRACK_RENDER = PRELUDE + r'''
     res["seconds"] = {}
     for name, obs in patches.items():
         px, res["seconds"][name] = render_still(os.path.join(png_dir, f"{name}.png"), obs)
-        cover = px[..., 3] > 0.9
-        cols = np.flatnonzero(cover.any(0))
-        mid = (int(cols.min()) + int(cols.max()) + 1) // 2
-        out = {"pixels": int(cover.sum())}
-        for key, (a, b) in {"left": (0, mid - 2), "right": (mid + 2, px.shape[1])}.items():
-            m = cover.copy(); m[:, :a] = False; m[:, b:] = False
-            out[key] = px[m][:, :3].mean(0).tolist()
-            out[key + "_pixels"] = int(m.sum())
-        res[name] = out
+        x0, x1 = covered_columns(px)
+        mid = (x0 + x1) // 2
+        res[name] = column_means(px, {"left": (0, mid - 2), "right": (mid + 2, px.shape[1])})
 except Exception:
     res["error"] = traceback.format_exc()
     finish(1)
