@@ -72,6 +72,20 @@ def test_circumferential_tension_cracks_along_the_axis(tiny_bark):
     assert cracks.statistics(sheet, st.cracked)["bark_crack_along_grain"] < 0.2
 
 
+def test_incremental_search_ends_where_a_full_one_finds_nothing(tiny_bark):
+    """grow() re-evaluates only the vertices the new shadows reached; evaluated from scratch
+    afterwards, no vertex may still crack."""
+    sheet, b = tiny_bark.bark, tiny_bark.bark_setup
+    st = cracks.CrackState.empty(sheet)
+    eps = np.full(sheet.n_faces, 0.08)
+    _load(sheet, st, eps, tip_gain=b["tip_gain"], shadow=b["shadow"])
+    plus = cracks.tensile(cracks.relieved(cracks.loading(sheet, eps), st.shadow))
+    l1, _, e1 = cracks.eig2(cracks.separation(sheet, plus))
+    deg = cracks.crack_degree(sheet, st.cracked)
+    assert st.cracked.any()
+    assert len(cracks._new_edges(sheet, st, deg, l1, e1, b["tip_gain"])) == 0
+
+
 def test_zero_stress_never_cracks(tiny_bark):
     sheet = tiny_bark.bark
     st = cracks.CrackState.empty(sheet)

@@ -92,11 +92,16 @@ def relieved(sigma_inf: np.ndarray, shadow: np.ndarray) -> np.ndarray:
     return np.stack([out[:, 0], out[:, 3], 0.5 * (out[:, 1] + out[:, 2])], 1)
 
 
-def separation(sheet, sigma: np.ndarray) -> np.ndarray:
-    """(V, 3) mean tensile part of the stresses of each vertex's faces."""
+def tensile(sigma: np.ndarray) -> np.ndarray:
+    """(N, 3) tensile parts (positive eigenvalues only) of the stresses ``sigma``."""
     l1, l2, e = eig2(sigma)
-    plus = _from_eig(np.maximum(l1, 0.0), np.maximum(l2, 0.0), e)
-    vf = sheet.vertex_faces
+    return _from_eig(np.maximum(l1, 0.0), np.maximum(l2, 0.0), e)
+
+
+def separation(sheet, plus: np.ndarray, vertices: np.ndarray | None = None) -> np.ndarray:
+    """(V, 3) mean of the faces' tensile stresses ``plus`` around each vertex (of ``vertices``
+    only, when given: the same values, row by row)."""
+    vf = sheet.vertex_faces if vertices is None else sheet.vertex_faces[vertices]
     valid = vf >= 0
     total = np.where(valid[..., None], plus[np.maximum(vf, 0)], 0.0).sum(1)
     return total / np.maximum(valid.sum(1), 1)[:, None]
@@ -115,16 +120,16 @@ def _outgoing(sheet, v: np.ndarray):
     return ve, sheet.edge_dir[k] * sign[..., None]
 
 
-def _new_edges(sheet, st: CrackState, sigma: np.ndarray, tip_gain: float, threshold: np.ndarray) -> np.ndarray:
-    """The crack edges one search inserts (module docstring), sorted, unique."""
-    deg = crack_degree(sheet, st.cracked)
-    l1, _, e1 = eig2(separation(sheet, sigma))
-    excess = l1 * (1.0 + tip_gain * (deg == 1)) - threshold
+def _new_edges(sheet, st: CrackState, deg: np.ndarray, l1: np.ndarray, e1: np.ndarray, tip_gain: float) -> np.ndarray:
+    """The crack edges one search inserts (module docstring), sorted, unique; ``deg`` the crack
+    edges at each vertex, ``l1``, ``e1`` the largest eigenvalue and its eigenvector of each
+    vertex's separation tensor."""
+    excess = l1 * (1.0 + tip_gain * (deg == 1)) - sheet.threshold
     excess[deg >= 2] = -np.inf
-    ve = sheet.vertex_edges
-    other = np.where(ve >= 0, sheet.edges[np.maximum(ve, 0)].sum(-1) - np.arange(len(ve))[:, None], -1)
+    over = np.flatnonzero(excess > 0.0)
+    other = sheet.vertex_nbrs[over]
     nbr = np.where(other >= 0, excess[np.maximum(other, 0)], -np.inf)
-    cand = np.flatnonzero((excess > 0.0) & (excess >= nbr.max(1)))
+    cand = over[excess[over] >= nbr.max(1, initial=-np.inf)]
     if len(cand) == 0:
         return np.zeros(0, dtype=np.int64)
     edges, u = _outgoing(sheet, cand)
@@ -146,10 +151,10 @@ def _new_edges(sheet, st: CrackState, sigma: np.ndarray, tip_gain: float, thresh
     return np.unique(np.concatenate(picks))
 
 
-def cast_shadows(sheet, st: CrackState, new: np.ndarray, shadow_length: float) -> None:
-    """Add the shadows of the crack edges ``new`` to the faces near them (module docstring)."""
-    if len(new) == 0:
-        return
+def cast_shadows(sheet, st: CrackState, new: np.ndarray, shadow_length: float) -> np.ndarray:
+    """Add the shadows of the crack edges ``new`` to the faces near them (module docstring);
+    returns those faces (sorted, unique)."""
+    touched = [np.zeros(0, dtype=np.int64)]
     reach = 4.0 * shadow_length + sheet.h
     eb = sheet.vertex_branch[sheet.edges[new, 0]]
     for b in np.unique(eb):
@@ -171,22 +176,30 @@ def cast_shadows(sheet, st: CrackState, new: np.ndarray, shadow_length: float) -
             1.0 - np.abs((r * t).sum(1)) / sheet.edge_length[k], 0.0, None)
         add = w[:, None] * np.stack([n[:, 0] ** 2, n[:, 1] ** 2, n[:, 0] * n[:, 1]], 1)
         np.add.at(st.shadow, f, add)
+        touched.append(f)
+    return np.unique(np.concatenate(touched))
 
 
 def grow(sheet, st: CrackState, eps: np.ndarray, tip_gain: float, shadow_length: float,
-         threshold: np.ndarray | None = None, max_searches: int = 1000) -> int:
+         max_searches: int = 1000) -> int:
     """Insert crack edges under the loading strains ``eps`` (F,) until no vertex cracks (module
-    docstring), against the sheet's thresholds or ``threshold`` (V,); returns the number of edges
-    inserted."""
+    docstring); returns the number of edges inserted. After each search only the faces the new
+    shadows reached and their vertices are evaluated again (the rest are unchanged)."""
     total = 0
     sigma_inf = loading(sheet, eps)
-    threshold = sheet.threshold if threshold is None else threshold
+    plus = tensile(relieved(sigma_inf, st.shadow))
+    l1, _, e1 = eig2(separation(sheet, plus))
+    deg = crack_degree(sheet, st.cracked)
     for _ in range(max_searches):
-        new = _new_edges(sheet, st, relieved(sigma_inf, st.shadow), tip_gain, threshold)
+        new = _new_edges(sheet, st, deg, l1, e1, tip_gain)
         if len(new) == 0:
             break
         st.cracked[new] = True
-        cast_shadows(sheet, st, new, shadow_length)
+        deg += np.bincount(sheet.edges[new].ravel(), minlength=len(deg))
+        faces = cast_shadows(sheet, st, new, shadow_length)
+        plus[faces] = tensile(relieved(sigma_inf[faces], st.shadow[faces]))
+        verts = np.unique(sheet.faces[faces].ravel())
+        l1[verts], _, e1[verts] = eig2(separation(sheet, plus, verts))
         total += len(new)
     return total
 

@@ -67,6 +67,7 @@ class BarkSheet:
     edge_length: np.ndarray  # (E,) m
     edge_mid: np.ndarray  # (E, 2) midpoint in flat coordinates
     vertex_edges: np.ndarray  # (V, K) incident edges, -1 padded
+    vertex_nbrs: np.ndarray  # (V, K) the other ends of those edges, -1 padded
     vertex_faces: np.ndarray  # (V, K) incident faces, -1 padded
     threshold: np.ndarray  # (V,) crack threshold with noise
     bond: np.ndarray  # (F,) initial bond of the bark to the wood, with noise at the plates' scale
@@ -209,12 +210,14 @@ def build_sheet(model, bark, recent: np.ndarray, eccentricity: float, rng: np.ra
     edge_mid = np.stack([(xa + 0.5 * d[:, 0]) % period[eb], s[edges[:, 0]] + 0.5 * d[:, 1]], 1)
     nv = len(phi)
     vertex_edges = _padded(edges.ravel(), np.repeat(np.arange(len(edges)), 2), nv)
+    vertex_nbrs = np.where(vertex_edges >= 0, edges[np.maximum(vertex_edges, 0)].sum(-1) - np.arange(nv)[:, None], -1)
     vertex_faces = _padded(faces.ravel(), np.repeat(np.arange(len(faces)), 3), nv)
     face_element, element_face = _element_maps(model, fb, face_xy, period)
     return BarkSheet(h=h, vertex_branch=vb, phi=phi, s=s, perimeter=P, faces=faces, face_branch=fb,
                      face_xy=face_xy, face_area=area, face_element=face_element, growth=growth,
                      edges=edges, edge_faces=edge_faces, edge_dir=d / length[:, None], edge_length=length,
-                     edge_mid=edge_mid, vertex_edges=vertex_edges, vertex_faces=vertex_faces, threshold=thr,
+                     edge_mid=edge_mid, vertex_edges=vertex_edges, vertex_nbrs=vertex_nbrs,
+                     vertex_faces=vertex_faces, threshold=thr,
                      bond=b_v[faces].mean(1),
                      width_noise=1.0 + WIDTH_NOISE * rng.uniform(-1.0, 1.0, nv), period=period,
                      pattern=PATTERNS[pattern], element_face=element_face,
@@ -285,6 +288,7 @@ def _empty(h, pattern, period, n_elements) -> BarkSheet:
                      face_element=zi, growth=np.zeros(0), edges=np.zeros((0, 2), dtype=np.int64),
                      edge_faces=np.zeros((0, 2), dtype=np.int64), edge_dir=z2, edge_length=np.zeros(0),
                      edge_mid=z2, vertex_edges=np.zeros((0, 1), dtype=np.int64),
+                     vertex_nbrs=np.zeros((0, 1), dtype=np.int64),
                      vertex_faces=np.zeros((0, 1), dtype=np.int64), threshold=np.zeros(0), bond=np.zeros(0),
                      width_noise=np.zeros(0), period=period, pattern=PATTERNS[pattern],
                      element_face=np.full(n_elements, -1, dtype=np.int64), face_trees={})
