@@ -26,8 +26,10 @@ primvars; glTF attributes are renamed to them on import, see :mod:`.importer`):
   fibrous streaks along the grain and dark zone lines where the white-rot front stands.
 * moisture ``M`` (kg/kg): from "Moisture Dry" to "Moisture Wet" the wood darkens (up to
   "Moisture Darkening") and turns glossier ("Moisture Gloss" lowers the roughness).
-* bark (``faceKind`` == 0): furrowed bark colour and roughness; decay shows through it by
-  "Bark Decay". Where there is no face kind (an unlinked input) every face is wood.
+* bark (``faceKind`` == 0): furrowed bark colour and roughness ("Bark Furrows" scales the
+  procedural furrows; the material lowers it where the bake's crack map draws the simulated
+  cracks); decay shows through it by "Bark Decay". Where there is no face kind (an unlinked
+  input) every face is wood.
 * bark cracks (woodification §5: a crack is widest in its middle, V-shaped in depth, its floor
   dark): ``bark_crack`` is 1 on a crack's centre line and falls linearly to 0 just past its edge,
   ``bark_crack_depth`` the crack's depth there (metres). The crack floor starts where

@@ -35,7 +35,7 @@ def bark_vertices(mesh) -> np.ndarray:
     return shared[mesh.vertex_shared]
 
 
-def _crack_samples(sheet, cracked: np.ndarray, w_v: np.ndarray):
+def crack_samples(sheet, cracked: np.ndarray, w_v: np.ndarray):
     """Points along the cracked edges (flat coordinates), their branch and the width there."""
     ce = np.flatnonzero(cracked)
     t = np.linspace(0.0, 1.0, SAMPLES)
@@ -59,7 +59,7 @@ def crack_fields(model, mesh, cracked: np.ndarray) -> tuple[np.ndarray, np.ndarr
     if sheet is None or not cracked.any():
         return crack, depth, width
     w_v = widths(sheet, cracked, float(b["crack_width"]))
-    pts, br, w = _crack_samples(sheet, cracked, w_v)
+    pts, br, w = crack_samples(sheet, cracked, w_v)
     trees = branch_trees(sheet.period, br, pts)
     on = np.flatnonzero(bark_vertices(mesh))
     vb = model.branch[mesh.vertex_element[on]]

@@ -23,7 +23,7 @@ import numpy as np
 
 from .cracks import widths
 from .sheet import branch_trees
-from .surface import _crack_samples
+from .surface import SAMPLES, crack_samples
 
 #: texels per sheet edge length
 TEXELS_PER_EDGE = 4
@@ -71,8 +71,8 @@ def crack_map(model, frames) -> np.ndarray | None:
     if not cracked.any():
         return out
     w_v = widths(sheet, cracked, float(model.bark_setup["crack_width"]))
-    pts, br, w = _crack_samples(sheet, cracked, w_v)
-    edge = np.repeat(np.flatnonzero(cracked), len(pts) // int(cracked.sum()))
+    pts, br, w = crack_samples(sheet, cracked, w_v)
+    edge = np.repeat(np.flatnonzero(cracked), SAMPLES)
     trees = branch_trees(sheet.period, br, pts)
     for b, (tree, rows, y0) in trees.items():
         nrow = int(count[b])
