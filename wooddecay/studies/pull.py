@@ -126,6 +126,7 @@ def pull_scene(path=TREE, node: str = "b1_2", tip: str | None = None, radius: fl
     if quality is not None:
         data.setdefault("scene", {})["quality"] = quality
     data.setdefault("mechanics", {})["L_knee"] = 1.0  # Eq. 19 as printed (module docstring)
+    data.setdefault("bark", {})["cracks"] = False  # Fig. 17 pulls the wood; its bark does not crack
     data["load"] = data.get("load", []) + [{
         "region": {"kind": "node", "id": skel.ids[k_tip], "radius": float(radius)},
         "force": [float(c) for c in direction], "days": [0.0, 1e9]}]
