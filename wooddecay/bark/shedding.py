@@ -21,6 +21,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from .cracks import crack_degree
+
 DAYS_PER_YEAR = 365.25
 #: a loose plate smaller than plate_area / MIN_PLATE_SHARE holds on (too small to come off alone)
 MIN_PLATE_SHARE = 8.0
@@ -43,7 +45,7 @@ def plates(sheet, cracked: np.ndarray, shed: np.ndarray) -> np.ndarray:
     cuts and that do not bridge two crack vertices (a gap of one edge between cracks holds no
     plate together)."""
     ef = sheet.edge_faces
-    on_crack = np.bincount(sheet.edges[cracked].ravel(), minlength=len(sheet.phi)) > 0
+    on_crack = crack_degree(sheet, cracked) > 0
     bridge = on_crack[sheet.edges[:, 0]] & on_crack[sheet.edges[:, 1]]
     keep = (ef[:, 1] >= 0) & ~cracked & ~bridge
     a, b = ef[keep, 0], ef[keep, 1]

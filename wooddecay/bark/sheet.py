@@ -20,7 +20,7 @@ the grain for fissures and across it for bands; per face the bark's initial bond
 noise of the size of a plate (where bark comes off first, :mod:`.shedding`).
 
 Elements: each face reads moisture and health from the nearest bark element of its branch (any
-element of the branch where it has no bark). The bark layer is every element whose capsule reaches
+element of the branch where it has no bark), and keeps that element's shrinkage S S_T and M_0. The bark layer is every element whose capsule reaches
 into the bark (bark distance below the bark thickness plus r_s): those elements carry the
 meshlets' bark faces, and they hold together as a layer where the bark tissue alone does not (on
 the log 162 of its 398 bark elements have no REG pair with another bark element, 8 of the 800 in
@@ -60,6 +60,8 @@ class BarkSheet:
     face_xy: np.ndarray  # (F, 2) centroid in the branch's flat coordinates (x around, y = s)
     face_area: np.ndarray  # (F,) m^2
     face_element: np.ndarray  # (F,) element it reads M, H_c, H_l from
+    shrinkage: np.ndarray  # (F,) S S_T of that element's tissue (woodstock Eq. 16, tangential)
+    M_0: np.ndarray  # (F,) M_0 of that element's tissue
     growth: np.ndarray  # (F,) growth strain (woodification §4)
     edges: np.ndarray  # (E, 2) a < b
     edge_faces: np.ndarray  # (E, 2) faces on either side (-1 on the sheet's ends)
@@ -80,10 +82,6 @@ class BarkSheet:
     @property
     def n_faces(self) -> int:
         return len(self.faces)
-
-    @property
-    def area(self) -> float:
-        return float(self.face_area.sum())
 
 
 def recent_growth(Q: np.ndarray, bark_years: int) -> float:
@@ -213,8 +211,10 @@ def build_sheet(model, bark, recent: np.ndarray, eccentricity: float, rng: np.ra
     vertex_nbrs = np.where(vertex_edges >= 0, edges[np.maximum(vertex_edges, 0)].sum(-1) - np.arange(nv)[:, None], -1)
     vertex_faces = _padded(faces.ravel(), np.repeat(np.arange(len(faces)), 3), nv)
     face_element, element_face = _element_maps(model, fb, face_xy, period)
+    mat = model.materials.per_element
     return BarkSheet(h=h, vertex_branch=vb, phi=phi, s=s, perimeter=P, faces=faces, face_branch=fb,
-                     face_xy=face_xy, face_area=area, face_element=face_element, growth=growth,
+                     face_xy=face_xy, face_area=area, face_element=face_element,
+                     shrinkage=(mat("S") * mat("S_T"))[face_element], M_0=mat("M_0")[face_element], growth=growth,
                      edges=edges, edge_faces=edge_faces, edge_dir=d / length[:, None], edge_length=length,
                      edge_mid=edge_mid, vertex_edges=vertex_edges, vertex_nbrs=vertex_nbrs,
                      vertex_faces=vertex_faces, threshold=thr,
@@ -285,7 +285,8 @@ def _empty(h, pattern, period, n_elements) -> BarkSheet:
     z2, zi = np.zeros((0, 2)), np.zeros(0, dtype=np.int64)
     return BarkSheet(h=h, vertex_branch=zi, phi=np.zeros(0), s=np.zeros(0), perimeter=np.zeros(0),
                      faces=np.zeros((0, 3), dtype=np.int64), face_branch=zi, face_xy=z2, face_area=np.zeros(0),
-                     face_element=zi, growth=np.zeros(0), edges=np.zeros((0, 2), dtype=np.int64),
+                     face_element=zi, shrinkage=np.zeros(0), M_0=np.zeros(0), growth=np.zeros(0),
+                     edges=np.zeros((0, 2), dtype=np.int64),
                      edge_faces=np.zeros((0, 2), dtype=np.int64), edge_dir=z2, edge_length=np.zeros(0),
                      edge_mid=z2, vertex_edges=np.zeros((0, 1), dtype=np.int64),
                      vertex_nbrs=np.zeros((0, 1), dtype=np.int64),

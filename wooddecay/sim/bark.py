@@ -49,15 +49,13 @@ class BarkState:
                    M_last=a["M_last"], eps_seen=a["eps_seen"], edge_cut=a["edge_cut"], link_cut=a["link_cut"])
 
 
-def drying_strain(model, M_face: np.ndarray) -> np.ndarray:
+def drying_strain(sheet, M_face: np.ndarray) -> np.ndarray:
     """S S_T (M_0 - M)^+ of each face's element (woodstock Eq. 16 on the bark)."""
-    fe = model.bark.face_element
-    mat = model.materials.per_element
-    return mat("S")[fe] * mat("S_T")[fe] * np.maximum(mat("M_0")[fe] - M_face, 0.0)
+    return sheet.shrinkage * np.maximum(sheet.M_0 - M_face, 0.0)
 
 
 def _strain(model, M_face: np.ndarray) -> np.ndarray:
-    return model.bark.growth + float(model.bark_setup["drying"]) * drying_strain(model, M_face)
+    return model.bark.growth + float(model.bark_setup["drying"]) * drying_strain(model.bark, M_face)
 
 
 def _grow(model, st: BarkState, eps: np.ndarray) -> None:
@@ -96,7 +94,7 @@ def step(model, state, dt_days: float) -> None:
     M_face = state.M[fe]
     _grow(model, st, _strain(model, M_face))
     st.bond = shedding.weaken(st.bond, float(b["shedding"]), dt_days, state.H_c[fe], state.H_l[fe],
-                              M_face - st.M_last, model.materials.per_element("M_0")[fe])
+                              M_face - st.M_last, sheet.M_0)
     st.M_last = M_face
     label = shedding.plates(sheet, st.crack.cracked, st.shed)
     label, off, breaks = shedding.falling(sheet, label, st.bond, float(b["plate_area"]))
