@@ -1,5 +1,6 @@
 """Concave and elongated profiles (woodstock §8.1 on arbitrary cross-sections): the meshlets fill
-a star, a C and a 6:1 ellipse to their tips, and a part no strand can reach gets a note."""
+a star, a C (its inner arc in a few long edges, and in many short ones as a scan's contour gives it)
+and a 6:1 ellipse to their tips, and a part no strand can reach gets a note."""
 from __future__ import annotations
 
 import numpy as np
@@ -37,6 +38,7 @@ def arm(width: float) -> list:
 PROFILES = {
     "star": {"kind": "polygon", "points": star(0.07, 0.03)},
     "C": {"kind": "polygon", "points": c_shape(0.06, 0.036)},
+    "C of a scan": {"kind": "polygon", "points": c_shape(0.06, 0.036, n=96)},  # vertices r_s apart
     "ellipse 6:1": {"kind": "ellipse", "a": 0.09, "b": 0.015},
     "circle": {"kind": "circle", "radius": 0.06},
 }

@@ -15,10 +15,11 @@ d_t stay continuous (a clipped alpha contour jumps at every alpha event). A stra
 at some nodes only (a tapering branch) mirrors across the line square to its outward direction
 there (:func:`_mirror_tapered`). Near a corner a second
 mirror goes across the nearest edge turned by more than CORNER. At a concave profile a mirror
-can cut the wood itself: one that lands inside the profile (across an arm), one across a reflex
-vertex (its bisector is a line through the vertex, which always crosses the wood) and one across
-an edge within r_s / 2 of a sharp reflex vertex (the edge's line runs on into the wood) are left
-out (:func:`_valid_mirrors`); the cells there end at their neighbours' mirrors. Convex cells cannot
+can cut the wood itself: one that lands inside the profile (across an arm) and one with its foot
+within r_s / 2 of a sharp reflex vertex (the bisector runs on into the wood) are left out
+(:func:`_valid_mirrors`); the cells there end at their neighbours' mirrors. Mirrors across the
+mild reflex vertices of a concave curve's polygon stay: without them the cells along the inside
+of a C leaked into its hollow. Convex cells cannot
 follow a reflex corner exactly: what they miss on one side of it they overhang on the other.
 Where a side branch starts, the mirrors go across the hull of its sites offset by r_s
 (:func:`~wooddecay.meshlets.offset.offset_contour`).
@@ -92,17 +93,18 @@ def _feet(poly: np.ndarray, pts: np.ndarray):
 
 def _valid_mirrors(poly: np.ndarray, pts: np.ndarray, feet: np.ndarray, r_s: float) -> np.ndarray:
     """(n, 2) whether the mirrors of ``pts`` at ``feet`` (:func:`_feet`) bound the wood: not one
-    strictly inside ``poly``, across a reflex vertex, or across an edge within r_s / 2 of a sharp
-    reflex vertex (turning by more than CORNER; its line runs on into the wood beyond it)."""
+    strictly inside ``poly`` or with its foot within r_s / 2 of a sharp reflex vertex (turning by
+    more than CORNER; the bisector runs on into the wood beyond it). Across a mild reflex vertex (a
+    concave curve's polygon) the bisector, a line through the vertex, cuts into the wood by about
+    l^2 / 8R only (edge length l, curvature radius R)."""
     a = np.asarray(poly, float)
     e_in, e_out = a - np.roll(a, 1, axis=0), np.roll(a, -1, axis=0) - a
     reflex = e_in[:, 0] * e_out[:, 1] - e_in[:, 1] * e_out[:, 0] < 0.0  # CCW profiles
     cos_turn = (e_in * e_out).sum(1) / np.linalg.norm(e_in, axis=1) / np.linalg.norm(e_out, axis=1)
-    reach = np.where(cos_turn < np.cos(CORNER), 0.5 * r_s, 1e-9 * float(np.max(np.abs(a))))[reflex]
     ghost = (2.0 * feet - pts[:, None]).reshape(-1, 2)
     cut = (profiles.signed_distance(a, ghost) > 0.0).reshape(feet.shape[:2])
-    for v, r in zip(a[reflex], reach):
-        cut |= np.linalg.norm(feet - v, axis=-1) <= r
+    for v in a[reflex & (cos_turn < np.cos(CORNER))]:
+        cut |= np.linalg.norm(feet - v, axis=-1) <= 0.5 * r_s
     return ~cut
 
 

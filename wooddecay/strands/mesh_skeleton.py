@@ -277,7 +277,7 @@ def _fill_shallow(poly: np.ndarray, depth: float) -> np.ndarray:
         a, b = poly[i], poly[j]
         e = (b - a) / np.linalg.norm(b - a)
         rel = poly[run] - a
-        off = rel[:, 0] * e[1] - rel[:, 1] * e[0]  # distance inside the hull edge
+        off = e[0] * rel[:, 1] - e[1] * rel[:, 0]  # distance inside (left of) the hull edge
         if off.max() < depth:
             out[run] = a + np.outer(rel @ e, e)
     return out
@@ -285,11 +285,8 @@ def _fill_shallow(poly: np.ndarray, depth: float) -> np.ndarray:
 
 def _resample(poly: np.ndarray, spacing: float, most: int) -> np.ndarray:
     """Points about ``spacing`` apart along the closed polygon (MIN_POINTS to ``most``)."""
-    closed = np.vstack([poly, poly[:1]])
-    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(closed, axis=0), axis=1))])
-    k = int(np.clip(math.ceil(arc[-1] / spacing), MIN_POINTS, most))
-    t = np.arange(k) * arc[-1] / k
-    return np.stack([np.interp(t, arc, closed[:, 0]), np.interp(t, arc, closed[:, 1])], axis=1)
+    perimeter = float(np.linalg.norm(np.diff(np.vstack([poly, poly[:1]]), axis=0), axis=1).sum())
+    return profiles.resample_closed(poly, int(np.clip(math.ceil(perimeter / spacing), MIN_POINTS, most)))
 
 
 def profile_at(mi: MeshInput, origin, frame, resolution: float, node: str) -> profiles.Profile:

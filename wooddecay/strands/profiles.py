@@ -188,6 +188,15 @@ def polygon_centroid(poly: np.ndarray) -> np.ndarray:
     return np.sum((2.0 * a + d) * w[:, None], axis=0) / (3.0 * total)
 
 
+def resample_closed(poly: np.ndarray, k: int) -> np.ndarray:
+    """``k`` points equally spaced by arc length along the closed polygon ``poly`` (``(m, 2)`` or
+    ``(m, 3)``), the first at its first vertex."""
+    closed = np.vstack([poly, poly[:1]])
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(closed, axis=0), axis=1))])
+    t = np.arange(k) * arc[-1] / k
+    return np.stack([np.interp(t, arc, closed[:, i]) for i in range(closed.shape[1])], axis=1)
+
+
 def is_ccw(poly: np.ndarray) -> bool:
     """Return True when the vertices run counter-clockwise (positive signed area)."""
     return _signed_area(poly) > 0.0
