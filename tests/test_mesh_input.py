@@ -289,8 +289,10 @@ def test_forked_branch_meshlets_fill_the_mesh():
     m = json.loads(out.stdout)["meshlets"]
     src = m["source_mesh"]
     assert m["closed_fraction"] == 1.0
-    assert abs(src["volume_error"]) < 0.03  # the branches' sweeps overlap at the fork
-    assert src["bark_distance_mean"] < 0.005 and src["bark_distance_max"] < 4 * 0.005
+    assert abs(src["volume_error"]) < 0.01
+    # r_s 5 mm: the bark lies on the mesh but for small voids where the branches meet (docs/decisions.md)
+    assert src["bark_distance_mean"] < 0.005 and src["bark_distance_p99"] < 2 * 0.005
+    assert src["bark_distance_max"] < 5 * 0.005
 
 
 @pytest.mark.slow

@@ -18,11 +18,15 @@ mirror goes across the nearest edge turned by more than CORNER. At a concave pro
 can cut the wood itself: one that lands inside the profile (across an arm) and one with its foot
 within r_s / 2 of a sharp reflex vertex (the bisector runs on into the wood) are left out
 (:func:`_valid_mirrors`); the cells there end at their neighbours' mirrors. Mirrors across the
-mild reflex vertices of a concave curve's polygon stay: without them the cells along the inside
-of a C leaked into its hollow. Convex cells cannot
+reflex vertices of a wide concave curve stay (without them the cells along the inside of a C
+leaked into its hollow); across those of a tight bend they would cut the wood on both sides. Convex cells cannot
 follow a reflex corner exactly: what they miss on one side of it they overhang on the other.
 Where a side branch starts, the mirrors go across the hull of its sites offset by r_s
-(:func:`~wooddecay.meshlets.offset.offset_contour`).
+(:func:`~wooddecay.meshlets.offset.offset_contour`); where side branches leave, the strands that go
+on do the same from the fork on (each of their ghosts is two: one up to the fork section, one from
+it), so their cells do not swell into the wood the side branch took (a stem bulged by up to 1 cm
+past the forked sample's fork), and a mirror across the fork profile's notches is held from the
+sections around instead of costing the strand its ghost for the whole branch.
 FAR_RING far sites around each section keep every real cell bounded even where no mirror reaches. ``docs/decisions.md``
 (Meshlets) records this choice.
 """
@@ -45,6 +49,8 @@ GHOST_DEPTH = 4.0
 #: 2 r_s beyond the outermost sites)
 FAR_RING = 64
 FAR_MARGIN = 4.0
+#: mirrors across a reflex vertex are kept where the profile bends with a radius over this many r_s
+MILD_RADIUS = 4.0
 #: a corner: the second mirror edge turns by more than this from the nearest one
 CORNER = np.deg2rad(30.0)
 
@@ -93,29 +99,35 @@ def _feet(poly: np.ndarray, pts: np.ndarray):
 
 def _valid_mirrors(poly: np.ndarray, pts: np.ndarray, feet: np.ndarray, r_s: float) -> np.ndarray:
     """(n, 2) whether the mirrors of ``pts`` at ``feet`` (:func:`_feet`) bound the wood: not one
-    strictly inside ``poly`` or with its foot within r_s / 2 of a sharp reflex vertex (turning by
-    more than CORNER; the bisector runs on into the wood beyond it). Across a mild reflex vertex (a
-    concave curve's polygon) the bisector, a line through the vertex, cuts into the wood by about
-    l^2 / 8R only (edge length l, curvature radius R)."""
+    strictly inside ``poly``, across a reflex vertex of a tight bend (curvature radius under
+    MILD_RADIUS r_s: the bisector, a line through the vertex, cuts into the wood on both sides),
+    or with its foot within r_s / 2 of a sharp reflex vertex (turning by more than CORNER; the
+    bisector runs on into the wood beyond it). Across a reflex vertex of a wide concave curve
+    (radius R) the line cuts into a cell r_s across by r_s^2 / 8R only."""
     a = np.asarray(poly, float)
     e_in, e_out = a - np.roll(a, 1, axis=0), np.roll(a, -1, axis=0) - a
     reflex = e_in[:, 0] * e_out[:, 1] - e_in[:, 1] * e_out[:, 0] < 0.0  # CCW profiles
-    cos_turn = (e_in * e_out).sum(1) / np.linalg.norm(e_in, axis=1) / np.linalg.norm(e_out, axis=1)
+    l_in, l_out = np.linalg.norm(e_in, axis=1), np.linalg.norm(e_out, axis=1)
+    turn = np.arccos(np.clip((e_in * e_out).sum(1) / l_in / l_out, -1.0, 1.0))
+    sharp = turn > CORNER
+    tight = sharp | (0.5 * (l_in + l_out) < MILD_RADIUS * r_s * turn)  # or a radius under MILD_RADIUS r_s
     ghost = (2.0 * feet - pts[:, None]).reshape(-1, 2)
     cut = (profiles.signed_distance(a, ghost) > 0.0).reshape(feet.shape[:2])
-    for v in a[reflex & (cos_turn < np.cos(CORNER))]:
-        cut |= np.linalg.norm(feet - v, axis=-1) <= 0.5 * r_s
+    for v, r in zip(a[reflex & tight], np.where(sharp, 0.5 * r_s, 1e-9 * float(np.max(np.abs(a))))[reflex & tight]):
+        cut |= np.linalg.norm(feet - v, axis=-1) <= r
     return ~cut
 
 
-def _mirror_tapered(P, offset, nearest, polys, alive, depth, valid, r_s: float) -> None:
+def _mirror_tapered(P, offset, nearest, polys, alive, depth, valid, r_s: float) -> set:
     """Ghosts for the strands near the bark at some node section but deeper than GHOST_DEPTH r_s
-    at another (a tapering branch; in place: ``offset`` rank 0, ``depth``, ``valid``). The
+    at another (a tapering branch; in place: ``offset`` rank 0, ``depth``, ``valid``; returns
+    the sites given one). The
     nearest edge of a deep site can lie on any side, and mirrors across it cut the wood between
     sections; instead, at every node section the mirror goes across the line square to the
     site's outward direction at its nearest section, through the boundary along it, so the
     ghost stays on that side. A strand whose mirror lands inside a profile gets none."""
     reach = GHOST_DEPTH * r_s
+    given = set()
     for i in np.flatnonzero((depth[:, 0] >= reach) & (nearest.min(axis=0) < reach)):
         rows = [k for k in polys if alive[k, i]]
         k0 = min(rows, key=lambda k: nearest[k, i])
@@ -131,19 +143,23 @@ def _mirror_tapered(P, offset, nearest, polys, alive, depth, valid, r_s: float) 
                 offset[k, i, 0] = ghost[k] - P[k, i]
             depth[i, 0] = min(nearest[k, i] for k in rows)
             valid[i, 0] = True
+            given.add(int(i))
+    return given
 
 
-def _section_profile(skel, chain, node: int, pts: np.ndarray, r_s: float) -> np.ndarray:
+def _section_profile(skel, chain, node: int, pts: np.ndarray, r_s: float, hull: bool = False) -> np.ndarray:
     """The contour the ghosts mirror across at a node section: the node's profile, except where a
-    side branch starts (its strands fill only part of the fork's profile): there the convex hull
-    of the branch's sites (the alpha shape with alpha = inf) offset outwards by r_s."""
-    if node != chain[0] or skel.parent[node] < 0 or node != skel.parent[chain[1]] or len(pts) < 3:
+    side branch starts (its strands fill only part of the fork's profile) or ``hull`` (past a fork
+    the strands that go on fill only part of it): there the convex hull of the sites (the alpha
+    shape with alpha = inf) offset outwards by r_s."""
+    starts = node == chain[0] and skel.parent[node] >= 0 and node == skel.parent[chain[1]]
+    if not (starts or hull) or len(pts) < 3:
         return skel.profiles[node].polygon
     try:
-        hull = ConvexHull(pts)
+        convex = ConvexHull(pts)
     except QhullError:
         return skel.profiles[node].polygon
-    return offset_contour(pts[hull.vertices], r_s, "round")[0]
+    return offset_contour(pts[convex.vertices], r_s, "round")[0]
 
 
 def _branch_chain(topo, skel, b: int) -> np.ndarray:
@@ -199,20 +215,33 @@ def setup_branch(model, b: int) -> Branch | None:
     # linear between node sections and constant beyond them
     is_node = np.isin(d, s_chain)
     node_at = {float(s): int(c) for s, c in zip(s_chain, chain)}
-    depth = np.full((n, 2), -np.inf)
-    valid = np.ones((n, 2), dtype=bool)
     offset = np.full((len(d), n, 2, 2), np.nan)
     nearest = np.full((len(d), n), np.inf)  # distance to the nearest edge at each node section
+    row_dist = np.full((len(d), n, 2), -np.inf)
+    row_valid = np.ones((len(d), n, 2), dtype=bool)
     polys = {}
     for k in np.flatnonzero(is_node):
         idx = np.flatnonzero(alive[k])
         poly = polys[k] = _section_profile(skel, chain, node_at[float(d[k])], P[k, idx], r_s)
         foot, dist = _feet(poly, P[k, idx])
-        depth[idx] = np.maximum(depth[idx], dist)
+        row_dist[k, idx] = dist
+        row_valid[k, idx] = _valid_mirrors(poly, P[k, idx], foot, r_s)
         nearest[k, idx] = dist[:, 0]
-        valid[idx] &= _valid_mirrors(poly, P[k, idx], foot, r_s)
         offset[k, idx] = 2.0 * (foot - P[k, idx][:, None])
-    _mirror_tapered(P, offset, nearest, polys, alive, depth, valid, r_s)
+    depth, valid = row_dist.max(axis=0), row_valid.all(axis=0)
+    tapered = _mirror_tapered(P, offset, nearest, polys, alive, depth, valid, r_s)
+    # past a fork where side branches leave, the sites that go on mirror across the hull of their
+    # own sites (offset by r_s): each of their ghosts is two, one up to the fork and one from it
+    forks = [k for k in np.flatnonzero(is_node) if 0 < k < len(d) - 1 and node_at[float(d[k])] in chain[1:-1]
+             and len(topo.children[node_at[float(d[k])]]) > 1]
+    after = {}
+    for k in forks:
+        on = np.flatnonzero(alive[k] & alive[k + 1])
+        if len(on) < 3 or alive[k].sum() == len(on):
+            continue
+        poly = _section_profile(skel, chain, node_at[float(d[k])], P[k, on], r_s, hull=True)
+        foot, dist = _feet(poly, P[k, on])
+        after[k] = (on, 2.0 * (foot - P[k, on][:, None]), dist, _valid_mirrors(poly, P[k, on], foot, r_s))
     # a run between two nodes: mirrors across the nearer node's profile
     between = {}
     for i in range(n):
@@ -222,17 +251,43 @@ def setup_branch(model, b: int) -> Branch | None:
             foot, _ = _feet(poly, P[rows_i, i])
             valid[i] &= np.all(_valid_mirrors(poly, P[rows_i, i], foot, r_s), axis=0)
             between[i] = foot
-    ghosts = [(i, r) for r in range(2) for i in np.flatnonzero((depth[:, r] < GHOST_DEPTH * r_s) & valid[:, r])]
-    G = np.zeros((len(d), len(ghosts), 2))
-    for j, (i, r) in enumerate(ghosts):
+    G, ghost_of, ghost_alive = [], [], []
+
+    def ghost(g: np.ndarray, i: int, rows: np.ndarray) -> None:
+        G.append(g)
+        ghost_of.append(i)
+        ghost_alive.append(np.isin(np.arange(len(d)), rows))
+
+    for r, i in ((r, i) for r in range(2) for i in range(n)):
         rows_i = np.flatnonzero(alive[:, i])
+        cuts = [k for k in after if i in after[k][0]]
         if i in between:
-            G[rows_i, j] = 2.0 * between[i][:, r] - P[rows_i, i]
+            if depth[i, r] < GHOST_DEPTH * r_s and valid[i, r]:
+                g = np.zeros((len(d), 2))
+                g[rows_i] = 2.0 * between[i][:, r] - P[rows_i, i]
+                ghost(g, i, rows_i)
             continue
-        known = rows_i[is_node[rows_i]]
-        for c in range(2):
-            G[rows_i, j, c] = P[rows_i, i, c] + np.interp(d[rows_i], d[known], offset[known, i, r, c])
-    ghost_of = np.array([i for i, _ in ghosts], dtype=np.int64)
+        for lo, hi in zip([rows_i[0], *cuts], [*cuts, rows_i[-1]]):
+            rows = rows_i[(rows_i >= lo) & (rows_i <= hi)]
+            known = rows[is_node[rows]]
+            off = offset[known, i, r].copy()
+            dist, ok = row_dist[known, i, r].copy(), row_valid[known, i, r].copy()
+            if lo in after:  # the piece from a fork on: its first mirror across the hull
+                j = int(np.flatnonzero(after[lo][0] == i)[0])
+                off[0], dist[0], ok[0] = after[lo][1][j, r], after[lo][2][j, r], after[lo][3][j, r]
+            if r == 0 and i in tapered:
+                dist, ok = np.full(len(known), depth[i, 0]), np.ones(len(known), dtype=bool)
+            drop = np.isin(known, forks) & ~ok  # across a fork's notches: held from the sections around
+            if drop.any() and not drop.all():
+                known, off, dist, ok = known[~drop], off[~drop], dist[~drop], ok[~drop]
+            if not (len(known) and dist.max() < GHOST_DEPTH * r_s and ok.all()):
+                continue
+            g = np.zeros((len(d), 2))
+            for c in range(2):
+                g[rows, c] = P[rows, i, c] + np.interp(d[rows], d[known], off[:, c])
+            ghost(g, i, rows)
+    G = np.stack(G, axis=1) if G else np.zeros((len(d), 0, 2))
+    ghost_of = np.array(ghost_of, dtype=np.int64)
     # a far ring keeps every real cell bounded even where no mirror reaches: per section, around
     # the box of its real sites, FAR_MARGIN r_s beyond the farthest of them
     real = alive[:, :n, None]
@@ -243,7 +298,8 @@ def setup_branch(model, b: int) -> Branch | None:
     ang = 2.0 * np.pi * np.arange(FAR_RING) / FAR_RING
     ring = centre[:, None] + reach[:, None, None] * np.stack([np.cos(ang), np.sin(ang)], 1)[None]
     P = np.concatenate([P, G, ring], axis=1)
-    alive = np.concatenate([alive, alive[:, ghost_of], np.ones((len(d), FAR_RING), dtype=bool)], axis=1)
+    alive = np.concatenate([alive, np.array(ghost_alive, dtype=bool).reshape(-1, len(d)).T,
+                            np.ones((len(d), FAR_RING), dtype=bool)], axis=1)
     bounds = []
     for i in range(n):
         e = np.arange(e0s[i], e0s[i] + ns[i])

@@ -30,7 +30,8 @@ over [a, b] is the sweep of site i's Voronoi cell over [a, b]:
 Forks: an element that straddles a fork belongs to the branch of its midpoint (``model.branch``)
 and is clipped at the fork section; the next element of the strand covers the rest. Per-branch
 sweeps overlap slightly near junctions (woodstock §8.1 leaves junction gaps and overlaps;
-``docs/decisions.md``, "Forks and hull repair").
+``docs/decisions.md``, "Forks and hull repair"); bark faces with another branch's wood right
+behind them become walls to it (:mod:`wooddecay.meshlets.junction`).
 
 Output: :class:`Meshlets`, disjoint closed shells (each meshlet owns copies of its vertices), faces
 tagged bark / side (with the neighbouring element) / cap, rest wood-local coordinates and ring age
@@ -47,6 +48,7 @@ from scipy.spatial import ConvexHull
 from ..quaternion import conj_np, rotate_np
 from .branch import Branch, setup_branch
 from .checks import closed_oriented
+from .junction import junction_walls
 from .kinetic import FLIP, REPAIR, SECTION, perturbation, sweep
 
 #: face kinds (DESIGN "USD stage": uniform int faceKind)
@@ -552,7 +554,7 @@ def build_meshlets(model) -> Meshlets:
         skin_indptr=skin_indptr, skin_element=skin_element, skin_weight=skin_weight,
         skin_local=skin_local, stats=counts,
     )
-    mesh = hull_repair(mesh)
+    mesh = junction_walls(model, hull_repair(mesh), BARK, SIDE)
     if model.bark_thickness == 0.0:
         mesh = replace(mesh, face_kind=np.where(mesh.face_kind == BARK, SIDE, mesh.face_kind).astype(mesh.face_kind.dtype))
     counts["seconds"] = time.perf_counter() - t0
