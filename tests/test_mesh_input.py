@@ -281,6 +281,38 @@ def test_forked_branch_is_traced_with_its_side_branch():
     assert max(x[leaves, 0]) == pytest.approx(1.6, abs=0.005)
 
 
+def test_branch_turning_back_hangs_from_the_stem(tmp_path):
+    """A side branch leaving the stem at 135 degrees (towards the root end) is met tip first by the
+    slices: its chain is turned around to hang from the stem where it joins, so the tree runs from
+    the root to both tips, parents before children; its meshlets fill the mesh within 1%."""
+    from wooddecay.cli import _meshlets_report
+    from wooddecay.model import build_model
+
+    a = np.radians(135.0)
+    tip = np.array([0.6 + 0.35 * np.cos(a), 0.35 * np.sin(a), 0.0])
+    parts = [trimesh.creation.cylinder(radius=r, segment=[p, q], sections=32)
+             for p, q, r in (([0, 0, 0], [1.0, 0, 0], 0.05), ([0.6, 0, 0], tip, 0.03))]
+    trimesh.boolean.union(parts, engine="manifold").export(tmp_path / "back.obj")
+    (tmp_path / "back.toml").write_text('[scene]\nname = "back"\nseed = 1\n[skeleton]\nmesh = "back.obj"\n'
+                                        '[strands]\nr_s = 0.006\nrod_length = 0.04\n[time]\ndays = 1\n')
+    scene = load_scene(tmp_path / "back.toml")
+    skel = scene.skeleton
+    x, parent = skel.positions, skel.parent
+    assert np.all(parent[1:] < np.arange(1, len(parent)))
+    children = np.bincount(parent[parent >= 0], minlength=len(x))
+    assert np.count_nonzero(children == 2) == 1
+    leaves = x[children == 0]
+    assert min(np.linalg.norm(leaves - tip, axis=1)) < 0.02 and max(leaves[:, 0]) == pytest.approx(1.0, abs=0.005)
+    side = int(np.flatnonzero(np.linalg.norm(x - tip, axis=1) < 0.02)[0])
+    path = [side]
+    while children[parent[path[-1]]] == 1:
+        path.append(int(parent[path[-1]]))
+    assert np.all(np.diff(np.linalg.norm(x[path, :2] - tip[:2], axis=1)) > 0)  # the fork is farthest from the tip
+    source = _meshlets_report(build_model(scene), None)["source_mesh"]
+    print(f"branch turning back: {len(x)} nodes, meshlets {source['volume_error']:+.2%}")
+    assert abs(source["volume_error"]) < 0.01
+
+
 @pytest.mark.slow
 def test_forked_branch_meshlets_fill_the_mesh():
     out = subprocess.run([sys.executable, "-m", "wooddecay.cli", "inspect", str(SAMPLES / "forked_branch.toml"),

@@ -317,7 +317,9 @@ def tree_nodes(mi: MeshInput, spacing: float | None) -> tuple[np.ndarray, np.nda
     principal axis from the root end, their contours chained from slice to slice (a contour
     continues the chain whose last centroid is nearest, within TRACK of their radii); where a
     chain's contour splits, the largest part continues it and each other part starts a branch
-    from the chain's last node; chains end in end nodes like a log's."""
+    from the chain's last node. A contour near no chain starts a loose chain: a branch that turns
+    back towards the root end, met tip first; where it joins a chain it ends, and its nodes are
+    turned around to hang from that chain's node. Chains end in end nodes like a log's."""
     mesh = mi.mesh
     axis, u, v, s0, s1, centre = _along_axis(mesh)
     length = s1 - s0
@@ -329,8 +331,15 @@ def tree_nodes(mi: MeshInput, spacing: float | None) -> tuple[np.ndarray, np.nda
     pos: list[np.ndarray] = []
     parent: list[int] = []
     radius: list[float] = []
+    start: list[int] = []  # the first node of each node's chain
+    loose: dict[int, int] = {}  # first node of a loose chain -> the node it joined (-1: not yet)
     active: list[int] = []  # the last node of each chain still being traced
     ends: list[int] = []  # the last node of each finished chain
+
+    def fail(t: float, what: str):
+        return InputError(mi.source, "", f"{what} {t - s0:.3f} m along the mesh's axis: the mesh is not a log or a "
+                          "tree (give an explicit skeleton)")
+
     for k, t in enumerate(s0 + length * np.arange(1, n) / n):
         o = centre + t * axis
         found = []
@@ -340,38 +349,83 @@ def tree_nodes(mi: MeshInput, spacing: float | None) -> tuple[np.ndarray, np.nda
         if k == 0 and len(found) != 1:
             raise InputError(mi.source, "", f"{len(found)} cross-sections next to the root end: the mesh must start "
                              "from one stem (give an explicit skeleton)")
+
+        def near(a: int, j: int) -> bool:
+            return bool(np.linalg.norm(found[j][0] - pos[a]) < TRACK * (found[j][1] + radius[a]))
+
         claimed: dict[int, list[int]] = {}
-        for j, (c, r) in enumerate(found):
-            near = [(np.linalg.norm(c - pos[a]), a) for a in active if np.linalg.norm(c - pos[a]) < TRACK * (r + radius[a])]
-            if not near and k > 0:
-                raise InputError(mi.source, "", f"a cross-section {t - s0:.3f} m along the mesh's axis joins no branch "
-                                 "before it: a branch bends back along the axis (give an explicit skeleton)")
-            claimed.setdefault(min(near)[1] if near else -1, []).append(j)
+        for j in range(len(found)):
+            cands = [(np.linalg.norm(found[j][0] - pos[a]), a) for a in active if near(a, j)]
+            claimed.setdefault(min(cands)[1] if cands else -1 - j, []).append(j)
         for a in active:
-            if a not in claimed and any(np.linalg.norm(c - pos[a]) < TRACK * (r + radius[a]) for c, r in found):
-                raise InputError(mi.source, "", f"two branches join {t - s0:.3f} m along the mesh's axis (a loop): "
-                                 "the mesh is not a log or a tree (give an explicit skeleton)")
+            if a in claimed:
+                continue
+            joined = [b for b, js in claimed.items() if b >= 0 and any(near(a, j) for j in js)]
+            if not joined:
+                continue
+            b = joined[0]
+            if (start[b] in loose) == (start[a] in loose):
+                raise fail(t, "two branches join")
+            if start[b] in loose:  # the chain that is not loose goes on, the loose one ends here
+                js = [j for j in claimed.pop(b) if near(a, j)]
+                claimed[a] = js
+                a, b = b, a
+            loose[start[a]] = b
+        for b, js in claimed.items():
+            if b >= 0 and len(js) > 1 and start[b] in loose:
+                raise fail(t, "a branch that turns back forks")
         ends += [a for a in active if a not in claimed]
         active = []
         for a, js in claimed.items():
-            for j in sorted(js, key=lambda j: -found[j][1]):  # the largest part continues the chain
+            for i, j in enumerate(sorted(js, key=lambda j: -found[j][1])):  # the largest part continues
                 pos.append(found[j][0])
-                parent.append(a)
+                parent.append(max(a, -1))
                 radius.append(found[j][1])
+                start.append(start[a] if a >= 0 and i == 0 else len(pos) - 1)
+                if a < 0 and k > 0:
+                    loose[len(pos) - 1] = -1
                 active.append(len(pos) - 1)
     ends += active
+    if any(j < 0 for j in loose.values()):
+        raise InputError(mi.source, "", "a part of the mesh joins no branch: the mesh is not one log or tree "
+                         "(give an explicit skeleton)")
     pos_a, parent_a = np.array(pos), np.array(parent, dtype=np.int64)
+    tips = [e for e in ends if e > 0 and start[e] not in loose]
+    for first, joint in loose.items():  # turn a loose chain around: its last node hangs from the joint
+        last = next(e for e in ends if start[e] == first)
+        path = [last]
+        while path[-1] != first:
+            path.append(int(parent_a[path[-1]]))
+        parent_a[path[0]] = joint
+        parent_a[path[1:]] = path[:-1]
+        tips.append(first)
     reach = 1.5 * max(radius)
     first = np.flatnonzero(parent_a == 0)
     if len(first) == 0:
         raise InputError(mi.source, "", "the mesh is too short along its axis for a skeleton")
     root = _extend(mesh, pos_a[0], pos_a[first[0]], length / n, reach)
-    ends = [e for e in ends if e > 0]
-    tips = [_extend(mesh, pos_a[e], pos_a[parent_a[e]], length / n, reach) for e in ends]
+    ends_xyz = [_extend(mesh, pos_a[e], pos_a[parent_a[e]], length / n, reach) for e in tips]
     # the root's end node first (its parent -1), the traced nodes one index later (the first of
-    # them hangs from the root's end node), then the tips' end nodes
-    all_parent = np.concatenate([[-1], parent_a + 1, np.array(ends, dtype=np.int64) + 1])
-    return np.vstack([root, pos_a, *tips]), all_parent.astype(np.int64)
+    # them hangs from the root's end node), then the tips' end nodes; parents before children
+    nodes = np.vstack([root, pos_a, *ends_xyz])
+    par = np.concatenate([[-1], parent_a + 1, np.array(tips, dtype=np.int64) + 1])
+    order = np.arange(len(par)) if np.all(par < np.arange(len(par))) else _parents_first(par)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    return nodes[order], np.where(par[order] < 0, -1, rank[np.maximum(par[order], 0)]).astype(np.int64)
+
+
+def _parents_first(parent: np.ndarray) -> np.ndarray:
+    """An order of the nodes of the tree ``parent`` (root -1) in which every parent comes before
+    its children (breadth first from the root; ties keep the index order)."""
+    children = [[] for _ in parent]
+    for i, p in enumerate(parent):
+        if p >= 0:
+            children[p].append(i)
+    order = [int(np.flatnonzero(parent < 0)[0])]
+    for i in order:
+        order.extend(children[i])
+    return np.array(order, dtype=np.int64)
 
 
 def mesh_skeleton(mi: MeshInput, resolution: float, spacing: float | None = None) -> Skeleton:
