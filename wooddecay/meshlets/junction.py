@@ -2,12 +2,15 @@
 other inside the wood (woodstock §8.1 meshes each branch on its own), so some bark faces of one
 branch have another branch's meshlet right behind them. Such a face is not the wood's surface: it
 becomes a side face with that meshlet as its neighbour, hidden while the two stay connected and
-shown as wood (not bark) once they part (:mod:`wooddecay.meshlets.visibility`).
+shown as wood (not bark) once they part (:mod:`wooddecay.meshlets.visibility`). The other way
+round, a strand's open end cap there, or a face across a fork's section, with no meshlet behind
+it (where the sweeps leave a notch between them) is the wood's surface: it becomes bark.
 
-A bark face of element e is a wall when the point OUTSIDE r_s beyond its centroid, along its
-outward normal, lies inside a meshlet of another branch (a winding number over that meshlet's
-closed shell above one half). Only faces within reach of a fork are tested: REACH times the
-largest section radius at the fork and its children plus the longest meshlet's extent.
+A face of element e is covered when the point OUTSIDE r_s beyond its centroid, along its outward
+normal, lies inside another meshlet (a winding number over that meshlet's closed shell above one
+half; for a bark face, one of another branch). Only faces within reach of a fork are tested:
+REACH times the largest section radius at the fork and its children plus the longest meshlet's
+extent.
 """
 from __future__ import annotations
 
@@ -16,18 +19,25 @@ from dataclasses import replace
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..strands import profiles
+
 #: how far beyond a bark face (in r_s) another branch's wood makes it a wall
 OUTSIDE = 0.1
+#: an uncovered face deeper than this many r_s below the profile faces a void, not the surface
+SURFACE = 2.0
 #: faces within this many section radii (plus a meshlet's extent) of a fork are tested
 REACH = 3.0
 
 
-def junction_walls(model, mesh, bark: int, side: int):
+def junction_walls(model, mesh, bark: int, side: int, cap: int):
     """``mesh`` with the bark faces (kind ``bark``) that another branch's meshlet covers turned
-    into ``side`` faces facing it (module docstring); ``stats['junction_walls']`` counts them."""
+    into ``side`` faces facing it, and the open end caps (kind ``cap``, no neighbour) and faces
+    across a fork's section that nothing covers turned into bark (module docstring);
+    ``stats['junction_walls']`` and
+    ``stats['junction_bark']`` count them."""
     topo, skel = model.topology, model.skeleton
     forks = [i for i, ch in enumerate(topo.children) if len(ch) > 1]
-    mesh.stats["junction_walls"] = 0
+    mesh.stats["junction_walls"] = mesh.stats["junction_bark"] = 0
     if not forks:
         return mesh
     vo = mesh.vertex_offsets
@@ -39,27 +49,56 @@ def junction_walls(model, mesh, bark: int, side: int):
     extent = np.zeros(mesh.count)
     np.maximum.at(extent, owner, np.linalg.norm(mesh.points - centre[owner], axis=1))
 
-    faces = np.flatnonzero(mesh.face_kind == bark)
+    d = mesh.wood[mesh.faces, 2]
+    at_fork = np.isin(d[:, 0], topo.s[forks]) & (d[:, 0] == d[:, 1]) & (d[:, 0] == d[:, 2])
+    faces = np.flatnonzero((mesh.face_kind == bark) | ((mesh.face_kind == cap) & (mesh.face_neighbour < 0)) | at_fork)
     tri = mesh.points[mesh.faces[faces]]
     normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     length = np.linalg.norm(normal, axis=1)
     probe = tri.mean(axis=1) + OUTSIDE * model.r_s * normal / np.where(length > 0, length, 1.0)[:, None]
     radius = [max(float(np.abs(skel.profiles[j].polygon).max()) for j in (i, *topo.children[i])) for i in forks]
-    near = cKDTree(skel.positions[forks]).query(probe, distance_upper_bound=REACH * max(radius) + extent.max())[0]
-    faces, probe = faces[np.isfinite(near)], probe[np.isfinite(near)]
+    near = np.isfinite(cKDTree(skel.positions[forks]).query(probe, distance_upper_bound=REACH * max(radius) + extent.max())[0])
+    faces, probe = faces[near], probe[near]
 
     pairs = cKDTree(probe).sparse_distance_matrix(cKDTree(centre[has]), extent.max(), output_type="ndarray")
     f, e = pairs["i"], np.flatnonzero(has)[pairs["j"]]
-    keep = (model.branch[e] != model.branch[mesh.face_element[faces[f]]]) & (pairs["v"] <= extent[e])
+    own = mesh.face_element[faces[f]]
+    is_bark = mesh.face_kind[faces[f]] == bark
+    keep = (pairs["v"] <= extent[e]) & (e != own) & (~is_bark | (model.branch[e] != model.branch[own]))
     f, e = f[keep], e[keep]
     inside = _winding(mesh, e, probe[f]) > 0.5
     f, e = f[inside], e[inside]
-    wall, first = np.unique(f, return_index=True)
+    covered, first = np.unique(f, return_index=True)
     kind, neighbour = mesh.face_kind.copy(), mesh.face_neighbour.copy()
+    wall = covered[mesh.face_kind[faces[covered]] == bark]
     kind[faces[wall]] = side
-    neighbour[faces[wall]] = e[first]
-    mesh.stats["junction_walls"] = int(len(wall))
+    neighbour[faces[wall]] = e[first][mesh.face_kind[faces[covered]] == bark]
+    open_cap = np.setdiff1d(np.flatnonzero(mesh.face_kind[faces] != bark), covered)
+    open_cap = open_cap[_at_surface(model, mesh, faces[open_cap])]
+    kind[faces[open_cap]] = bark
+    neighbour[faces[open_cap]] = -1
+    mesh.stats["junction_walls"], mesh.stats["junction_bark"] = int(len(wall)), int(len(open_cap))
     return replace(mesh, face_kind=kind, face_neighbour=neighbour)
+
+
+def _at_surface(model, mesh, faces: np.ndarray) -> np.ndarray:
+    """Whether each face lies within SURFACE r_s of the wood's surface: its mean radius in its
+    branch's section frame at least the profile's extent at its angle (the nearest node of the
+    branch) less SURFACE r_s; deeper ones face a void inside the wood."""
+    topo, skel = model.topology, model.skeleton
+    w = mesh.wood[mesh.faces[faces]]
+    r, d = w[:, :, 0].mean(axis=1), w[:, 0, 2]
+    phi = np.angle(np.exp(1j * w[:, :, 1]).mean(axis=1))
+    branch = model.branch[mesh.face_element[faces]]
+    order = np.lexsort((topo.s, topo.branch))  # nodes by branch, then along it
+    key = topo.branch[order] * (topo.s.max() + 1.0) + topo.s[order]
+    at = np.clip(np.searchsorted(key, branch * (topo.s.max() + 1.0) + d), 1, len(order) - 1)
+    lo, hi = order[at - 1], order[at]
+    node = np.where((topo.branch[lo] == branch) & ((topo.branch[hi] != branch) | (d - topo.s[lo] < topo.s[hi] - d)), lo, hi)
+    extent = np.zeros(len(faces))
+    for i in np.unique(node):
+        extent[node == i] = profiles.ray_extent(skel.profiles[i].polygon, np.zeros(2), phi[node == i])
+    return r >= extent - SURFACE * model.r_s
 
 
 def _winding(mesh, elements: np.ndarray, points: np.ndarray) -> np.ndarray:

@@ -31,7 +31,8 @@ Forks: an element that straddles a fork belongs to the branch of its midpoint (`
 and is clipped at the fork section; the next element of the strand covers the rest. Per-branch
 sweeps overlap slightly near junctions (woodstock §8.1 leaves junction gaps and overlaps;
 ``docs/decisions.md``, "Forks and hull repair"); bark faces with another branch's wood right
-behind them become walls to it (:mod:`wooddecay.meshlets.junction`).
+behind them become walls to it, open end caps there with nothing behind them bark
+(:mod:`wooddecay.meshlets.junction`).
 
 Output: :class:`Meshlets`, disjoint closed shells (each meshlet owns copies of its vertices), faces
 tagged bark / side (with the neighbouring element) / cap, rest wood-local coordinates and ring age
@@ -554,7 +555,7 @@ def build_meshlets(model) -> Meshlets:
         skin_indptr=skin_indptr, skin_element=skin_element, skin_weight=skin_weight,
         skin_local=skin_local, stats=counts,
     )
-    mesh = junction_walls(model, hull_repair(mesh), BARK, SIDE)
+    mesh = junction_walls(model, hull_repair(mesh), BARK, SIDE, CAP)
     if model.bark_thickness == 0.0:
         mesh = replace(mesh, face_kind=np.where(mesh.face_kind == BARK, SIDE, mesh.face_kind).astype(mesh.face_kind.dtype))
     counts["seconds"] = time.perf_counter() - t0
