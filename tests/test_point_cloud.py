@@ -69,7 +69,7 @@ def test_lofted_cylinder_matches_the_cylinder():
     assert skel.positions[0, 0] < 0.01 and skel.positions[-1, 0] > LENGTH - 0.01
 
 
-def horseshoe_scan(n: int = 12000, noise: float = 0.0005, seed: int = 3):
+def horseshoe_scan(n: int = 20000, noise: float = 0.0005, seed: int = 3):
     """Points on a log 0.8 m long whose section is a C (a ring of radii 0.1 and 0.05 m open over
     80 degrees: no point inside it sees all of its boundary), and the section's area."""
     from wooddecay.strands import profiles
@@ -96,7 +96,7 @@ def test_scanned_c_shaped_log_keeps_its_hollow(tmp_path):
     mi = loft(pts, resolution=0.008, source="scan")
     print(mi.repairs[0], f"volume {mi.mesh.volume / (area * LENGTH) - 1:+.2%}")
     assert mi.mesh.is_watertight and mi.mesh.volume == pytest.approx(area * LENGTH, rel=0.03)
-    assert "(51 of them not star-shaped)" in mi.repairs[0]
+    assert int(mi.repairs[0].split("(")[1].split()[0]) >= 49  # all but the end slabs (cut faces)
     trimesh.PointCloud(pts).export(tmp_path / "c.ply")
     (tmp_path / "c.toml").write_text('[scene]\nname = "c"\nseed = 1\n[skeleton]\npoints = "c.ply"\n'
                                      '[strands]\nr_s = 0.008\nrod_length = 0.05\n[time]\ndays = 1\n')

@@ -13,7 +13,9 @@ on the ground) the points trace an open curve and the closing encloses almost no
 OPEN of the convex hull's area). For such slabs, and for every slab whose closed contour is
 star-shaped about the slab's centroid, the contour is the farthest point per angle bin about the
 centroid (ANGLES of them), empty bins taking the value of their angular neighbours: between
-sparse points it follows the arc where the closing's discs dip in. The contours are resampled at
+sparse points it follows the arc where the closing's discs dip in; bins that run out and in (a cut
+face across the slab: bins the surface does not reach keep points inside the wood; a perimeter
+over SPIKY times the hull's) take the slab's convex hull. The contours are resampled at
 one count (a point per r_s of the longest, ANGLES to MAX_AROUND), each turned to match the
 previous one, and joined into a tube closed by two flat, ear-clipped caps at the cloud's ends (there the
 contour of the slab next to the end: the end slabs hold the cut faces' points): a watertight,
@@ -149,7 +151,7 @@ def _closed_contour(q: np.ndarray, resolution: float) -> np.ndarray | None:
     """The outer contour (counter-clockwise) of a slab's points ``q`` closed by a disc of radius
     rho = ALPHA mean spacings (module docstring); None where the points trace an open curve.
 
-    On a grid of resolution / 4 (Felzenszwalb-Huttenlocher distances, ``distance_transform_edt``):
+    On a grid of resolution / 4 (exact Euclidean distances, ``scipy.ndimage.distance_transform_edt``):
     the cells farther than rho from every point that the grid's border reaches are outside; the
     closed section is what lies farther than rho from the outside, its boundary the zero contour
     of that distance minus rho (marching squares, ``contourpy``)."""
@@ -162,12 +164,11 @@ def _closed_contour(q: np.ndarray, resolution: float) -> np.ndarray | None:
     except QhullError:
         return None
     rho = ALPHA * hull.area / len(q)  # a 2D hull's "area" is its perimeter
-    h = resolution / 4.0
+    extent = q.max(axis=0) - q.min(axis=0) + 4.0 * rho
+    h = max(resolution / 4.0, math.sqrt(np.prod(extent) / MAX_CELLS))
+    rho = max(rho, 2.0 * h)  # a dense scan: the disc spans two cells
     lo = q.min(axis=0) - 2.0 * rho - 2.0 * h
     shape = np.ceil((q.max(axis=0) + 2.0 * rho + 2.0 * h - lo) / h).astype(np.int64) + 1
-    if shape.prod() > MAX_CELLS:
-        h *= math.sqrt(shape.prod() / MAX_CELLS)
-        shape = np.ceil((q.max(axis=0) + 2.0 * rho + 2.0 * h - lo) / h).astype(np.int64) + 1
     empty = np.ones(shape, bool)
     ij = np.round((q - lo) / h).astype(np.int64)
     empty[ij[:, 0], ij[:, 1]] = False
@@ -175,7 +176,7 @@ def _closed_contour(q: np.ndarray, resolution: float) -> np.ndarray | None:
     label, _ = ndimage.label(free)
     border = np.unique(np.concatenate([label[0], label[-1], label[:, 0], label[:, -1]]))
     outside = np.isin(label, border[border > 0])
-    depth = ndimage.distance_transform_edt(~outside) * h - rho
+    depth = ndimage.distance_transform_edt(~outside) * h - rho - 0.5 * h  # the outside cells start h / 2 beyond rho
     x, y = lo[0] + h * np.arange(shape[0]), lo[1] + h * np.arange(shape[1])
     lines = [ln for ln in contour_generator(y, x, depth).lines(0.0) if len(ln) > 3]
     if not lines:
