@@ -33,8 +33,7 @@ def junction_walls(model, mesh, bark: int, side: int, cap: int):
     """``mesh`` with the bark faces (kind ``bark``) that another branch's meshlet covers turned
     into ``side`` faces facing it, and the open end caps (kind ``cap``, no neighbour) and faces
     across a fork's section that nothing covers turned into bark (module docstring);
-    ``stats['junction_walls']`` and
-    ``stats['junction_bark']`` count them."""
+    ``stats['junction_walls']`` and ``stats['junction_bark']`` count them."""
     topo, skel = model.topology, model.skeleton
     forks = [i for i, ch in enumerate(topo.children) if len(ch) > 1]
     mesh.stats["junction_walls"] = mesh.stats["junction_bark"] = 0
@@ -56,7 +55,7 @@ def junction_walls(model, mesh, bark: int, side: int, cap: int):
     normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     length = np.linalg.norm(normal, axis=1)
     probe = tri.mean(axis=1) + OUTSIDE * model.r_s * normal / np.where(length > 0, length, 1.0)[:, None]
-    radius = [max(float(np.abs(skel.profiles[j].polygon).max()) for j in (i, *topo.children[i])) for i in forks]
+    radius = [max(float(np.linalg.norm(skel.profiles[j].polygon, axis=1).max()) for j in (i, *topo.children[i])) for i in forks]
     near = np.isfinite(cKDTree(skel.positions[forks]).query(probe, distance_upper_bound=REACH * max(radius) + extent.max())[0])
     faces, probe = faces[near], probe[near]
 
