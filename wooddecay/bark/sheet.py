@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..strands.profiles import polygon_perimeter
 from ..strands.rings import BARK
 
 #: (P_t, P_l): the pattern's share of a strain along t (around) and l (along the grain)
@@ -91,10 +92,6 @@ def recent_growth(Q: np.ndarray, bark_years: int) -> float:
     return float(1.0 - Q[max(years - int(bark_years), 0)])
 
 
-def _perimeter(polygon: np.ndarray) -> float:
-    return float(np.linalg.norm(np.roll(polygon, -1, axis=0) - polygon, axis=1).sum())
-
-
 def _value_noise(u: np.ndarray, v: np.ndarray, period_u: int, rng: np.random.Generator) -> np.ndarray:
     """Smooth value noise in [0, 1] at lattice coordinates (u, v), periodic in u with
     ``period_u`` cells."""
@@ -126,7 +123,7 @@ def build_sheet(model, bark, recent: np.ndarray, eccentricity: float, rng: np.ra
     skel, topo = model.skeleton, model.topology
     h = float(bark["spacing"]) * model.r_s
     pattern = str(bark["pattern"])
-    perim = np.array([_perimeter(p.polygon) for p in skel.profiles])
+    perim = np.array([polygon_perimeter(p.polygon) for p in skel.profiles])
     parts = []
     v_off = 0
     period = np.zeros(topo.n_branches)

@@ -285,8 +285,8 @@ def _fill_shallow(poly: np.ndarray, depth: float) -> np.ndarray:
 
 def _resample(poly: np.ndarray, spacing: float, most: int) -> np.ndarray:
     """Points about ``spacing`` apart along the closed polygon (MIN_POINTS to ``most``)."""
-    perimeter = float(np.linalg.norm(np.diff(np.vstack([poly, poly[:1]]), axis=0), axis=1).sum())
-    return profiles.resample_closed(poly, int(np.clip(math.ceil(perimeter / spacing), MIN_POINTS, most)))
+    k = math.ceil(profiles.polygon_perimeter(poly) / spacing)
+    return profiles.resample_closed(poly, int(np.clip(k, MIN_POINTS, most)))
 
 
 def profile_at(mi: MeshInput, origin, frame, resolution: float, node: str) -> profiles.Profile:

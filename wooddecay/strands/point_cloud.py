@@ -35,7 +35,7 @@ import numpy as np
 from wooddecay.errors import InputError
 from wooddecay.strands.mesh_input import Y_TO_Z_UP, MeshInput, checked_path
 from wooddecay.strands.mesh_skeleton import plane_basis, principal_axis
-from wooddecay.strands.profiles import is_ccw, polygon_area, ray_extent, resample_closed
+from wooddecay.strands.profiles import is_ccw, polygon_area, polygon_perimeter, ray_extent, resample_closed
 
 SUFFIXES = (".ply", ".xyz", ".txt", ".csv", ".las", ".laz")
 #: fewest points a cloud must have
@@ -44,6 +44,8 @@ MIN_POINTS = 200
 SLAB = 2.0
 #: angle bins of a slab's contour
 ANGLES = 72
+#: the angle bins' lower edges (rad)
+BINS = np.linspace(-np.pi, np.pi, ANGLES, endpoint=False)
 #: a slab needs at least this share of its angle bins filled
 MIN_FILLED = 0.5
 #: closing radius in mean spacings of a slab's points along its convex hull (the largest gap of
@@ -114,12 +116,12 @@ def loft(points: np.ndarray, resolution: float, source: str) -> MeshInput:
             contours[-1] = _hull_radii(contours[-1])
         centres.append(mean + float(s[slab == k].mean()) * axis + c[0] * u + c[1] * v)
     closed = [c for c in contours if c.ndim == 2]
-    around = int(np.clip(math.ceil(max(map(_perimeter, closed)) / resolution), ANGLES, MAX_AROUND)) if closed else ANGLES
+    around = int(np.clip(math.ceil(max(map(polygon_perimeter, closed)) / resolution), ANGLES, MAX_AROUND)) if closed else ANGLES
     theta = np.linspace(-np.pi, np.pi, around, endpoint=False)
     rings = []
     for centre, contour in zip(centres, contours):
         if contour.ndim == 1:  # star-shaped: vertices at fixed angles, so consecutive rings match
-            r = np.interp(theta, np.linspace(-np.pi, np.pi, ANGLES, endpoint=False), contour, period=2 * np.pi)
+            r = np.interp(theta, BINS, contour, period=2 * np.pi)
             q = r[:, None] * np.column_stack([np.cos(theta), np.sin(theta)])
         else:
             q = resample_closed(contour, around)
@@ -134,10 +136,6 @@ def loft(points: np.ndarray, resolution: float, source: str) -> MeshInput:
         mesh.invert()
     return MeshInput(mesh, (f"lofted a surface through {len(rings)} slices of {len(points)} points "
                             f"({len(closed)} of them not star-shaped)",), source)
-
-
-def _perimeter(loop: np.ndarray) -> float:
-    return float(np.linalg.norm(np.diff(np.vstack([loop, loop[:1]]), axis=0), axis=1).sum())
 
 
 def _turned_to(ring: np.ndarray, previous: np.ndarray) -> np.ndarray:
@@ -202,7 +200,6 @@ def _slab_contour(q: np.ndarray, resolution: float, source: str, k: int, n_slabs
     loop = _closed_contour(q, resolution)
     if loop is not None and not _star_shaped(loop):
         return loop
-    theta = np.linspace(-np.pi, np.pi, ANGLES, endpoint=False)
     ang = np.arctan2(q[:, 1], q[:, 0])
     b = np.minimum(((ang + np.pi) / (2 * np.pi) * ANGLES).astype(np.int64), ANGLES - 1)
     r = np.full(ANGLES, -np.inf)
@@ -211,7 +208,7 @@ def _slab_contour(q: np.ndarray, resolution: float, source: str, k: int, n_slabs
     if filled.mean() < MIN_FILLED:
         raise InputError(source, "", f"slice {k + 1} of {n_slabs} along the cloud's axis has points at "
                          f"{int(filled.sum())} of {ANGLES} angles: not one log along a line, or a gap in the scan")
-    return np.interp(theta, theta[filled], r[filled], period=2 * np.pi)
+    return np.interp(BINS, BINS[filled], r[filled], period=2 * np.pi)
 
 
 def _spiky(contour: np.ndarray) -> bool:
@@ -219,7 +216,10 @@ def _spiky(contour: np.ndarray) -> bool:
     does not reach keep a point inside the wood): a perimeter over SPIKY times its hull's."""
     from scipy.spatial import ConvexHull
 
-    return contour.ndim == 1 and _perimeter(_radii_polygon(contour)) > SPIKY * ConvexHull(_radii_polygon(contour)).area
+    if contour.ndim == 2:
+        return False
+    poly = _radii_polygon(contour)
+    return polygon_perimeter(poly) > SPIKY * ConvexHull(poly).area
 
 
 def _hull_radii(radii: np.ndarray) -> np.ndarray:
@@ -228,12 +228,11 @@ def _hull_radii(radii: np.ndarray) -> np.ndarray:
     from scipy.spatial import ConvexHull
 
     poly = _radii_polygon(radii)
-    return ray_extent(poly[ConvexHull(poly).vertices], np.zeros(2), np.linspace(-np.pi, np.pi, ANGLES, endpoint=False))
+    return ray_extent(poly[ConvexHull(poly).vertices], np.zeros(2), BINS)
 
 
 def _radii_polygon(radii: np.ndarray) -> np.ndarray:
-    theta = np.linspace(-np.pi, np.pi, len(radii), endpoint=False)
-    return radii[:, None] * np.column_stack([np.cos(theta), np.sin(theta)])
+    return radii[:, None] * np.column_stack([np.cos(BINS), np.sin(BINS)])
 
 
 def tube_sides(along: int, around: int) -> np.ndarray:

@@ -188,6 +188,11 @@ def polygon_centroid(poly: np.ndarray) -> np.ndarray:
     return np.sum((2.0 * a + d) * w[:, None], axis=0) / (3.0 * total)
 
 
+def polygon_perimeter(poly: np.ndarray) -> float:
+    """Length of the closed polygon ``poly`` (``(k, 2)`` or ``(k, 3)``)."""
+    return float(np.linalg.norm(np.roll(poly, -1, axis=0) - poly, axis=1).sum())
+
+
 def resample_closed(poly: np.ndarray, k: int) -> np.ndarray:
     """``k`` points equally spaced by arc length along the closed polygon ``poly`` (``(m, 2)`` or
     ``(m, 3)``), the first at its first vertex."""
