@@ -7,7 +7,10 @@ scene is given):
     strand_gauss_seidel_ms      one red-black sweep of stretch-shear and bend-twist
     strand_direct_over_gauss_seidel   the cost ratio
     strand_reference_ms         the numpy reference (one call)
-    substep_ms_<solver>         a whole mechanics substep with each strand solver
+    substep_ms_<solver>         a whole mechanics substep with each strand solver (``auto``
+                                solves directly only the strands no REG edge binds: none here)
+    stage1_plan_ms              the auto plan with half the REG flags and 5% of the elements
+                                failed (redone whenever a failure flag changes), and its runs
 Usage: python benchmarks/strand_solve.py [SCENE]
 """
 from __future__ import annotations
@@ -33,12 +36,15 @@ def main(path: str = str(SAMPLES / "log.toml")) -> None:
     lam = mechanics._multipliers(setup)
 
     def direct(kernel=strand_solve.solve_strands):
-        kernel(setup.strand_offsets, setup.joint_of, setup.fp, ms.x, ms.q, ms.w_p, ms.w_q, ms.rest_length,
+        kernel(setup.strand_offsets[:-1], setup.strand_offsets[1:], setup.joint_of, setup.fp, ms.x, ms.q, ms.w_p, ms.w_q, ms.rest_length,
                setup.k_stretch, setup.k_shear, ms.element_ok, setup.joint_rest, setup.joint_length, kb, kt,
                lam["s"], lam["sh"], lam["j"], setup.dt)
 
+    gs = replace(setup, strand_solver="gauss-seidel")
+    plan = mechanics.stage1_plan(gs, ms)
+
     def gauss_seidel():
-        mechanics.strand_stage(replace(setup, strand_solver="gauss-seidel"), ms, (kb, kt), lam, setup.dt)
+        mechanics.strand_stage(gs, ms, (kb, kt), plan, lam, setup.dt)
 
     print(f"elements {model.n_elements} -")
     t_d, t_g = times(direct, 15), times(gauss_seidel, 15)
@@ -47,10 +53,17 @@ def main(path: str = str(SAMPLES / "log.toml")) -> None:
     print(f"strand_direct_over_gauss_seidel {statistics.median(t_d) / statistics.median(t_g):.1f} x")
     t_r = times(lambda: direct(strand_solve.solve_strands_reference), 1)[0]
     print(f"strand_reference_ms {1e3 * t_r:.1f} ms")
-    for solver in ("gauss-seidel", "direct"):
+    for solver in ("gauss-seidel", "auto", "direct"):
         s = replace(setup, strand_solver=solver)
         t = times(lambda: mechanics._substep(s, ms, s.dt), 15)
         print(f"substep_ms_{solver} {1e3 * statistics.median(t):.3f} ms {spread([1e3 * x for x in t])}")
+    rng = np.random.default_rng(0)
+    ms.edge_ok[rng.random(ms.edge_ok.shape[0]) < 0.5] = False
+    ms.element_ok[rng.random(len(ms.element_ok)) < 0.05] = False
+    auto = replace(setup, strand_solver="auto")
+    t = times(lambda: mechanics.stage1_plan(auto, ms), 15)
+    print(f"stage1_plan_ms {1e3 * statistics.median(t):.3f} ms {spread([1e3 * x for x in t])} "
+          f"({len(mechanics.stage1_plan(auto, ms).lo)} direct runs)")
 
 
 if __name__ == "__main__":

@@ -237,3 +237,21 @@ def test_weak_points_raised_near_junctions_and_stretched_along_grain():
     chain = m.transport_edges[m.transport_kind == 1]
     reg = m.reg_edges
     assert np.mean(np.abs(np.diff(m.W[chain], axis=1))) < np.mean(np.abs(np.diff(m.W[reg], axis=1)))
+
+
+def test_a_load_that_splits_the_substeps_is_noted():
+    """A [[load]] whose force would throw its particles more than LOAD_JUMP of an element per
+    substep gets a note naming it and the split (``summary.json`` notes, ``inspect``); a light
+    one gets none."""
+    import tomllib
+
+    from wooddecay.scene import parse_scene
+
+    data = tomllib.loads((SAMPLES / "tiny.toml").read_text())
+    notes = []
+    for newtons in (1.0, 1e5):
+        data["load"] = [{"region": {"kind": "end", "which": "root", "depth": 0.03}, "force": [0.0, 0.0, -newtons],
+                         "days": [0.0, 30.0]}]
+        model = wd.build_model(parse_scene(data, source="tiny.toml", base_dir=SAMPLES))
+        notes.append([n for n in model.notes if n.startswith("load[0]")])
+    assert notes[0] == [] and len(notes[1]) == 1 and "split into" in notes[1][0], notes

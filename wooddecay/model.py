@@ -375,7 +375,8 @@ def build_model(scene) -> WoodModel:
         loads = tuple(Load(day0=ld["days"][0], day1=ld["days"][1], force=tuple(ld["force"]),
                            mask=region_mask(model, ld["region"])) for ld in scene.loads)
         mech = mechanics.prepare(model, config, _collider_rows(scene), loads)
-        model = replace(model, bio=bio, mech=mech, coupling=coupling.prepare(model))
+        model = replace(model, bio=bio, mech=mech, coupling=coupling.prepare(model),
+                        notes=model.notes + mechanics.load_notes(mech))
     with _timed(sec, "bark"):
         bark = scene.bark.as_dict()
         if bark["cracks"] and rg.bark_thickness > 0.0:

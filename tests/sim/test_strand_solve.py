@@ -18,7 +18,7 @@ from .helpers import perturbed
 
 
 def _solve(kernel, setup, ms, x, q, lam, kb, kt, dt=1e-4):
-    kernel(setup.strand_offsets, setup.joint_of, setup.fp, x, q, ms.w_p, ms.w_q, ms.rest_length, setup.k_stretch,
+    kernel(setup.strand_offsets[:-1], setup.strand_offsets[1:], setup.joint_of, setup.fp, x, q, ms.w_p, ms.w_q, ms.rest_length, setup.k_stretch,
            setup.k_shear, ms.element_ok, setup.joint_rest, setup.joint_length, kb, kt, lam["s"], lam["sh"],
            lam["j"], dt)
 
@@ -62,7 +62,8 @@ def _second_over_first(scale: float, kernel_pair: str) -> float:
     changes = []
     for _ in range(2):
         before = {k: v.copy() for k, v in lam.items()}
-        mechanics.strand_stage(replace(setup, strand_solver=kernel_pair), ms, kjoint, lam, 1e-4)
+        pair = replace(setup, strand_solver=kernel_pair)
+        mechanics.strand_stage(pair, ms, kjoint, mechanics.stage1_plan(pair, ms), lam, 1e-4)
         changes.append({k: np.abs(lam[k] - before[k]).max() for k in ("sh", "j")})
     return max(changes[1][k] / changes[0][k] for k in ("sh", "j"))
 
@@ -93,24 +94,80 @@ def test_direct_solve_same_bits_with_one_or_two_threads():
     assert runs[0].tobytes() == runs[1].tobytes()
 
 
-@pytest.mark.parametrize("case", [(200, 1e9, 200), (60, 5e9, 50), (20, 1e9, 200)])
-def test_lone_strand_of_many_elements_sags_as_beam_theory_with_the_direct_solver(case):
-    """Where Gauss-Seidel at the defaults sags 3 to 113 times too far, the direct solver at the
-    same step and one iteration is within 1% of q L^4 / (8 E I), and its strain excess is
-    below the bake's tolerance."""
-    gs = mv.sweep_case(*case, solver="gauss-seidel")
-    direct = mv.sweep_case(*case, solver="direct")
-    print(case, f"Gauss-Seidel {gs['error']:+.4f}, direct {direct['error']:+.4f} (excess {direct['strain_excess']:.2e})")
+@pytest.mark.parametrize("case", [(200, 1e9, 200, "gravity"), (60, 5e9, 50, "gravity"), (20, 1e9, 200, "gravity"),
+                                  (20, 2e10, 200, "tip")])
+def test_lone_strand_of_many_elements_sags_as_beam_theory_at_the_defaults(case):
+    """Where Gauss-Seidel at the scene's step and iterations sags 3 to 113 times too far, the
+    scene's default strand solver (``auto``: a lone strand is solved directly) is within 1% of
+    beam theory, and its strain excess is below the bake's tolerance. Under the tip load the
+    substeps split as a bake's do under a [[load]] (its 30 mg tip particle would be thrown 12
+    element lengths per step: 9% too soft unsplit)."""
+    *shape, load = case
+    gs = mv.sweep_case(*shape, load=load, solver="gauss-seidel")
+    direct = mv.sweep_case(*shape, load=load)
+    print(case, f"Gauss-Seidel {gs['error']:+.4f}, default {direct['error']:+.4f} (excess {direct['strain_excess']:.2e}, "
+          f"split {direct['split']})")
     assert gs["error"] > 0.03
     assert abs(direct["error"]) < 0.01 and direct["strain_excess"] < mechanics.STRAIN_EXCESS_TOLERANCE
+    assert (direct["split"] > 1) == (load == "tip")
+    if load == "tip":
+        unsplit = mv.sweep_case(*shape, load=load, split=False)
+        assert unsplit["split"] == 1 and unsplit["error"] > 0.05
 
 
 @pytest.mark.slow
 def test_fixed_free_buckling_load_within_5_percent_at_the_default_step():
-    """With the direct solver at the scene's dt_mech and one iteration, the vertical strand stays
-    straight at 0.95 of pi^2 E I / (2 L)^2 and buckles at 1.05 (Gauss-Seidel at these settings
-    already bends 6% of L at 0.95)."""
-    below, above = (mv.buckles(ratio, dt=mv.DEFAULT_DT, iterations=mv.DEFAULT_ITERATIONS, solver="direct")
+    """At the scene's dt_mech, iterations and strand solver, the vertical strand stays straight at
+    0.95 of pi^2 E I / (2 L)^2 and buckles at 1.05 (Gauss-Seidel at these settings already bends
+    6% of L at 0.95)."""
+    below, above = (mv.buckles(ratio, dt=mv.DEFAULT_DT, iterations=mv.DEFAULT_ITERATIONS, solver=mv.DEFAULT_SOLVER)
                     ["lateral_over_L"] for ratio in (0.95, 1.05))
     print(below, above)
     assert below < 0.05 and above > 0.2
+
+
+def test_auto_solves_directly_the_runs_no_reg_edge_binds():
+    """``strand_solver = "auto"``: in the intact bundle every element is left to Gauss-Seidel;
+    once every REG edge of one strand has failed, its unbroken runs (a failed element splits the
+    strand in two) are solved directly and only they leave the Gauss-Seidel classes; ``direct``
+    solves every run, ``gauss-seidel`` none. The runs equal the numpy reference's on a bundle
+    with 60% of its REG flags and 10% of its elements failed."""
+    setup, ms = perturbed()
+    auto = replace(setup, strand_solver="auto")
+    plan = mechanics.stage1_plan(auto, ms)
+    assert len(plan.lo) == 0 and sum(map(len, plan.elems)) == setup.n_elements
+    lone = int(np.argmax(np.diff(setup.strand_offsets)))
+    e0, e1 = (int(v) for v in setup.strand_offsets[lone:lone + 2])
+    assert e1 - e0 >= 3
+    mine = np.isin(setup.edges, np.arange(e0, e1)).any(axis=1)
+    ms.edge_ok[mine] = False
+    ms.element_ok[e0 + 1] = False
+    plan = mechanics.stage1_plan(auto, ms)
+    assert plan.lo.tolist() == [e0, e0 + 2] and plan.hi.tolist() == [e0 + 1, e1]
+    left = np.concatenate(plan.elems)
+    assert len(left) == setup.n_elements - (e1 - e0 - 1) and not np.isin([e0, *range(e0 + 2, e1)], left).any()
+    assert not np.isin(setup.joints[np.concatenate(plan.joint_sets), 0], [e0, *range(e0 + 2, e1)]).any()
+    rng = np.random.default_rng(5)
+    ms.edge_ok[rng.random(ms.edge_ok.shape) < 0.6] = False
+    ms.element_ok[rng.random(len(ms.element_ok)) < 0.1] = False
+    for tied_only in (True, False):
+        args = (setup.strand_offsets, ms.element_ok, setup.edges, ms.edge_ok, ms.integrity, tied_only)
+        got, want = mechanics._direct_runs(*args), mechanics.direct_runs_reference(*args)
+        assert len(got[0]) > 0 and all(np.array_equal(a, b) for a, b in zip(got, want))
+    everything = mechanics.stage1_plan(replace(setup, strand_solver="direct"), ms)
+    assert (everything.hi - everything.lo).sum() == int(ms.element_ok.sum())
+    assert len(mechanics.stage1_plan(replace(setup, strand_solver="gauss-seidel"), ms).lo) == 0
+
+
+def test_load_split_keeps_the_predicted_jump_within_a_quarter_element():
+    """(dt / k)^2 w_p |f_p| <= LOAD_JUMP l for the fewest such k: a force that would move the tip
+    particle 10 element lengths in one step splits it into ceil(sqrt(10 / 0.25)) = 7; no force
+    (or gravity alone, which is not in the forces) splits nothing."""
+    s = mv.strand(length=0.12, n=200, E=2e10, G=8e9, g=0.0, dt=1e-4, iterations=1, solver="auto")
+    setup, ms = s.setup, s.ms
+    force = np.zeros((setup.n_particles, 3))
+    assert mechanics.load_split(setup, ms.w_p, force) == 1
+    force[-1, 2] = -10.0 * setup.rest_length0[-1] / (setup.dt**2 * ms.w_p[-1])
+    assert mechanics.load_split(setup, ms.w_p, force) == 7
+    force[-1, 2] *= 0.99 * 36 / 40  # just within 6 splits
+    assert mechanics.load_split(setup, ms.w_p, force) == 6

@@ -7,7 +7,8 @@ One substep of length dt (``substep``):
    positions and element quaternions (angular velocity in the body frame);
 2. ``iterations`` sweeps (:mod:`wooddecay.sim.rods`) of: Stage 1 per strand (stretch and shear of
    even then odd elements, bend-twist of even then odd joints: a red-black order along each chain;
-   with ``strand_solver = "direct"`` all of a strand's at once, :mod:`~wooddecay.sim.strand_solve`),
+   the runs of a strand that no intact REG edge ties to another strand, a lone strand or a stick
+   broken free, all at once by :mod:`~wooddecay.sim.strand_solve`, :func:`stage1_plan`),
    Stage 2 on the REG one colour class at a time (connection of Eq. 2 scaled by I_ij, pair
    bend-twist by the rest Darboux vector), colliders and capsule contact
    (:mod:`wooddecay.sim.contact`, Eqs. 3-4, with the particle friction of Eq. 7 applied to the
@@ -37,6 +38,9 @@ from . import contact, failure, rods, sleep, strand_solve
 CONTACT_MARGIN = 2.0
 #: seconds of settling between two checks of the strain drift (:func:`settle` with ``tol``)
 SETTLE_CHUNK = 0.05
+#: a [[load]] may move a particle by at most this fraction of its element's rest length in one
+#: substep (dt^2 w_p |f_p|); beyond it the substeps are split (:func:`load_split`)
+LOAD_JUMP = 0.25
 #: largest :func:`strain_excess` a bake accepts without a warning: a clamped strand then sags
 #: within about 3% of beam theory
 STRAIN_EXCESS_TOLERANCE = 0.03
@@ -145,7 +149,7 @@ class MechSetup:
     damping: float
     dt: float
     iterations: int
-    strand_solver: str  # "direct" (:mod:`~wooddecay.sim.strand_solve`) or "gauss-seidel"
+    strand_solver: str  # "auto", "direct" or "gauss-seidel" (:func:`stage1_plan`)
     colliders: np.ndarray  # (k, contact.COLLIDER_COLUMNS)
     k_col: float
     v_depenetration: float
@@ -439,10 +443,10 @@ def _joint_stiffness(setup: MechSetup, ms: MechState) -> tuple[np.ndarray, np.nd
     return np.where(on, setup.joint_kb, 0.0), np.where(on, setup.joint_kt, 0.0)
 
 
-def _project(setup: MechSetup, ms: MechState, kjoint, kreg, lam: dict, dt: float) -> None:
+def _project(setup: MechSetup, ms: MechState, kjoint, plan: "Stage1Plan", kreg, lam: dict, dt: float) -> None:
     """One sweep of Stage 1 and Stage 2."""
     fp, x, q = setup.fp, ms.x, ms.q
-    strand_stage(setup, ms, kjoint, lam, dt)
+    strand_stage(setup, ms, kjoint, plan, lam, dt)
     sw = setup.sweep
     offset, k_conn, k_bend, k_twist = kreg
     for c in range(len(sw.ptr) - 1):
@@ -450,27 +454,110 @@ def _project(setup: MechSetup, ms: MechState, kjoint, kreg, lam: dict, dt: float
                       sw.length, k_bend, k_twist, lam["c"], lam["p"], dt)
 
 
-def strand_stage(setup: MechSetup, ms: MechState, kjoint, lam: dict, dt: float) -> None:
-    """Stage 1: the strands' stretch, shear and bend-twist constraints, by ``setup.strand_solver``
-    (one red-black Gauss-Seidel sweep, or one direct solve per strand)."""
+@dataclass(frozen=True, eq=False)
+class Stage1Plan:
+    """How Stage 1 solves which elements (:func:`stage1_plan`): the runs ``lo[t]:hi[t]`` of a
+    strand's elements in one direct solve each, the rest by Gauss-Seidel over the colour classes
+    ``elems`` (elements) and ``joint_sets`` (joints)."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+    elems: tuple
+    joint_sets: tuple
+
+
+def stage1_plan(setup: MechSetup, ms: MechState) -> Stage1Plan:
+    """Stage 1's split between the strand solvers by ``setup.strand_solver``: ``gauss-seidel``
+    solves nothing directly, ``direct`` every unbroken run of a strand's elements (a failed
+    element ends a run), ``auto`` the runs that no intact REG edge ties to another strand (a lone
+    strand, a stick broken free of the bundle). Gauss-Seidel moves a correction one element per
+    sweep and leaves such a run far softer than E and G say (``benchmarks/cantilever.py --sweep``);
+    in a bundle Stage 2 limits the stiffness and a direct solve there buys nothing at 8x the cost
+    of Stage 1 (docs/decisions.md, "Stiff strands")."""
+    if setup.strand_solver == "gauss-seidel":
+        none = np.zeros(0, dtype=np.int64)
+        return Stage1Plan(none, none, setup.elems, setup.joint_sets)
+    lo, hi, direct = _direct_runs(setup.strand_offsets, ms.element_ok, setup.edges, ms.edge_ok, ms.integrity,
+                                  setup.strand_solver == "auto")
+    if not len(lo):
+        return Stage1Plan(lo, hi, setup.elems, setup.joint_sets)
+    return Stage1Plan(lo, hi, tuple(c[~direct[c]] for c in setup.elems),
+                      tuple(j[~direct[setup.joints[j, 0]]] for j in setup.joint_sets))
+
+
+@nb.njit(cache=True)
+def _direct_runs(offsets, element_ok, edges, edge_ok, integrity, tied_only):
+    """:func:`stage1_plan`'s runs ``lo:hi`` of intact elements within a strand and the mask of
+    their elements; with ``tied_only`` only those no intact REG edge (any of its three flags,
+    I_ij > 0) touches. One serial pass over the elements and the edges."""
+    n = len(element_ok)
+    bound = np.zeros(n, dtype=np.bool_)
+    if tied_only:
+        for k in range(len(edges)):
+            if integrity[k] > 0.0 and (edge_ok[k, 0] or edge_ok[k, 1] or edge_ok[k, 2]):
+                bound[edges[k, 0]] = True
+                bound[edges[k, 1]] = True
+    lo, hi = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    direct = np.zeros(n, dtype=np.bool_)
+    runs = 0
+    for s in range(len(offsets) - 1):
+        e = offsets[s]
+        while e < offsets[s + 1]:
+            if not element_ok[e]:
+                e += 1
+                continue
+            a, tied = e, False
+            while e < offsets[s + 1] and element_ok[e]:
+                tied = tied or bound[e]
+                e += 1
+            if not tied:
+                lo[runs], hi[runs] = a, e
+                direct[a:e] = True
+                runs += 1
+    return lo[:runs], hi[:runs], direct
+
+
+def direct_runs_reference(offsets, element_ok, edges, edge_ok, integrity, tied_only):
+    """Plain-numpy twin of :func:`_direct_runs`."""
+    n = len(element_ok)
+    first, last = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+    first[offsets[:-1]], last[offsets[1:] - 1] = True, True
+    start = element_ok & (first | ~np.roll(element_ok, 1))
+    lo, hi = np.flatnonzero(start), np.flatnonzero(element_ok & (last | ~np.roll(element_ok, -1))) + 1
+    if tied_only:
+        bound = np.zeros(n, dtype=bool)
+        bound[edges[edge_ok.any(axis=1) & (integrity > 0.0)].ravel()] = True
+        tied = np.zeros(len(lo), dtype=bool)
+        tied[(np.cumsum(start) - 1)[element_ok & bound]] = True
+        lo, hi = lo[~tied], hi[~tied]
+    direct = np.zeros(n, dtype=bool)
+    for a, b in zip(lo, hi):
+        direct[a:b] = True
+    return lo, hi, direct
+
+
+def strand_stage(setup: MechSetup, ms: MechState, kjoint, plan: Stage1Plan, lam: dict, dt: float) -> None:
+    """Stage 1: the strands' stretch, shear and bend-twist constraints, the runs of ``plan`` by
+    one direct solve each, the rest by one red-black Gauss-Seidel sweep."""
     fp, x, q = setup.fp, ms.x, ms.q
     kb, kt = kjoint
-    if setup.strand_solver == "direct":
-        strand_solve.solve_strands(setup.strand_offsets, setup.joint_of, fp, x, q, ms.w_p, ms.w_q, ms.rest_length,
+    if len(plan.lo):
+        strand_solve.solve_strands(plan.lo, plan.hi, setup.joint_of, fp, x, q, ms.w_p, ms.w_q, ms.rest_length,
                                    setup.k_stretch, setup.k_shear, ms.element_ok, setup.joint_rest,
                                    setup.joint_length, kb, kt, lam["s"], lam["sh"], lam["j"], dt)
-        return
-    for elems in setup.elems:
-        rods.stretch_shear(elems, fp, x, q, ms.w_p, ms.w_q, ms.rest_length, setup.k_stretch, setup.k_shear,
-                           ms.element_ok, lam["s"], lam["sh"], dt)
-    for idx in setup.joint_sets:
-        rods.bend_twist(setup.joints, idx, q, ms.w_q, setup.joint_rest, setup.joint_length, kb, kt, lam["j"], dt)
+    for elems in plan.elems:
+        if len(elems):
+            rods.stretch_shear(elems, fp, x, q, ms.w_p, ms.w_q, ms.rest_length, setup.k_stretch, setup.k_shear,
+                               ms.element_ok, lam["s"], lam["sh"], dt)
+    for idx in plan.joint_sets:
+        if len(idx):
+            rods.bend_twist(setup.joints, idx, q, ms.w_q, setup.joint_rest, setup.joint_length, kb, kt, lam["j"], dt)
 
 
 def stiffness(setup: MechSetup, ms: MechState) -> tuple:
-    """The REG (:meth:`RegSweep.arrays`) and strand joint stiffness of the current state; they
-    change only with the failure flags, I_ij and dp."""
-    return setup.sweep.arrays(ms), _joint_stiffness(setup, ms)
+    """The REG (:meth:`RegSweep.arrays`) and strand joint stiffness of the current state and its
+    :func:`stage1_plan`; they change only with the failure flags, I_ij and dp."""
+    return setup.sweep.arrays(ms), _joint_stiffness(setup, ms), stage1_plan(setup, ms)
 
 
 def substep(model, state, dt: float) -> int:
@@ -485,7 +572,7 @@ def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: tuple | None = N
     x_old, q_old = np.empty_like(ms.x), np.empty_like(ms.q)
     _predict(ms.x, ms.v, ms.q, ms.omega, ms.w_p, ms.w_q, ms.mass_p, ms.force, setup.gravity, ms.torque,
              np.exp(-setup.damping * dt), dt, x_old, q_old)
-    kreg, kjoint = stiff or stiffness(setup, ms)
+    kreg, kjoint, plan = stiff or stiffness(setup, ms)
     fresh = _multipliers(setup)
     lam = fresh if lam is None else lam
     lam.update(fresh)
@@ -500,7 +587,7 @@ def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: tuple | None = N
     hit_p = np.zeros(len(ms.pairs), dtype=bool)
     x_start = np.empty_like(ms.x)
     for _ in range(setup.iterations):
-        _project(setup, ms, kjoint, kreg, lam, dt)
+        _project(setup, ms, kjoint, plan, kreg, lam, dt)
         x_start[:] = ms.x
         contact.project_colliders(ms.x, ms.w_p, setup.radius_p, setup.colliders, setup.k_col, dt, normal_force,
                                   push, x_old, hit_c)
@@ -525,14 +612,15 @@ def strain_excess(setup: MechSetup, ms: MechState) -> float:
     Eq. 1 makes C + alpha~ lambda = 0 at convergence; a Gauss-Seidel sweep that stops short leaves
     the strands softer than E and G say, and a clamped strand sags too far by about this figure
     (``benchmarks/cantilever.py --sweep``). One substep of a copy of ``ms`` gives the multipliers
-    lambda; one more sweep of Stage 1 and 2 from them gives each constraint's
+    lambda (at the substep :func:`macro_step` takes under the state's forces); one more sweep of
+    Stage 1 and 2 from them gives each constraint's
     dlambda = -(C + alpha~ lambda) / (W + alpha~) (alpha~ = 1 / (k dt^2), W and k as in
     :mod:`~wooddecay.sim.rods`). ``ms`` is left untouched."""
-    probe, lam, dt = ms.copy(), {}, setup.dt
+    probe, lam, dt = ms.copy(), {}, setup.dt / load_split(setup, ms.w_p, ms.force)
     _substep(setup, probe, dt, lam=lam)
     before = {k: v.copy() for k, v in lam.items()}
-    kreg, (kb, kt) = stiffness(setup, probe)
-    _project(setup, probe, (kb, kt), kreg, lam, dt)
+    kreg, (kb, kt), plan = stiffness(setup, probe)
+    _project(setup, probe, (kb, kt), plan, kreg, lam, dt)
     fp, w_p, w_q, l = setup.fp, probe.w_p, probe.w_q, probe.rest_length
     wa, wb = w_p[fp], w_p[fp + 1]
     f = 2.0 / setup.joint_length
@@ -652,13 +740,51 @@ def _advance(setup: MechSetup, ms: MechState, n_sub: int, stiff: tuple | None = 
     return new, stiff
 
 
+def load_split(setup: MechSetup, w_p: np.ndarray, force: np.ndarray) -> int:
+    """Into how many substeps each of ``setup.dt`` splits under the particle forces ``force``
+    (inverse masses ``w_p``): the fewest k with (dt / k)^2 w_p |f_p| within LOAD_JUMP of the
+    rest length of the particle's element for every particle. Each substep projects the
+    constraints from the prediction x + dt^2 w f, linearised there; a point load that throws a
+    light particle many element lengths off per substep (a tip load on a strand of elements far
+    shorter than its radius) leaves a fixed point 9% softer than the beam (``benchmarks/cantilever.py
+    --sweep``)."""
+    jump = setup.dt**2 * w_p * np.linalg.norm(force, axis=1)
+    if not jump.any():
+        return 1
+    reach = np.zeros(setup.n_particles)
+    np.maximum.at(reach, setup.fp, setup.rest_length0)
+    np.maximum.at(reach, setup.fp + 1, setup.rest_length0)
+    return max(1, int(np.ceil(np.sqrt((jump / (LOAD_JUMP * reach)).max()))))
+
+
+def load_notes(setup: MechSetup) -> tuple[str, ...]:
+    """A note per [[load]] whose force splits the substeps (:func:`load_split`, on the dry wood's
+    masses: moist wood is heavier, decayed wood lighter)."""
+    mass = np.zeros(setup.n_particles)
+    np.add.at(mass, setup.fp, 0.5 * setup.dry_mass)
+    np.add.at(mass, setup.fp + 1, 0.5 * setup.dry_mass)
+    w_p = np.where(setup.anchored_p | (mass <= 0.0), 0.0, 1.0 / np.where(mass > 0.0, mass, 1.0))
+    notes = []
+    for i, (_, _, force) in enumerate(setup.loads):
+        k = load_split(setup, w_p, force)
+        if k > 1:
+            notes.append(f"load[{i}]: its force moves a particle of the dry wood by more than {LOAD_JUMP:g} of an "
+                         f"element's length per substep of mechanics.dt_mech; while it acts each substep is split "
+                         f"into {k} (dt {setup.dt / k:.3g} s)")
+    return tuple(notes)
+
+
 def macro_step(model, state, n_sub: int) -> int:
     """Algorithm 1 lines 4-8: ``n_sub`` substeps of ``model.mech.dt`` under the loads of the day
-    ``state.t_days``; returns new failures. With ``sleep_speed`` > 0 pieces that stopped moving
-    sleep (:mod:`~wooddecay.sim.sleep`): the substeps stop at every end of a sleep window to
-    update who sleeps, and a failure wakes everything."""
+    ``state.t_days``, each split in :func:`load_split` of them; returns new failures. With
+    ``sleep_speed`` > 0 pieces that stopped moving sleep (:mod:`~wooddecay.sim.sleep`): the
+    substeps stop at every end of a sleep window to update who sleeps, and a failure wakes
+    everything."""
     setup, ms = model.mech, state.mech
     ms.force = external_forces(setup, state.t_days)
+    split = load_split(setup, ms.w_p, ms.force)
+    if split > 1:
+        setup, n_sub = replace(setup, dt=setup.dt / split), n_sub * split
     ms.pairs_x = None  # rebuild the contact list from this state (resumable bit-exactly)
     if setup.sleep_speed <= 0.0:
         return _advance(setup, ms, n_sub)[0]

@@ -127,10 +127,11 @@ def _invert_spd(A, inv):
 
 
 @nb.njit(parallel=True, cache=True, fastmath=True)
-def solve_strands(offsets, joint_of, fp, x, q, w_p, w_q, rest_length, k_stretch, k_shear, element_ok,
+def solve_strands(lo, hi, joint_of, fp, x, q, w_p, w_q, rest_length, k_stretch, k_shear, element_ok,
                   joint_rest, joint_length, kb, kt, lam_s, lam_sh, lam_j, dt):
-    """One direct solve of every strand's constraints (module docstring); updates ``x``, ``q``
-    and the multipliers. ``offsets``: the strands' element ranges; ``joint_of[e]``: the joint
+    """One direct solve of the constraints of each run of elements ``lo[t]:hi[t]`` (whole strands,
+    or the unbroken pieces of them, :func:`~wooddecay.sim.mechanics.stage1_plan`; module
+    docstring); updates ``x``, ``q`` and the multipliers. ``joint_of[e]``: the joint
     (e, e + 1) or -1 at a strand's last element. Element rows (0-2) touch slots 0-9, joint rows
     (3-5) slots 6-13, so a block couples its neighbour's only through x_a (element rows) and q_e."""
     n = len(rest_length)
@@ -138,8 +139,8 @@ def solve_strands(offsets, joint_of, fp, x, q, w_p, w_q, rest_length, k_stretch,
     Minv = np.empty((n, 6, 6))
     Lo = np.empty((n, 6, 6))
     y = np.empty((n, 6))
-    for s in nb.prange(len(offsets) - 1):
-        e0, e1 = offsets[s], offsets[s + 1]
+    for s in nb.prange(len(lo)):
+        e0, e1 = lo[s], hi[s]
         rhs, at, z, dl = np.zeros(6), np.zeros(6), np.zeros(6), np.zeros(6)
         active = np.zeros(6, dtype=np.bool_)
         D, T = np.zeros((6, 6)), np.zeros((6, 6))
@@ -238,13 +239,12 @@ def solve_strands(offsets, joint_of, fp, x, q, w_p, w_q, rest_length, k_stretch,
                 q[e, c] /= norm
 
 
-def solve_strands_reference(offsets, joint_of, fp, x, q, w_p, w_q, rest_length, k_stretch, k_shear, element_ok,
+def solve_strands_reference(lo, hi, joint_of, fp, x, q, w_p, w_q, rest_length, k_stretch, k_shear, element_ok,
                             joint_rest, joint_length, kb, kt, lam_s, lam_sh, lam_j, dt):
     """Plain-numpy twin of :func:`solve_strands`: each strand's system assembled densely from
     the same rows and solved with ``numpy.linalg.solve``."""
     x0, q0 = x.copy(), q.copy()
-    for s in range(len(offsets) - 1):
-        e0, e1 = int(offsets[s]), int(offsets[s + 1])
+    for e0, e1 in zip(lo.tolist(), hi.tolist()):
         m = e1 - e0
         J = np.zeros((6 * m, 3 * (m + 1) + 4 * m))
         wts = np.zeros(J.shape[1])

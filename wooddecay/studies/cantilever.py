@@ -183,6 +183,7 @@ def buckles(load_ratio: float, length=0.5, n=20, dt=0.001, iterations=20, second
 #: the scene's default mechanics step and iterations
 DEFAULT_DT = float(get_param("mechanics.dt_mech").default)
 DEFAULT_ITERATIONS = int(get_param("mechanics.iterations").default)
+DEFAULT_SOLVER = str(get_param("mechanics.strand_solver").default)
 #: (L / r_s, E in Pa, free elements) of ``benchmarks/cantilever.py --sweep``: the corners of
 #: L / r_s in [20, 200], E in [1, 20] GPa and [10, 200] elements, and a middle case
 SWEEP = tuple((lr, E, n) for lr in (20, 200) for E in (1e9, 2e10) for n in (10, 200)) + ((60, 5e9, 50),)
@@ -192,20 +193,23 @@ SAG = 0.005
 
 
 def sweep_case(slenderness: float, E: float, n: int, load: str = "gravity", r_s: float = 0.006,
-               dt: float | None = None, iterations: int | None = None, solver: str | None = None) -> dict:
+               dt: float | None = None, iterations: int | None = None, solver: str | None = None,
+               split: bool = True) -> dict:
     """The clamped horizontal strand of free length ``slenderness`` r_s, modulus ``E`` (G = 0.4 E)
     and ``n`` free elements under gravity (deflection q L^4 / (8 E I)) or a tip force
     (``load = "tip"``, P L^3 / (3 E I)), scaled to a linear deflection of SAG L, at the scene's
     default ``mechanics.dt_mech``, ``iterations`` and ``strand_solver`` unless given. Damping
     1.7 omega_1 (at most the scene's limit of 1000 / s) settles it: 12 time constants of its
     slowest mode, then chunks of 1 / omega_1 until the tip moves less than 1e-4 of its
-    deflection in one (at most 200 / omega_1 in all).
+    deflection in one (at most 200 / omega_1 in all). Under the tip force the substeps split as
+    a bake's do under a [[load]] (:func:`~wooddecay.sim.mechanics.load_split`) unless ``split``
+    is false.
 
     Returns ``error`` (deflection / analytic - 1, signed), ``strain_excess`` (the solver's
-    convergence figure at the end), ``seconds`` (wall time) and the settings."""
+    convergence figure at the end), ``seconds`` (wall time), ``split`` and the settings."""
     dt = DEFAULT_DT if dt is None else dt
     iterations = DEFAULT_ITERATIONS if iterations is None else iterations
-    solver = str(get_param("mechanics.strand_solver").default) if solver is None else solver
+    solver = DEFAULT_SOLVER if solver is None else solver
     L = slenderness * r_s
     probe = strand(length=L, n=n, r_s=r_s, E=E, G=0.4 * E, g=-9.81, dt=dt, iterations=iterations)
     mu = probe.q / 9.81  # mass per length
@@ -222,13 +226,15 @@ def sweep_case(slenderness: float, E: float, n: int, load: str = "gravity", r_s:
         force = np.zeros((s.setup.n_particles, 3))
         force[-1, 2] = -scale
     analytic = SAG * s.length
-    wall = settle(s, 12.0 / decay, force=force)
+    # the bake splits the substeps under a point load as :func:`mechanics.macro_step` does
+    split = mechanics.load_split(s.setup, s.ms.w_p, force) if split and not gravity else 1
+    wall = settle(s, 12.0 / decay, split, force=force)
     previous, settled = float(s.model.particles[-1, 2] - s.ms.x[-1, 2]), False
     while not settled and s.ms.t_seconds < 200.0 / omega_1:
-        wall += settle(s, 1.0 / omega_1, force=force)
+        wall += settle(s, 1.0 / omega_1, split, force=force)
         deflection = float(s.model.particles[-1, 2] - s.ms.x[-1, 2])
         settled = abs(deflection - previous) <= 1e-4 * analytic
         previous = deflection
     return {"error": deflection / analytic - 1.0, "strain_excess": mechanics.strain_excess(s.setup, s.ms),
             "seconds": wall, "simulated": s.ms.t_seconds, "settled": settled, "slenderness": slenderness, "E": E, "n": n,
-            "load": load, "dt": dt, "iterations": iterations, "solver": solver}
+            "load": load, "dt": dt, "split": split, "iterations": iterations, "solver": solver}
