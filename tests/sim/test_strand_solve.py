@@ -2,6 +2,9 @@
 of one solve, determinism over threads, and a lone strand as stiff as beam theory says."""
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from dataclasses import replace
 
 import numba
@@ -101,7 +104,7 @@ def test_lone_strand_of_many_elements_sags_as_beam_theory_at_the_defaults(case):
     scene's default strand solver (``auto``: a lone strand is solved directly) is within 1% of
     beam theory, and its strain excess is below the bake's tolerance. Under the tip load the
     substeps split as a bake's do under a [[load]] (its 30 mg tip particle would be thrown 12
-    element lengths per step: 9% too soft unsplit)."""
+    element lengths per step, and the strand would not come to rest near the beam)."""
     *shape, load = case
     gs = mv.sweep_case(*shape, load=load, solver="gauss-seidel")
     direct = mv.sweep_case(*shape, load=load)
@@ -110,9 +113,9 @@ def test_lone_strand_of_many_elements_sags_as_beam_theory_at_the_defaults(case):
     assert gs["error"] > 0.03
     assert abs(direct["error"]) < 0.01 and direct["strain_excess"] < mechanics.STRAIN_EXCESS_TOLERANCE
     assert (direct["split"] > 1) == (load == "tip")
-    if load == "tip":
+    if load == "tip":  # unsplit it does not come to rest within 3% (+2% to +270%, with round-off)
         unsplit = mv.sweep_case(*shape, load=load, split=False)
-        assert unsplit["split"] == 1 and unsplit["error"] > 0.05
+        assert unsplit["split"] == 1 and not (unsplit["settled"] and abs(unsplit["error"]) < 0.03)
 
 
 @pytest.mark.slow
@@ -171,3 +174,40 @@ def test_load_split_keeps_the_predicted_jump_within_a_quarter_element():
     assert mechanics.load_split(setup, ms.w_p, force) == 7
     force[-1, 2] *= 0.99 * 36 / 40  # just within 6 splits
     assert mechanics.load_split(setup, ms.w_p, force) == 6
+
+
+COLD_WARM = """
+import hashlib, numpy as np
+from wooddecay.sim.strand_solve import solve_strands
+rng = np.random.default_rng(1)
+m, k = 40, 30  # strands, elements each
+n = m * k
+lo = np.arange(0, n, k)
+fp = np.arange(n) + np.repeat(np.arange(m), k)  # k + 1 particles per strand
+x = np.zeros((n + m, 3))
+x[:, 0] = 0.03 * (np.arange(n + m) % (k + 1))
+x[:, 1] = 0.02 * (np.arange(n + m) // (k + 1))
+x += rng.normal(0, 1e-3, x.shape)
+q = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)) + rng.normal(0, 2e-2, (n, 4))
+q /= np.linalg.norm(q, axis=1)[:, None]
+last = lo + k - 1
+joint_of = np.arange(n)
+joint_of[last] = -1
+w_p, w_q = rng.uniform(0.5, 2.0, n + m), rng.uniform(0.5, 2.0, n)
+w_p[fp[lo]] = 0.0
+lam = (np.zeros(n), np.zeros((n, 2)), np.zeros((n, 3)))
+solve_strands(lo, lo + k, joint_of, fp, x, q, w_p, w_q, rng.uniform(0.02, 0.04, n), rng.uniform(1e5, 1e7, n),
+              rng.uniform(1e5, 1e7, n), rng.random(n) > 0.05, np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)), np.full(n, 0.03),
+              rng.uniform(1.0, 20.0, n), rng.uniform(1.0, 20.0, n), *lam, 1e-4)
+print(hashlib.sha256(b"".join(np.ascontiguousarray(a).tobytes() for a in (x, q, *lam))).hexdigest())
+"""
+
+
+def test_direct_solve_same_bits_compiled_or_from_the_cache(tmp_path):
+    """SPEC §4: the same input gives the same bits whether the kernel was just compiled or read
+    from numba's cache (with fastmath, LLVM contracted and reordered differently in the two, and
+    a chaotic unsettled strand then ended +9% or +270% off)."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    runs = [subprocess.run([sys.executable, "-c", COLD_WARM], env=env, capture_output=True, text=True, check=True).stdout
+            for _ in range(2)]
+    assert any((tmp_path / "cache").rglob("*.nbi")) and runs[0] == runs[1], runs

@@ -30,7 +30,7 @@ from ..quaternion import mul, rotate
 SLOTS = 14
 
 
-@nb.njit(cache=True, fastmath=True)
+@nb.njit(cache=True)
 def _rows(e, jt, fp, x, q, w_p, w_q, rest_length, k_stretch, k_shear, element_ok, joint_rest,
           joint_length, kb, kt, lam_s, lam_sh, lam_j, dt, G, rhs, at, active):
     """Gradients ``G`` (6, SLOTS), right-hand sides, alpha~ and activity of element e's six rows
@@ -93,7 +93,7 @@ def _rows(e, jt, fp, x, q, w_p, w_q, rest_length, k_stretch, k_shear, element_ok
             rhs[3 + m] = -C[m] - at[3 + m] * lam_j[jt, m]
 
 
-@nb.njit(cache=True, fastmath=True)
+@nb.njit(cache=True)
 def _invert_spd(A, inv):
     """``inv`` = A^-1 for a symmetric positive definite 6 x 6 ``A`` (Cholesky A = L L^T, then
     L^-T L^-1); ``A`` is overwritten with L."""
@@ -126,7 +126,7 @@ def _invert_spd(A, inv):
             inv[j, i] = A[i, j]
 
 
-@nb.njit(parallel=True, cache=True, fastmath=True)
+@nb.njit(parallel=True, cache=True)
 def solve_strands(lo, hi, joint_of, fp, x, q, w_p, w_q, rest_length, k_stretch, k_shear, element_ok,
                   joint_rest, joint_length, kb, kt, lam_s, lam_sh, lam_j, dt):
     """One direct solve of the constraints of each run of elements ``lo[t]:hi[t]`` (whole strands,
