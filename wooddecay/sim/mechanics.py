@@ -746,8 +746,8 @@ def load_split(setup: MechSetup, w_p: np.ndarray, force: np.ndarray) -> int:
     rest length of the particle's element for every particle. Each substep projects the
     constraints from the prediction x + dt^2 w f, linearised there; a point load that throws a
     light particle many element lengths off per substep (a tip load on a strand of elements far
-    shorter than its radius) leaves a fixed point 9% softer than the beam (``benchmarks/cantilever.py
-    --sweep``)."""
+    shorter than its radius) does not come to rest near the beam: unsettled at one iteration,
+    9% softer at rest at two (docs/decisions.md, "Point loads split the substep")."""
     jump = setup.dt**2 * w_p * np.linalg.norm(force, axis=1)
     if not jump.any():
         return 1
