@@ -12,12 +12,12 @@ constraints at once,
 is solved exactly. Ordering the unknowns per element e as [stretch, shear_1, shear_2] of e and
 [bend_1, bend_2, twist] of the joint (e, e + 1), each block of six couples only with its
 neighbours' (they share a particle or a quaternion), so the matrix is block tridiagonal and a
-block Thomas sweep solves it in O(n) per strand. The gradients J are those the Gauss-Seidel
+block Thomas sweep solves it in O(n) per run. The gradients J are those the Gauss-Seidel
 kernels apply (so both converge to the same state), W the inverse masses and inertias; a
 failed element or joint, or one without a free particle or quaternion, is a row with dlambda = 0.
-Strands share no particle or quaternion: one thread per strand, race-free and deterministic.
-``solve_strands_reference`` assembles the same system densely per strand and solves it with
-numpy.
+Runs (of different strands, or split by a failed element) share no particle or quaternion: one
+thread per run, race-free and deterministic.
+``solve_strands_reference`` assembles the same system densely per run and solves it with numpy.
 """
 from __future__ import annotations
 
