@@ -247,11 +247,20 @@ def _joint_length(l0: np.ndarray, anchored: np.ndarray, je: np.ndarray) -> np.nd
     return np.where(half > 0.0, half, 0.5 * (l0[je] + l0[je + 1]))
 
 
-def _particle_radius(fp: np.ndarray, r: np.ndarray, P: int) -> np.ndarray:
-    rp = np.zeros(P)
-    np.maximum.at(rp, fp, r)
-    np.maximum.at(rp, fp + 1, r)
-    return rp
+def _per_particle_max(fp: np.ndarray, values: np.ndarray, P: int) -> np.ndarray:
+    """The largest of ``values`` (per element) over the elements at each of the P particles."""
+    out = np.zeros(P)
+    np.maximum.at(out, fp, values)
+    np.maximum.at(out, fp + 1, values)
+    return out
+
+
+def _particle_mass(setup: "MechSetup", mass_e: np.ndarray) -> np.ndarray:
+    """Particle masses: half of each element's mass ``mass_e`` to each of its particles."""
+    mass_p = np.zeros(setup.n_particles)
+    np.add.at(mass_p, setup.fp, 0.5 * mass_e)
+    np.add.at(mass_p, setup.fp + 1, 0.5 * mass_e)
+    return mass_p
 
 
 def _inner(element_offsets: np.ndarray, n: int) -> np.ndarray:
@@ -328,7 +337,7 @@ def prepare(model, config: MechConfig, colliders: np.ndarray, loads: tuple[Load,
         gravity=np.asarray(mech.gravity, dtype=np.float64), damping=float(mech.damping),
         dt=float(mech.dt_mech), iterations=int(mech.iterations), strand_solver=str(mech.strand_solver),
         colliders=colliders,
-        radius_p=_particle_radius(fp, r, P), k_col=float(mech.k_col),
+        radius_p=_per_particle_max(fp, r, P), k_col=float(mech.k_col),
         v_depenetration=float(mech.v_depenetration), mu_f=float(mech.mu_f), epsilon=float(mech.epsilon),
         loads=tuple(load_forces),
         sleep_speed=float(mech.sleep_speed), sleep_time=float(mech.sleep_time),
@@ -368,10 +377,7 @@ def set_masses(setup: MechSetup, ms: MechState, M: np.ndarray) -> None:
     and quaternion weights 1 / (4 I_rot) (zero where anchored or asleep: new masses wake no
     piece, :func:`sleep.hold`)."""
     ms.mass_e = setup.dry_mass * (1.0 + M)
-    mass_p = np.zeros(setup.n_particles)
-    np.add.at(mass_p, setup.fp, 0.5 * ms.mass_e)
-    np.add.at(mass_p, setup.fp + 1, 0.5 * ms.mass_e)
-    ms.mass_p = mass_p
+    ms.mass_p = _particle_mass(setup, ms.mass_e)
     sleep.hold(setup, ms)
 
 
@@ -751,18 +757,14 @@ def load_split(setup: MechSetup, w_p: np.ndarray, force: np.ndarray) -> int:
     jump = setup.dt**2 * w_p * np.linalg.norm(force, axis=1)
     if not jump.any():
         return 1
-    reach = np.zeros(setup.n_particles)
-    np.maximum.at(reach, setup.fp, setup.rest_length0)
-    np.maximum.at(reach, setup.fp + 1, setup.rest_length0)
+    reach = _per_particle_max(setup.fp, setup.rest_length0, setup.n_particles)
     return max(1, int(np.ceil(np.sqrt((jump / (LOAD_JUMP * reach)).max()))))
 
 
 def load_notes(setup: MechSetup) -> tuple[str, ...]:
     """A note per [[load]] whose force splits the substeps (:func:`load_split`, on the dry wood's
     masses: moist wood is heavier, decayed wood lighter)."""
-    mass = np.zeros(setup.n_particles)
-    np.add.at(mass, setup.fp, 0.5 * setup.dry_mass)
-    np.add.at(mass, setup.fp + 1, 0.5 * setup.dry_mass)
+    mass = _particle_mass(setup, setup.dry_mass)
     w_p = np.where(setup.anchored_p | (mass <= 0.0), 0.0, 1.0 / np.where(mass > 0.0, mass, 1.0))
     notes = []
     for i, (_, _, force) in enumerate(setup.loads):
