@@ -277,3 +277,24 @@ def test_tree_meshlets():
     assert mesh.count == model.n_elements
     assert closed.all() and (vol > 0).all()
     assert mesh.stats["hull_repairs"] <= 10  # the last resort stays rare (3 when written)
+
+
+def test_tapering_branch_bark_cuts_no_chords(tmp_path):
+    """A cone (radius 35 -> 15 mm over 0.6 m, r_s 5 mm): strands end as it tapers and a near-bark
+    site's corner mirror flips between the two sides of the circle from one node to the next;
+    interpolated across the flip, the ghost came too close and its cell's bark cut a chord 14 mm
+    into the wood between the nodes. Its bark now stays within r_s inside the profile."""
+    nodes = []
+    for k in range(7):
+        parent = f'parent = "n{k - 1}"\n' if k else ""
+        nodes.append(f'[[skeleton.node]]\nid = "n{k}"\nposition = [{0.1 * k:.1f}, 0.0, 0.05]\n{parent}'
+                     f'profile = {{ kind = "circle", radius = {0.035 - 0.02 * k / 6:.4f} }}\n')
+    (tmp_path / "cone.toml").write_text('[scene]\nname = "cone"\nseed = 1\n' + "".join(nodes)
+                                        + '[strands]\nr_s = 0.005\nrod_length = 0.04\n[time]\ndays = 1\n')
+    scene = wd.load_scene(tmp_path / "cone.toml")
+    mesh = build_meshlets(wd.build_model(scene))
+    bark = np.unique(mesh.faces[mesh.face_kind == BARK])
+    r, _, s = mesh.wood[bark].T
+    radius = np.interp(s, scene.skeleton.positions[:, 0], [p.equivalent_radius for p in scene.skeleton.profiles])
+    print(f"cone: bark up to {1e3 * (radius - r).max():.1f} mm inside its circle, {1e3 * (r - radius).max():.1f} mm outside")
+    assert (radius - r).max() < scene.strands.r_s

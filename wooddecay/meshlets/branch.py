@@ -14,7 +14,9 @@ bounded, the bark surface follows the input profile (concave ones too), and all 
 d_t stay continuous (a clipped alpha contour jumps at every alpha event). A strand near the bark
 at some nodes only (a tapering branch) mirrors across the line square to its outward direction
 there (:func:`_mirror_tapered`). Near a corner a second
-mirror goes across the nearest edge turned by more than CORNER. At a concave profile a mirror
+mirror goes across the nearest edge turned by more than CORNER; on a smooth profile that edge
+can lie on either side of the site from one node section to the next, and the ghost is split
+there instead of interpolated across the flip (:func:`_steady_parts`). At a concave profile a mirror
 can cut the wood itself: one that lands inside the profile (across an arm) and one with its foot
 within r_s / 2 of a sharp reflex vertex (the bisector runs on into the wood) are left out
 (:func:`_valid_mirrors`); the cells there end at their neighbours' mirrors. Mirrors across the
@@ -145,6 +147,18 @@ def _mirror_tapered(P, offset, nearest, polys, alive, depth, valid, r_s: float) 
             valid[i, 0] = True
             given.add(int(i))
     return given
+
+
+def _steady_parts(off: np.ndarray) -> list:
+    """A corner ghost's offsets at its node sections (k, 2) split where consecutive ones turn by
+    more than CORNER, as (start, stop) index ranges: on a smooth profile its nearest turned edge
+    can lie on either side of it, and an offset interpolated between the two sides is too short
+    (its bisector cuts the wood between the sections). Each part is a ghost of its own, alive
+    from its first node section to its last (the run's ends for the first and last part)."""
+    a, b = off[:-1], off[1:]
+    cos = (a * b).sum(axis=1) / np.maximum(np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1), 1e-300)
+    cut = list(np.flatnonzero(cos < np.cos(CORNER)) + 1)
+    return list(zip([0, *cut], [*cut, len(off)]))
 
 
 def _section_profile(skel, chain, node: int, pts: np.ndarray, r_s: float, hull: bool = False) -> np.ndarray:
@@ -282,10 +296,13 @@ def setup_branch(model, b: int) -> Branch | None:
                 known, off, dist, ok = known[~drop], off[~drop], dist[~drop], ok[~drop]
             if not (len(known) and dist.max() < GHOST_DEPTH * r_s and ok.all()):
                 continue
-            g = np.zeros((len(d), 2))
-            for c in range(2):
-                g[rows, c] = P[rows, i, c] + np.interp(d[rows], d[known], off[:, c])
-            ghost(g, i, rows)
+            parts = _steady_parts(off) if r == 1 else [(0, len(known))]
+            for a, b in parts:
+                span = rows[(rows >= (known[a] if a else rows[0])) & (rows <= (known[b - 1] if b < len(known) else rows[-1]))]
+                g = np.zeros((len(d), 2))
+                for c in range(2):
+                    g[span, c] = P[span, i, c] + np.interp(d[span], d[known[a:b]], off[a:b, c])
+                ghost(g, i, span)
     G = np.stack(G, axis=1) if G else np.zeros((len(d), 0, 2))
     ghost_of = np.array(ghost_of, dtype=np.int64)
     # a far ring keeps every real cell bounded even where no mirror reaches: per section, around
