@@ -4,7 +4,8 @@ branch have another branch's meshlet right behind them. Such a face is not the w
 becomes a side face with that meshlet as its neighbour, hidden while the two stay connected and
 shown as wood (not bark) once they part (:mod:`wooddecay.meshlets.visibility`). The other way
 round, a strand's open end cap there, or a face across a fork's section, with no meshlet behind
-it (where the sweeps leave a notch between them) is the wood's surface: it becomes bark.
+it (where the sweeps leave a notch between them; its own meshlet neither: a face folded inside its
+own shell is not the surface) is the wood's surface: it becomes bark.
 
 A face of element e is covered when the point OUTSIDE r_s beyond its centroid, along its outward
 normal, lies inside another meshlet (a winding number over that meshlet's closed shell above one
@@ -74,6 +75,7 @@ def junction_walls(model, mesh, bark: int, side: int, cap: int):
     neighbour[faces[wall]] = e[first][mesh.face_kind[faces[covered]] == bark]
     open_cap = np.setdiff1d(np.flatnonzero(mesh.face_kind[faces] != bark), covered)
     open_cap = open_cap[_at_surface(model, mesh, faces[open_cap])]
+    open_cap = open_cap[_winding(mesh, mesh.face_element[faces[open_cap]], probe[open_cap]) < 0.5]
     kind[faces[open_cap]] = bark
     neighbour[faces[open_cap]] = -1
     mesh.stats["junction_walls"], mesh.stats["junction_bark"] = int(len(wall)), int(len(open_cap))
