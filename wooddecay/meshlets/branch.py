@@ -296,12 +296,13 @@ def setup_branch(model, b: int) -> Branch | None:
                 known, off, dist, ok = known[~drop], off[~drop], dist[~drop], ok[~drop]
             if not (len(known) and dist.max() < GHOST_DEPTH * r_s and ok.all()):
                 continue
-            parts = _steady_parts(off) if r == 1 else [(0, len(known))]
-            for a, b in parts:
-                span = rows[(rows >= (known[a] if a else rows[0])) & (rows <= (known[b - 1] if b < len(known) else rows[-1]))]
+            for k0, k1 in _steady_parts(off) if r == 1 else [(0, len(known))]:
+                first = known[k0] if k0 else rows[0]
+                last = known[k1 - 1] if k1 < len(known) else rows[-1]
+                span = rows[(rows >= first) & (rows <= last)]
                 g = np.zeros((len(d), 2))
                 for c in range(2):
-                    g[span, c] = P[span, i, c] + np.interp(d[span], d[known[a:b]], off[a:b, c])
+                    g[span, c] = P[span, i, c] + np.interp(d[span], d[known[k0:k1]], off[k0:k1, c])
                 ghost(g, i, span)
     G = np.stack(G, axis=1) if G else np.zeros((len(d), 0, 2))
     ghost_of = np.array(ghost_of, dtype=np.int64)
