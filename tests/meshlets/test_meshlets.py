@@ -279,19 +279,15 @@ def test_tree_meshlets():
     assert mesh.stats["hull_repairs"] <= 10  # the last resort stays rare (3 when written)
 
 
-def test_tapering_branch_bark_cuts_no_chords(tmp_path):
+def test_tapering_branch_bark_cuts_no_chords():
     """A cone (radius 35 -> 15 mm over 0.6 m, r_s 5 mm): strands end as it tapers and a near-bark
     site's corner mirror flips between the two sides of the circle from one node to the next;
-    interpolated across the flip, the ghost came too close and its cell's bark cut a chord 14 mm
+    interpolated across the flip, the ghost came too close and its cell's bark cut a chord 13 mm
     into the wood between the nodes. Its bark now stays within r_s inside the profile."""
-    nodes = []
-    for k in range(7):
-        parent = f'parent = "n{k - 1}"\n' if k else ""
-        nodes.append(f'[[skeleton.node]]\nid = "n{k}"\nposition = [{0.1 * k:.1f}, 0.0, 0.05]\n{parent}'
-                     f'profile = {{ kind = "circle", radius = {0.035 - 0.02 * k / 6:.4f} }}\n')
-    (tmp_path / "cone.toml").write_text('[scene]\nname = "cone"\nseed = 1\n' + "".join(nodes)
-                                        + '[strands]\nr_s = 0.005\nrod_length = 0.04\n[time]\ndays = 1\n')
-    scene = wd.load_scene(tmp_path / "cone.toml")
+    nodes = [{"id": f"n{k}", "position": [0.1 * k, 0.0, 0.05], "profile": {"kind": "circle", "radius": 0.035 - 0.02 * k / 6},
+              **({"parent": f"n{k - 1}"} if k else {})} for k in range(7)]
+    scene = wd.parse_scene({"scene": {"name": "cone", "seed": 1}, "skeleton": {"node": nodes},
+                            "strands": {"r_s": 0.005, "rod_length": 0.04}, "time": {"days": 1}})
     mesh = build_meshlets(wd.build_model(scene))
     bark = np.unique(mesh.faces[mesh.face_kind == BARK])
     r, _, s = mesh.wood[bark].T
