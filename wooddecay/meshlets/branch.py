@@ -23,12 +23,18 @@ within r_s / 2 of a sharp reflex vertex (the bisector runs on into the wood) are
 reflex vertices of a wide concave curve stay (without them the cells along the inside of a C
 leaked into its hollow); across those of a tight bend they would cut the wood on both sides. Convex cells cannot
 follow a reflex corner exactly: what they miss on one side of it they overhang on the other.
-Where a side branch starts, the mirrors go across the hull of its sites offset by r_s
-(:func:`~wooddecay.meshlets.offset.offset_contour`); where side branches leave, the strands that go
-on do the same from the fork on (each of their ghosts is two: one up to the fork section, one from
-it), so their cells do not swell into the wood the side branch took (a stem bulged by up to 1 cm
-past the forked sample's fork), and a mirror across the fork profile's notches is held from the
-sections around instead of costing the strand its ghost for the whole branch.
+Forks: past a fork a branch's strands fill only part of the fork's profile (where side branches
+leave, the strands that go on; where a side branch starts, its own). Its cells are bounded the
+way the branches share the wood: at the fork section by the fork's profile and, up to a rise
+section RISE r_s on, by the strands that leave into the other branches, carried as ghosts of no
+site here (:func:`_foreign_sites`; the sweep makes the faces against them walls to those strands'
+elements). From the rise section on the mirrors go across the convex hull of the branch's own
+sites offset by r_s (:func:`~wooddecay.meshlets.offset.offset_contour`), so its cells do not swell
+into the wood the other branch took. A site the fork's profile does not bound (deeper than
+GHOST_DEPTH r_s there, or its mirror invalid) gets its ghost from the rise section on; at an inner
+fork each ghost is two (one up to the fork section, one from it), and a mirror across the fork
+profile's notches is held from the sections around instead of costing the strand its ghost for
+the whole branch.
 FAR_RING far sites around each section keep every real cell bounded even where no mirror reaches. ``docs/decisions.md``
 (Meshlets) records this choice.
 """
@@ -53,6 +59,9 @@ FAR_RING = 64
 FAR_MARGIN = 4.0
 #: mirrors across a reflex vertex are kept where the profile bends with a radius over this many r_s
 MILD_RADIUS = 4.0
+#: past a fork the ghosts reach the hull of the branch's own sites RISE r_s on (at most halfway
+#: to the next node): the crotch's wood between the branches tapers over that rise
+RISE = 4.0
 #: a corner: the second mirror edge turns by more than this from the nearest one
 CORNER = np.deg2rad(30.0)
 
@@ -68,7 +77,8 @@ class Branch:
     P: np.ndarray  # (S, n, 2) sites (real first, then ghosts)
     alive: np.ndarray  # (S, n)
     strand: np.ndarray  # (n_real,) strand of each real site
-    ghost_of: np.ndarray  # (n_ghost,) real site mirrored by each ghost
+    ghost_of: np.ndarray  # (n_ghost,) real site mirrored by each ghost (-1: another branch's strand)
+    foreign: np.ndarray  # (n_ghost,) that strand (-1: a mirror)
     bounds: list  # per real site: element boundaries strictly inside its run
     elem0: np.ndarray  # per real site: its first element in this branch
     n_elem: np.ndarray  # per real site: its number of elements in this branch
@@ -120,7 +130,7 @@ def _valid_mirrors(poly: np.ndarray, pts: np.ndarray, feet: np.ndarray, r_s: flo
     return ~cut
 
 
-def _mirror_tapered(P, offset, nearest, polys, alive, depth, valid, r_s: float) -> set:
+def _mirror_tapered(P, offset, nearest, polys, alive, depth, valid, r_s: float) -> dict:
     """Ghosts for the strands near the bark at some node section but deeper than GHOST_DEPTH r_s
     at another (a tapering branch; in place: ``offset`` rank 0, ``depth``, ``valid``; returns
     the sites given one). The
@@ -129,7 +139,7 @@ def _mirror_tapered(P, offset, nearest, polys, alive, depth, valid, r_s: float) 
     site's outward direction at its nearest section, through the boundary along it, so the
     ghost stays on that side. A strand whose mirror lands inside a profile gets none."""
     reach = GHOST_DEPTH * r_s
-    given = set()
+    given = {}
     for i in np.flatnonzero((depth[:, 0] >= reach) & (nearest.min(axis=0) < reach)):
         rows = [k for k in polys if alive[k, i]]
         k0 = min(rows, key=lambda k: nearest[k, i])
@@ -145,7 +155,7 @@ def _mirror_tapered(P, offset, nearest, polys, alive, depth, valid, r_s: float) 
                 offset[k, i, 0] = ghost[k] - P[k, i]
             depth[i, 0] = min(nearest[k, i] for k in rows)
             valid[i, 0] = True
-            given.add(int(i))
+            given[int(i)] = unit
     return given
 
 
@@ -161,19 +171,58 @@ def _steady_parts(off: np.ndarray) -> list:
     return list(zip([0, *cut], [*cut, len(off)]))
 
 
-def _section_profile(skel, chain, node: int, pts: np.ndarray, r_s: float, hull: bool = False) -> np.ndarray:
-    """The contour the ghosts mirror across at a node section: the node's profile, except where a
-    side branch starts (its strands fill only part of the fork's profile) or ``hull`` (past a fork
-    the strands that go on fill only part of it): there the convex hull of the sites (the alpha
-    shape with alpha = inf) offset outwards by r_s."""
-    starts = node == chain[0] and skel.parent[node] >= 0 and node == skel.parent[chain[1]]
-    if not (starts or hull) or len(pts) < 3:
-        return skel.profiles[node].polygon
+def _site_hull(pts: np.ndarray, r_s: float) -> np.ndarray | None:
+    """The convex hull of the sites (the alpha shape with alpha = inf) offset outwards by r_s:
+    what a branch's own strands fill past a fork (None for fewer than three or collinear)."""
+    if len(pts) < 3:
+        return None
     try:
         convex = ConvexHull(pts)
     except QhullError:
-        return skel.profiles[node].polygon
+        return None
     return offset_contour(pts[convex.vertices], r_s, "round")[0]
+
+
+def section_frame(skel, topo, chain, s_chain, d):
+    """Origin and axes (U, V) of the cross-section at distances ``d`` along a branch's chain:
+    interpolated linearly between its nodes (re-orthonormalised)."""
+    j = np.clip(np.searchsorted(s_chain, d, side="right") - 1, 0, len(chain) - 2)
+    t = np.clip((d - s_chain[j]) / (s_chain[j + 1] - s_chain[j]), 0.0, 1.0)[:, None]
+    na, nb = chain[j], chain[j + 1]
+    origin = (1.0 - t) * skel.positions[na] + t * skel.positions[nb]
+    U = (1.0 - t) * topo.frames[na, 0] + t * topo.frames[nb, 0]
+    V = (1.0 - t) * topo.frames[na, 1] + t * topo.frames[nb, 1]
+    U /= np.linalg.norm(U, axis=1, keepdims=True)
+    V -= (V * U).sum(1, keepdims=True) * U
+    V /= np.linalg.norm(V, axis=1, keepdims=True)
+    return origin, U, V
+
+
+def _foreign_sites(model, b: int, chain, s_chain, d: np.ndarray, k0: int, k1: int):
+    """Where the strands that leave fork section ``k0`` into other branches than this one cross
+    the sections ``k0..k1`` of branch ``b`` (uv in its frames; (k1 - k0 + 1, m, 2)), and those
+    strands."""
+    skel, topo = model.skeleton, model.topology
+    fork = chain[int(np.searchsorted(s_chain, d[k0]))]
+    cpo = model.cp_offsets
+    cs = np.flatnonzero(model.cp_node == fork)
+    strand = np.searchsorted(cpo, cs, side="right") - 1
+    go_on = cs + 1 < cpo[strand + 1]
+    cs, strand = cs[go_on], strand[go_on]
+    keep = topo.branch[model.cp_node[cs + 1]] != b
+    cs, strand = cs[keep], strand[keep]
+    dd = d[k0:k1 + 1]
+    origin, U, V = section_frame(skel, topo, chain, s_chain, dd)
+    out = np.zeros((len(dd), len(cs), 2))
+    for j, c in enumerate(cs):
+        end = cpo[np.searchsorted(cpo, c, side="right")]
+        ss, uv = model.cp_s[c:end], model.cp_uv[c:end]
+        other = _branch_chain(topo, skel, int(topo.branch[model.cp_node[c + 1]]))
+        x = np.stack([np.interp(dd, ss, uv[:, 0]), np.interp(dd, ss, uv[:, 1])], axis=1)
+        o2, U2, V2 = section_frame(skel, topo, other, topo.s[other].astype(float), dd)
+        X = o2 + x[:, :1] * U2 + x[:, 1:] * V2 - origin
+        out[:, j] = np.stack([(X * U).sum(1), (X * V).sum(1)], axis=1)
+    return out, strand
 
 
 def _branch_chain(topo, skel, b: int) -> np.ndarray:
@@ -215,7 +264,14 @@ def setup_branch(model, b: int) -> Branch | None:
     rows = np.array(rows, dtype=np.int64)
     strands, c0, c1 = strands[rows], c0[rows], c1[rows]
     s0, s1 = model.cp_s[c0], model.cp_s[c1]
-    d = np.unique(np.concatenate([s_chain[(s_chain >= s0.min()) & (s_chain <= s1.max())], s0, s1]))
+    # forks: where side branches leave this branch (inner chain nodes) and where it starts as a
+    # side branch (its first section); each gets a rise section past it
+    starts = skel.parent[chain[0]] >= 0
+    fork_at = [j for j in range(1, len(chain) - 1) if len(topo.children[chain[j]]) > 1]
+    fork_at = [0, *fork_at] if starts else fork_at
+    s_rise = {float(s_chain[j]): float(s_chain[j] + min(RISE * r_s, 0.5 * (s_chain[j + 1] - s_chain[j]))) for j in fork_at}
+    d = np.unique(np.concatenate([s_chain[(s_chain >= s0.min()) & (s_chain <= s1.max())], s0, s1,
+                                  [v for k, v in s_rise.items() if s0.min() <= k and v <= s1.max()]]))
     n = len(strands)
     P = np.zeros((len(d), n, 2))
     alive = (d[:, None] >= s0[None]) & (d[:, None] <= s1[None])
@@ -236,7 +292,7 @@ def setup_branch(model, b: int) -> Branch | None:
     polys = {}
     for k in np.flatnonzero(is_node):
         idx = np.flatnonzero(alive[k])
-        poly = polys[k] = _section_profile(skel, chain, node_at[float(d[k])], P[k, idx], r_s)
+        poly = polys[k] = skel.profiles[node_at[float(d[k])]].polygon
         foot, dist = _feet(poly, P[k, idx])
         row_dist[k, idx] = dist
         row_valid[k, idx] = _valid_mirrors(poly, P[k, idx], foot, r_s)
@@ -244,18 +300,23 @@ def setup_branch(model, b: int) -> Branch | None:
         offset[k, idx] = 2.0 * (foot - P[k, idx][:, None])
     depth, valid = row_dist.max(axis=0), row_valid.all(axis=0)
     tapered = _mirror_tapered(P, offset, nearest, polys, alive, depth, valid, r_s)
-    # past a fork where side branches leave, the sites that go on mirror across the hull of their
-    # own sites (offset by r_s): each of their ghosts is two, one up to the fork and one from it
-    forks = [k for k in np.flatnonzero(is_node) if 0 < k < len(d) - 1 and node_at[float(d[k])] in chain[1:-1]
-             and len(topo.children[node_at[float(d[k])]]) > 1]
-    after = {}
-    for k in forks:
-        on = np.flatnonzero(alive[k] & alive[k + 1])
-        if len(on) < 3 or alive[k].sum() == len(on):
+    # past a fork the sites fill only part of its profile (where side branches leave, the sites
+    # that go on; where this branch starts, its own): from the fork's profile at the fork they
+    # mirror, by the rise section, across the hull of their own sites offset by r_s
+    rise = {}  # rise section -> (fork section, sites, offsets, distances, valid)
+    for k in np.flatnonzero(np.isin(d, list(s_rise))):
+        kr = int(np.searchsorted(d, s_rise[float(d[k])]))
+        if kr >= len(d) or d[kr] != s_rise[float(d[k])]:
             continue
-        poly = _section_profile(skel, chain, node_at[float(d[k])], P[k, on], r_s, hull=True)
-        foot, dist = _feet(poly, P[k, on])
-        after[k] = (on, 2.0 * (foot - P[k, on][:, None]), dist, _valid_mirrors(poly, P[k, on], foot, r_s))
+        on = np.flatnonzero(alive[k] & alive[kr])
+        if k > 0 and alive[k].sum() == len(on):
+            continue
+        poly = _site_hull(P[kr, on], r_s)
+        if poly is None:
+            continue
+        foot, dist = _feet(poly, P[kr, on])
+        rise[kr] = (k, on, 2.0 * (foot - P[kr, on][:, None]), dist, _valid_mirrors(poly, P[kr, on], foot, r_s), poly)
+    forks = [v[0] for v in rise.values() if v[0] > 0]
     # a run between two nodes: mirrors across the nearer node's profile
     between = {}
     for i in range(n):
@@ -265,30 +326,60 @@ def setup_branch(model, b: int) -> Branch | None:
             foot, _ = _feet(poly, P[rows_i, i])
             valid[i] &= np.all(_valid_mirrors(poly, P[rows_i, i], foot, r_s), axis=0)
             between[i] = foot
-    G, ghost_of, ghost_alive = [], [], []
+    G, ghost_of, foreign, ghost_alive = [], [], [], []
 
-    def ghost(g: np.ndarray, i: int, rows: np.ndarray) -> None:
+    def ghost(g: np.ndarray, i: int, rows: np.ndarray, strand: int = -1) -> None:
         G.append(g)
         ghost_of.append(i)
+        foreign.append(strand)
         ghost_alive.append(np.isin(np.arange(len(d)), rows))
+
+    def usable(k, i, r):  # the fork profile bounds site i's rank-r ghost there
+        if r == 0 and i in tapered:
+            return 0.5 * np.linalg.norm(offset[k, i, 0]) < GHOST_DEPTH * r_s
+        return row_valid[k, i, r] and row_dist[k, i, r] < GHOST_DEPTH * r_s
+
+    # from a fork to its rise section the strands that leave into other branches bound the cells
+    # too: the wood between the branches is shared at their bisectors
+    leaving = []
+    for kr, (k, *_) in rise.items():
+        X, other = _foreign_sites(model, b, chain, s_chain, d, k, kr)
+        own = P[k, alive[k]]
+        near = np.linalg.norm(X[0][:, None] - own[None], axis=2).min(axis=1) < GHOST_DEPTH * r_s
+        leaving += [(k, kr, X[:, j], int(other[j])) for j in np.flatnonzero(near)]
 
     for r, i in ((r, i) for r in range(2) for i in range(n)):
         rows_i = np.flatnonzero(alive[:, i])
-        cuts = [k for k in after if i in after[k][0]]
         if i in between:
             if depth[i, r] < GHOST_DEPTH * r_s and valid[i, r]:
                 g = np.zeros((len(d), 2))
                 g[rows_i] = 2.0 * between[i][:, r] - P[rows_i, i]
                 ghost(g, i, rows_i)
             continue
+        mine = {kr: (k, int(np.flatnonzero(on == i)[0]), off, dist, ok) for kr, (k, on, off, dist, ok, _) in rise.items() if i in on}
+        if r == 0 and i in tapered:  # a tapered ghost keeps its side: across the hull along its direction
+            unit, held = tapered[i], {}
+            for kr, (k, c, off, dist, ok) in mine.items():
+                step = float(profiles.ray_extent(rise[kr][5], P[kr, i], [np.arctan2(unit[1], unit[0])])[0])
+                if step > 0.0:
+                    off = off.copy()
+                    off[c, 0] = 2.0 * step * unit
+                    held[kr] = (k, c, off, dist, ok)
+            mine = held
+        # the ghost is two at a fork: one up to it and one from it (held from the rise section where
+        # the fork's profile does not bound the site)
+        cuts = sorted(k for k, *_ in mine.values() if k > 0)
         for lo, hi in zip([rows_i[0], *cuts], [*cuts, rows_i[-1]]):
+            kr = next((kr for kr, (k, *_) in mine.items() if k == lo), None)
+            if kr is not None and not usable(lo, i, r):
+                lo = kr  # bounded by the other branches' strands up to the rise
             rows = rows_i[(rows_i >= lo) & (rows_i <= hi)]
-            known = rows[is_node[rows]]
-            off = offset[known, i, r].copy()
-            dist, ok = row_dist[known, i, r].copy(), row_valid[known, i, r].copy()
-            if lo in after:  # the piece from a fork on: its first mirror across the hull
-                j = int(np.flatnonzero(after[lo][0] == i)[0])
-                off[0], dist[0], ok[0] = after[lo][1][j, r], after[lo][2][j, r], after[lo][3][j, r]
+            known = rows[is_node[rows] | np.isin(rows, list(mine))]
+            off, dist, ok = offset[known, i, r].copy(), row_dist[known, i, r].copy(), row_valid[known, i, r].copy()
+            for j, k in enumerate(known):
+                if k in mine:
+                    _, c, o, t, v = mine[k]
+                    off[j], dist[j], ok[j] = o[c, r], t[c, r], v[c, r]
             if r == 0 and i in tapered:
                 dist, ok = np.full(len(known), depth[i, 0]), np.ones(len(known), dtype=bool)
             drop = np.isin(known, forks) & ~ok  # across a fork's notches: held from the sections around
@@ -304,8 +395,12 @@ def setup_branch(model, b: int) -> Branch | None:
                 for c in range(2):
                     g[span, c] = P[span, i, c] + np.interp(d[span], d[known[k0:k1]], off[k0:k1, c])
                 ghost(g, i, span)
+    for k, kr, x, strand in leaving:  # ghosts of no site here
+        g = np.zeros((len(d), 2))
+        g[k:kr + 1] = x
+        ghost(g, -1, np.arange(k, kr + 1), strand)
     G = np.stack(G, axis=1) if G else np.zeros((len(d), 0, 2))
-    ghost_of = np.array(ghost_of, dtype=np.int64)
+    ghost_of, foreign = np.array(ghost_of, dtype=np.int64), np.array(foreign, dtype=np.int64)
     # a far ring keeps every real cell bounded even where no mirror reaches: per section, around
     # the box of its real sites, FAR_MARGIN r_s beyond the farthest of them
     real = alive[:, :n, None]
@@ -324,4 +419,4 @@ def setup_branch(model, b: int) -> Branch | None:
         inner = model.particle_s[model.first_particle[e[:-1]] + 1]
         bounds.append(inner[(inner > s0[i]) & (inner < s1[i])])
     return Branch(chain=chain, s_chain=s_chain, d=d, P=P, alive=alive, strand=strands,
-                   ghost_of=ghost_of, bounds=bounds, elem0=np.array(e0s), n_elem=np.array(ns))
+                   ghost_of=ghost_of, foreign=foreign, bounds=bounds, elem0=np.array(e0s), n_elem=np.array(ns))

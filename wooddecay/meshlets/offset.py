@@ -2,8 +2,8 @@
 
 §8.1 bounds a branch's cross-section by the outer boundary of an alpha complex of its sites, offset
 outwards by the strand radius r_s (SPEC §5). The meshlets bound the wood by mirror ghosts across the
-node profiles instead (:mod:`wooddecay.meshlets.branch`); where a side branch starts, its strands
-fill only part of the fork's profile, and the ghosts mirror across the convex hull of the branch's
+node profiles instead (:mod:`wooddecay.meshlets.branch`); past a fork, where a branch's strands
+fill only part of the fork's profile, the ghosts mirror across the convex hull of the branch's
 sites (the alpha shape with alpha = inf) offset by r_s with :func:`offset_contour`.
 """
 from __future__ import annotations

@@ -24,7 +24,9 @@ over [a, b] is the sweep of site i's Voronoi cell over [a, b]:
   element gets its cap.
 * Bark: faces between a real and a ghost site (the cell ends at the bisector with its mirror, the
   tangent of the profile). Without bark (``model.bark_thickness`` 0: a sawn board) they are wood
-  surface, tagged side with no neighbour.
+  surface, tagged side with no neighbour. Faces against a ghost that is another branch's strand
+  (past a fork, :mod:`wooddecay.meshlets.branch`) are side faces with that strand's element there
+  as the neighbour.
 * Caps close each element at its two ends: the cell polygon at d_t = a (facing -d) and at b (+d).
 
 Forks: an element that straddles a fork belongs to the branch of its midpoint (``model.branch``)
@@ -47,7 +49,7 @@ import numpy as np
 from scipy.spatial import ConvexHull
 
 from ..quaternion import conj_np, rotate_np
-from .branch import Branch, setup_branch
+from .branch import Branch, section_frame, setup_branch
 from .checks import closed_oriented
 from .junction import junction_walls
 from .kinetic import FLIP, REPAIR, SECTION, perturbation, sweep
@@ -365,6 +367,8 @@ class _BranchSweep:
                     if q < nr:
                         self.faces.append((tri[0], tri[1], tri[2], p, 0, dm, SIDE, q, 0))
                         self.faces.append((tri[0], tri[2], tri[1], q, 0, dm, SIDE, p, 0))
+                    elif q - nr < len(self.br.foreign) and self.br.foreign[q - nr] >= 0:  # another branch's strand: a wall to it
+                        self.faces.append((tri[0], tri[1], tri[2], p, 0, dm, SIDE, q, 0))
                     else:
                         self.faces.append((tri[0], tri[1], tri[2], p, 0, dm, BARK, -1, 0))
 
@@ -462,21 +466,27 @@ def _vertex_uv(kin, T, d):
 
 
 def _embed(skel, topo, chain, s_chain, d, uv):
-    """3D points at distance d along the branch with cross-section coordinates uv: origin and
-    (U, V) interpolated linearly between the chain's nodes (re-orthonormalised)."""
-    j = np.clip(np.searchsorted(s_chain, d, side="right") - 1, 0, len(chain) - 2)
-    t = np.clip((d - s_chain[j]) / (s_chain[j + 1] - s_chain[j]), 0.0, 1.0)[:, None]
-    na, nb = chain[j], chain[j + 1]
-    origin = (1.0 - t) * skel.positions[na] + t * skel.positions[nb]
-    U = (1.0 - t) * topo.frames[na, 0] + t * topo.frames[nb, 0]
-    V = (1.0 - t) * topo.frames[na, 1] + t * topo.frames[nb, 1]
-    U /= np.linalg.norm(U, axis=1, keepdims=True)
-    V -= (V * U).sum(1, keepdims=True) * U
-    V /= np.linalg.norm(V, axis=1, keepdims=True)
+    """3D points at distance d along the branch with cross-section coordinates uv."""
+    origin, U, V = section_frame(skel, topo, chain, s_chain, d)
     return origin + uv[:, :1] * U + uv[:, 1:] * V
 
 
-def _branch_arrays(model, br, kin, bs):
+def _strand_element(model, b: int, strand: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Element of each ``strand`` (one that leaves branch ``b`` at a fork, or enters it there) at
+    distance ``s`` to the root in the branch it runs in past the fork: the element whose span
+    holds s, or the next one where that one is b's (it straddles the fork and is clipped there)."""
+    out = np.empty(len(strand), dtype=np.int64)
+    for st in np.unique(strand):
+        rows = np.flatnonzero(strand == st)
+        es = np.arange(model.element_offsets[st], model.element_offsets[st + 1])
+        ends = model.particle_s[model.first_particle[es] + 1]
+        k = np.minimum(np.searchsorted(ends, s[rows], side="right"), len(es) - 1)
+        k = np.minimum(k + (model.branch[es[k]] == b), len(es) - 1)
+        out[rows] = es[k]
+    return out
+
+
+def _branch_arrays(model, b: int, br, kin, bs):
     """Vertices (3D, uv, d), face rows and each vertex's candidate skinning elements."""
     T = np.array(bs.vtri, dtype=np.int64).reshape(-1, 3)
     d = np.array(bs.vd, dtype=float)
@@ -488,8 +498,10 @@ def _branch_arrays(model, br, kin, bs):
     elem = bs.element(site, side, fd)
     other, oside = F[:, 7].astype(np.int64), F[:, 8].astype(np.int64)
     nbr = np.full(len(F), -1, dtype=np.int64)
-    has = other >= 0
+    has = (other >= 0) & (other < br.n_real)
     nbr[has] = bs.element(other[has], oside[has], fd[has])
+    far = other >= br.n_real
+    nbr[far] = _strand_element(model, b, br.foreign[other[far] - br.n_real], fd[far])
     # skinning candidates: the elements of the vertex's real sites on both sides of d
     T4 = np.concatenate([T, np.array(bs.vfourth, dtype=np.int64)[:, None]], axis=1)
     vs = np.repeat(np.arange(len(d)), 8)
@@ -516,7 +528,7 @@ def build_meshlets(model) -> Meshlets:
             counts[k] += v
         counts["unmatched"] += bs.unmatched
         counts["branches"] += 1
-        xyz, uv, d, tri, elem, kind, nbr, cv, ce = _branch_arrays(model, br, kin, bs)
+        xyz, uv, d, tri, elem, kind, nbr, cv, ce = _branch_arrays(model, b, br, kin, bs)
         parts.append((xyz, uv, d, tri + off, elem, kind, nbr, cv + off, ce))
         off += len(d)
     cat = [np.concatenate([p[i] for p in parts]) for i in range(9)]
