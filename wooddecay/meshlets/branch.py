@@ -214,12 +214,16 @@ def _foreign_sites(model, b: int, chain, s_chain, d: np.ndarray, k0: int, k1: in
     dd = d[k0:k1 + 1]
     origin, U, V = section_frame(skel, topo, chain, s_chain, dd)
     out = np.zeros((len(dd), len(cs), 2))
+    frames = {}  # the sections of each branch the strands go on in, at dd
     for j, c in enumerate(cs):
         end = cpo[np.searchsorted(cpo, c, side="right")]
         ss, uv = model.cp_s[c:end], model.cp_uv[c:end]
-        other = _branch_chain(topo, skel, int(topo.branch[model.cp_node[c + 1]]))
+        ob = int(topo.branch[model.cp_node[c + 1]])
+        if ob not in frames:
+            other = _branch_chain(topo, skel, ob)
+            frames[ob] = section_frame(skel, topo, other, topo.s[other].astype(float), dd)
+        o2, U2, V2 = frames[ob]
         x = np.stack([np.interp(dd, ss, uv[:, 0]), np.interp(dd, ss, uv[:, 1])], axis=1)
-        o2, U2, V2 = section_frame(skel, topo, other, topo.s[other].astype(float), dd)
         X = o2 + x[:, :1] * U2 + x[:, 1:] * V2 - origin
         out[:, j] = np.stack([(X * U).sum(1), (X * V).sum(1)], axis=1)
     return out, strand
@@ -269,7 +273,8 @@ def setup_branch(model, b: int) -> Branch | None:
     starts = skel.parent[chain[0]] >= 0
     fork_at = [j for j in range(1, len(chain) - 1) if len(topo.children[chain[j]]) > 1]
     fork_at = [0, *fork_at] if starts else fork_at
-    s_rise = {float(s_chain[j]): float(s_chain[j] + min(RISE * r_s, 0.5 * (s_chain[j + 1] - s_chain[j]))) for j in fork_at}
+    s_rise = {float(s_chain[j]): float(s_chain[j] + min(RISE * r_s, 0.5 * (s_chain[j + 1] - s_chain[j])))
+              for j in fork_at}
     d = np.unique(np.concatenate([s_chain[(s_chain >= s0.min()) & (s_chain <= s1.max())], s0, s1,
                                   [v for k, v in s_rise.items() if s0.min() <= k and v <= s1.max()]]))
     n = len(strands)
@@ -356,7 +361,8 @@ def setup_branch(model, b: int) -> Branch | None:
                 g[rows_i] = 2.0 * between[i][:, r] - P[rows_i, i]
                 ghost(g, i, rows_i)
             continue
-        mine = {kr: (k, int(np.flatnonzero(on == i)[0]), off, dist, ok) for kr, (k, on, off, dist, ok, _) in rise.items() if i in on}
+        mine = {kr: (k, int(np.flatnonzero(on == i)[0]), off, dist, ok)
+                for kr, (k, on, off, dist, ok, _) in rise.items() if i in on}
         if r == 0 and i in tapered:  # a tapered ghost keeps its side: across the hull along its direction
             unit, held = tapered[i], {}
             for kr, (k, c, off, dist, ok) in mine.items():

@@ -367,7 +367,8 @@ class _BranchSweep:
                     if q < nr:
                         self.faces.append((tri[0], tri[1], tri[2], p, 0, dm, SIDE, q, 0))
                         self.faces.append((tri[0], tri[2], tri[1], q, 0, dm, SIDE, p, 0))
-                    elif q - nr < len(self.br.foreign) and self.br.foreign[q - nr] >= 0:  # another branch's strand: a wall to it
+                    elif q - nr < len(self.br.foreign) and self.br.foreign[q - nr] >= 0:
+                        # another branch's strand: a wall to its element
                         self.faces.append((tri[0], tri[1], tri[2], p, 0, dm, SIDE, q, 0))
                     else:
                         self.faces.append((tri[0], tri[1], tri[2], p, 0, dm, BARK, -1, 0))
