@@ -215,9 +215,8 @@ def _foreign_sites(model, b: int, chain, s_chain, d: np.ndarray, k0: int, k1: in
     origin, U, V = section_frame(skel, topo, chain, s_chain, dd)
     out = np.zeros((len(dd), len(cs), 2))
     frames = {}  # the sections of each branch the strands go on in, at dd
-    for j, c in enumerate(cs):
-        end = cpo[np.searchsorted(cpo, c, side="right")]
-        ss, uv = model.cp_s[c:end], model.cp_uv[c:end]
+    for j, (c, st) in enumerate(zip(cs, strand)):
+        ss, uv = model.cp_s[c:cpo[st + 1]], model.cp_uv[c:cpo[st + 1]]
         ob = int(topo.branch[model.cp_node[c + 1]])
         if ob not in frames:
             other = _branch_chain(topo, skel, ob)
