@@ -5,7 +5,8 @@ Timestep: the cracking state (the first frame with FIRST_CRACKS broken connectio
 run, as Fig. 6 reads its cracks) and the degraded state (the last frame) of both runs are rendered
 alike (one camera fitted to both, no captions, no quantisation) and compared by SSIM (:mod:`.ssim`; the paper: 0.9984 and 0.9868, our targets
 SSIM_TARGET). Resolution: strands 2x and 4x sparser (r_s x sqrt 2 and x 2, so 1/2 and 1/4 of the
-strands) keep the last frame's signature within TOLERANCE of the default's.
+strands) keep the last frame's signature within TOLERANCE of the default's (block purity where the
+default has come apart: :func:`within_tolerance`).
 """
 from __future__ import annotations
 
@@ -48,8 +49,7 @@ def run(out: Path, quick: bool, renders: bool, log) -> tuple[dict, list]:
             log(f"  fig20/{name}/{v}: {seconds:.0f} s")
         entry = {"runs": runs}
         ref = runs["dt"]["signature"]
-        entry["within_tolerance"] = {v: all(abs(runs[v]["signature"][k] - ref[k]) <= t for k, t in TOLERANCE.items())
-                                     for v in ("sparse2", "sparse4")}
+        entry["within_tolerance"] = {v: within_tolerance(runs[v]["signature"], ref) for v in ("sparse2", "sparse4")}
         if renders:
             last = len(frames["dt"]) - 1
             for state, k in (("cracking", first_cracks(frame_rows(summaries["dt"]))), ("degraded", last)):
@@ -70,6 +70,14 @@ def fit_box(frames, pad: float) -> list[str]:
     centres, ``pad`` (m) wider on every side."""
     x = np.concatenate([f.mech["x"] for f in frames])
     return [f"{v:.4f}" for v in (*(x.min(0) - pad), *(x.max(0) + pad))]
+
+
+def within_tolerance(signature: dict, ref: dict) -> bool:
+    """Whether ``signature`` keeps ``ref``'s within TOLERANCE; block purity only where ``ref``'s
+    wood has come apart (two pieces or more: a single piece has purity 0 by definition, and
+    one loose block more would read as a change of 0.5)."""
+    keys = [k for k in TOLERANCE if k != "block_purity" or ref["pieces"] >= 2]
+    return all(abs(signature[k] - ref[k]) <= TOLERANCE[k] for k in keys)
 
 
 def decide(measured: dict) -> bool:
