@@ -26,9 +26,8 @@ def test_rod_kernels_equal_numpy_reference():
         for idx in setup.joint_sets:
             bt(setup.joints, idx, q, ms.w_q, setup.joint_rest, setup.joint_length, setup.joint_kb,
                setup.joint_kt, lam["j"], dt)
-        for c in range(len(sw.ptr) - 1):
-            rp(sw.edges, sw.ptr[c], sw.ptr[c + 1], setup.fp, x, q, ms.w_p, ms.w_q, offset, k_conn, sw.rest,
-               sw.length, k_bend, k_twist, lam["c"], lam["p"], dt)
+        rp(sw.edges, sw.ptr, setup.fp, x, q, ms.w_p, ms.w_q, offset, k_conn, sw.rest, sw.length, k_bend, k_twist,
+           lam["c"], lam["p"], dt)
         results.append((x, q, lam))
     (x1, q1, l1), (x2, q2, l2) = results
     assert np.abs(x1 - ms.x).max() > 1e-6  # the projections did something

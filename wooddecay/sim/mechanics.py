@@ -286,6 +286,8 @@ def prepare(model, config: MechConfig, colliders: np.ndarray, loads: tuple[Load,
     """Stiffnesses (from the tissues' E, G, rho_dry in ``model.materials``), colour classes, rest
     data, ``colliders`` (rows of :func:`contact.collider_row`) and the particle forces of
     ``loads`` (each shared over its elements' particles in proportion to their dry mass)."""
+    if len(colliders):
+        contact.check_colliders(colliders)
     n = model.n_elements
     mech = config
     per_element = model.materials.per_element
@@ -455,9 +457,8 @@ def _project(setup: MechSetup, ms: MechState, kjoint, plan: "Stage1Plan", kreg, 
     strand_stage(setup, ms, kjoint, plan, lam, dt)
     sw = setup.sweep
     offset, k_conn, k_bend, k_twist = kreg
-    for c in range(len(sw.ptr) - 1):
-        rods.reg_pass(sw.edges, sw.ptr[c], sw.ptr[c + 1], fp, x, q, ms.w_p, ms.w_q, offset, k_conn, sw.rest,
-                      sw.length, k_bend, k_twist, lam["c"], lam["p"], dt)
+    rods.reg_pass(sw.edges, sw.ptr, fp, x, q, ms.w_p, ms.w_q, offset, k_conn, sw.rest, sw.length, k_bend, k_twist,
+                  lam["c"], lam["p"], dt)
 
 
 @dataclass(frozen=True, eq=False)
@@ -596,7 +597,7 @@ def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: tuple | None = N
         _project(setup, ms, kjoint, plan, kreg, lam, dt)
         x_start[:] = ms.x
         contact.project_colliders(ms.x, ms.w_p, setup.radius_p, setup.colliders, setup.k_col, dt, normal_force,
-                                  push, x_old, hit_c)
+                                  push, x_old, hit_c, checked=True)
         contact.project_contacts(ms.x, ms.w_p, setup.fp, setup.radius, ms.pairs, setup.k_col, dt, normal_force,
                                  push, hit_p, phi_rest=ms.pairs_rest, protect=ms.pairs_protect)
         contact.particle_friction(ms.x, x_start, x_old, setup.mu_f, setup.epsilon * dt)
