@@ -145,8 +145,8 @@ def reg_pass(edges, ptr, fp, x, q, w_p, w_q, rest_offset, k_conn, rest, length, 
     """Stage 2, one sweep over the REG edges colour class after colour class (class c is the
     block ``ptr[c]:ptr[c + 1]``, no shared particle, :func:`color_edges`): the connection
     constraint of Eq. 2 on element centres, then the pair's bend-twist coupling. One call per
-    sweep: a call per class cost more than the class's work on the log (2.7 M calls for 65 k
-    substeps, docs/decisions.md "Stage 2 in colour order")."""
+    sweep: a call per class (41 per substep on the log) cost 9% of Stage 2 (docs/decisions.md,
+    "One call per Stage 2 sweep")."""
     for c in range(len(ptr) - 1):
         for k in nb.prange(ptr[c], ptr[c + 1]):
             i, j = edges[k, 0], edges[k, 1]

@@ -49,8 +49,8 @@ from .colliders import (
 from .friction import particle_friction, particle_friction_reference
 
 __all__ = ["BOX", "COLLIDER_COLUMNS", "CYLINDER", "KEPT", "PLANE", "SPHERE", "candidate_pairs",
-           "candidate_pairs_reference", "capsule_contact", "check_colliders", "closest_point_segment", "closest_segment_segment",
-           "closest_segment_segment_reference", "collider_distance", "collider_row", "collider_velocities",
-           "collider_velocities_reference", "contact_velocities", "contact_velocities_reference", "pair_overlaps",
-           "particle_friction", "particle_friction_reference", "project_colliders", "project_colliders_reference",
-           "project_contacts", "project_contacts_reference"]
+           "candidate_pairs_reference", "capsule_contact", "check_colliders", "closest_point_segment",
+           "closest_segment_segment", "closest_segment_segment_reference", "collider_distance", "collider_row",
+           "collider_velocities", "collider_velocities_reference", "contact_velocities",
+           "contact_velocities_reference", "pair_overlaps", "particle_friction", "particle_friction_reference",
+           "project_colliders", "project_colliders_reference", "project_contacts", "project_contacts_reference"]
