@@ -73,7 +73,10 @@ def falling(sheet, label: np.ndarray, bond: np.ndarray, plate_area: float):
         if bond[faces].min() > 0.0:  # no part of it can come off yet
             continue
         out[faces] = int(out.max()) + 1 + partition(sheet, faces, int(np.ceil(area[p] / plate_area)))
-    _, out[on] = np.unique(out[on], return_inverse=True)
+    # the labels made dense in their order: np.unique's inverse without its sort (3 ms a step on the log)
+    present = np.zeros(int(out.max()) + 1, dtype=bool)
+    present[out[on]] = True
+    out[on] = (np.cumsum(present) - 1)[out[on]]
     n = int(out.max()) + 1
     area = np.bincount(out[on], weights=sheet.face_area[on], minlength=n)
     mean_bond = np.bincount(out[on], weights=(bond * sheet.face_area)[on], minlength=n) / np.maximum(area, 1e-300)
