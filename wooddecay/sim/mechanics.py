@@ -286,8 +286,7 @@ def prepare(model, config: MechConfig, colliders: np.ndarray, loads: tuple[Load,
     """Stiffnesses (from the tissues' E, G, rho_dry in ``model.materials``), colour classes, rest
     data, ``colliders`` (rows of :func:`contact.collider_row`) and the particle forces of
     ``loads`` (each shared over its elements' particles in proportion to their dry mass)."""
-    if len(colliders):
-        contact.check_colliders(colliders)
+    contact.check_colliders(colliders)
     n = model.n_elements
     mech = config
     per_element = model.materials.per_element
