@@ -13,7 +13,10 @@ def test_rod_kernels_equal_numpy_reference():
     setup, ms = perturbed()
     dt = 1e-3
     sw = setup.sweep
-    offset, k_conn, k_bend, k_twist = sw.arrays(ms)
+    ms.edge_ok[::3] = False  # failed edges: Stage 2 skips them
+    ms.edge_ok[1::7, 1:] = False  # connection only
+    kreg = sw.arrays(ms)
+    assert len(kreg.active) < len(sw.order)
     results = []
     for kernels in ((rods.stretch_shear, rods.bend_twist, rods.reg_pass),
                     (rods.stretch_shear_reference, rods.bend_twist_reference, rods.reg_pass_reference)):
@@ -26,8 +29,8 @@ def test_rod_kernels_equal_numpy_reference():
         for idx in setup.joint_sets:
             bt(setup.joints, idx, q, ms.w_q, setup.joint_rest, setup.joint_length, setup.joint_kb,
                setup.joint_kt, lam["j"], dt)
-        rp(sw.edges, sw.ptr, setup.fp, x, q, ms.w_p, ms.w_q, offset, k_conn, sw.rest, sw.length, k_bend, k_twist,
-           lam["c"], lam["p"], dt)
+        rp(sw.edges, kreg.ptr, kreg.active, setup.fp, x, q, ms.w_p, ms.w_q, kreg.offset, kreg.k_conn, sw.rest,
+           sw.length, kreg.k_bend, kreg.k_twist, lam["c"], lam["p"], dt)
         results.append((x, q, lam))
     (x1, q1, l1), (x2, q2, l2) = results
     assert np.abs(x1 - ms.x).max() > 1e-6  # the projections did something
@@ -62,6 +65,13 @@ def test_sweep_arrays_equal_numpy_gather():
     o = sw.order
     want = (ms.rest_offset[o],) + tuple(np.where(ms.edge_ok[o, c], ms.integrity[o] * k0, 0.0)
                                         for c, k0 in enumerate((sw.k_conn0, sw.k_pb0, sw.k_pt0)))
-    for got, w in zip(sw.arrays(ms), want):
-        np.testing.assert_array_equal(got, w)
+    got = sw.arrays(ms)
+    for g, w in zip(got, want):
+        np.testing.assert_array_equal(g, w)
     assert (want[1] == 0).any() and (want[1] > 0).any()
+    # the active edges: those with any stiffness, each class within its own block
+    np.testing.assert_array_equal(got.active, np.flatnonzero((want[1] > 0) | (want[2] > 0) | (want[3] > 0)))
+    for c in range(len(sw.ptr) - 1):
+        block = got.active[got.ptr[c]:got.ptr[c + 1]]
+        assert np.all((block >= sw.ptr[c]) & (block < sw.ptr[c + 1]))
+    assert got.ptr[-1] == len(got.active) < len(sw.order)

@@ -26,6 +26,7 @@ strand's E I, G J over dp_0. The kernels of :mod:`~wooddecay.sim.rods` and
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
@@ -66,13 +67,25 @@ class RegSweep:
     def of(cls, ptr: np.ndarray, order: np.ndarray, edges, rest, length, k_conn0, k_pb0, k_pt0) -> "RegSweep":
         return cls(ptr, order, *(np.ascontiguousarray(a[order]) for a in (edges, rest, length, k_conn0, k_pb0, k_pt0)))
 
-    def arrays(self, ms: "MechState") -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def arrays(self, ms: "MechState") -> "RegStiffness":
         """dp, connection, pair bend and pair twist stiffness (base times I_ij, zero where
-        failed) of the current state, in colour order."""
+        failed) of the current state, in colour order, and the edges that keep any
+        (:func:`rods.active_edges`)."""
         out = tuple(np.empty(len(self.order)) for _ in range(4))
         _sweep_arrays(self.order, ms.edge_ok, ms.integrity, ms.rest_offset, self.k_conn0, self.k_pb0, self.k_pt0,
                       *out)
-        return out
+        return RegStiffness(*out, *rods.active_edges(self.ptr, *out[1:]))
+
+
+class RegStiffness(NamedTuple):
+    """Stage 2's per-state data (:meth:`RegSweep.arrays`), in colour order."""
+
+    offset: np.ndarray
+    k_conn: np.ndarray
+    k_bend: np.ndarray
+    k_twist: np.ndarray
+    active: np.ndarray  # positions with any stiffness left, class by class
+    ptr: np.ndarray  # class c is active[ptr[c]:ptr[c + 1]]
 
 
 @nb.njit(parallel=True, cache=True)
@@ -455,9 +468,8 @@ def _project(setup: MechSetup, ms: MechState, kjoint, plan: "Stage1Plan", kreg, 
     fp, x, q = setup.fp, ms.x, ms.q
     strand_stage(setup, ms, kjoint, plan, lam, dt)
     sw = setup.sweep
-    offset, k_conn, k_bend, k_twist = kreg
-    rods.reg_pass(sw.edges, sw.ptr, fp, x, q, ms.w_p, ms.w_q, offset, k_conn, sw.rest, sw.length, k_bend, k_twist,
-                  lam["c"], lam["p"], dt)
+    rods.reg_pass(sw.edges, kreg.ptr, kreg.active, fp, x, q, ms.w_p, ms.w_q, kreg.offset, kreg.k_conn, sw.rest,
+                  sw.length, kreg.k_bend, kreg.k_twist, lam["c"], lam["p"], dt)
 
 
 @dataclass(frozen=True, eq=False)

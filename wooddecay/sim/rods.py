@@ -140,15 +140,17 @@ def bend_twist(pairs, idx, q, w_q, rest, length, k_bend, k_twist, lam, dt):
 
 
 @nb.njit(parallel=True, cache=True)
-def reg_pass(edges, ptr, fp, x, q, w_p, w_q, rest_offset, k_conn, rest, length, k_bend, k_twist,
+def reg_pass(edges, ptr, active, fp, x, q, w_p, w_q, rest_offset, k_conn, rest, length, k_bend, k_twist,
              lam_c, lam_bt, dt):
-    """Stage 2, one sweep over the REG edges colour class after colour class (class c is the
-    block ``ptr[c]:ptr[c + 1]``, no shared particle, :func:`color_edges`): the connection
-    constraint of Eq. 2 on element centres, then the pair's bend-twist coupling. One call per
-    sweep: a call per class (41 per substep on the log) cost 9% of Stage 2 (docs/decisions.md,
-    "One call per Stage 2 sweep")."""
+    """Stage 2, one sweep over the REG edges colour class after colour class: class c is the
+    edges ``active[ptr[c]:ptr[c + 1]]`` (positions in colour order, no shared particle,
+    :func:`color_edges`), those with a connection, bend or twist stiffness left; on each the
+    connection constraint of Eq. 2 on element centres, then the pair's bend-twist coupling where
+    it holds. One call per sweep: a call per class (41 per substep on the log) cost 9% of Stage 2;
+    a failed edge costs nothing (docs/decisions.md, "One call per Stage 2 sweep")."""
     for c in range(len(ptr) - 1):
-        for k in nb.prange(ptr[c], ptr[c + 1]):
+        for t in nb.prange(ptr[c], ptr[c + 1]):
+            k = active[t]
             i, j = edges[k, 0], edges[k, 1]
             ai, aj = fp[i], fp[j]
             bi, bj = ai + 1, aj + 1
@@ -167,7 +169,17 @@ def reg_pass(edges, ptr, fp, x, q, w_p, w_q, rest_offset, k_conn, rest, length, 
                         x[bi, cc] -= w_p[bi] * h * dc
                         x[aj, cc] += w_p[aj] * h * dc
                         x[bj, cc] += w_p[bj] * h * dc
-            _bend_twist_one(i, j, q, w_q, rest, length[k], k_bend[k], k_twist[k], lam_bt, k, dt)
+            if k_bend[k] > 0.0 or k_twist[k] > 0.0:
+                _bend_twist_one(i, j, q, w_q, rest, length[k], k_bend[k], k_twist[k], lam_bt, k, dt)
+
+
+def active_edges(ptr: np.ndarray, k_conn: np.ndarray, k_bend: np.ndarray, k_twist: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The colour-ordered positions with any stiffness left and the class pointers into them
+    (:func:`reg_pass`'s ``active`` and ``ptr``): the classes are contiguous, so class c keeps
+    the active positions within ``ptr[c]:ptr[c + 1]``."""
+    active = np.flatnonzero((k_conn > 0.0) | (k_bend > 0.0) | (k_twist > 0.0))
+    return active, np.searchsorted(active, ptr).astype(np.int64)
 
 
 def color_edges(edges: np.ndarray, fp: np.ndarray, n_particles: int) -> tuple[np.ndarray, np.ndarray]:
@@ -267,10 +279,10 @@ def bend_twist_reference(pairs, idx, q, w_q, rest, length, k_bend, k_twist, lam,
     q[i] = normalize_np(qi - (wi * f)[:, None] * mul_np(qj, u))
 
 
-def reg_pass_reference(edges, ptr, fp, x, q, w_p, w_q, rest_offset, k_conn, rest, length, k_bend, k_twist,
+def reg_pass_reference(edges, ptr, active, fp, x, q, w_p, w_q, rest_offset, k_conn, rest, length, k_bend, k_twist,
                        lam_c, lam_bt, dt):
     for c in range(len(ptr) - 1):
-        idx = np.arange(ptr[c], ptr[c + 1])
+        idx = active[ptr[c]:ptr[c + 1]]
         i, j = edges[idx, 0], edges[idx, 1]
         ai, aj = fp[i], fp[j]
         bi, bj = ai + 1, aj + 1
@@ -285,4 +297,5 @@ def reg_pass_reference(edges, ptr, fp, x, q, w_p, w_q, rest_offset, k_conn, rest
         x[bi] -= w_p[bi][:, None] * h
         x[aj] += w_p[aj][:, None] * h
         x[bj] += w_p[bj][:, None] * h
-        bend_twist_reference(edges, idx, q, w_q, rest, length, k_bend, k_twist, lam_bt, dt)
+        bt = idx[(k_bend[idx] > 0) | (k_twist[idx] > 0)]
+        bend_twist_reference(edges, bt, q, w_q, rest, length, k_bend, k_twist, lam_bt, dt)
