@@ -8,8 +8,6 @@ the wood (Fig. 13's two ends).
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from ..sim.diagnostics import mass_remaining
 from ..sim.signature import MIN_PIECE
@@ -51,30 +49,40 @@ def loose_blocks(model, frame, mask: np.ndarray | None = None) -> dict:
             "median_block_purity": med(purities)}
 
 
-def crack_opening(model, first, frame) -> dict:
-    """Cracks of ``frame`` (broken REG connections joined where they share an element) and their
-    openings (the growth since ``first`` of the centre distance of each broken connection between
-    two intact elements): the count and the opening-weighted count (sum w)^2 / sum w^2, a few when
-    a few wide cracks hold the opening (woodstock Fig. 6c, d)."""
-    broken = ~frame.mech["edge_ok"][:, 0]
-    e = model.reg_edges[broken]
-    if len(e) == 0:
-        return {"cracks": 0, "effective_cracks": 0.0}
-    n = model.n_elements
-    _, label = connected_components(coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)), directed=False)
-    _, label = np.unique(label[e[:, 0]], return_inverse=True)
-    fp = model.mech.fp
+#: sectors around the pith in which Fig. 6's radial cracks are counted (10 degrees each)
+SECTORS = 36
 
-    def distance(mech):
-        c = 0.5 * (mech["x"][fp] + mech["x"][fp + 1])
-        return np.linalg.norm(c[e[:, 1]] - c[e[:, 0]], axis=1)
 
-    gap = np.maximum(distance(frame.mech) - distance(first.mech), 0.0)
+def radial_cracks(model, first, frame) -> dict:
+    """Radial cracks of ``frame`` (woodstock Fig. 6): the broken REG connections across the
+    rings' tangent (their offset mostly along e_t, ``reg_dir_weights``), each with its opening,
+    how far its two intact elements' centres lie beyond the rest offset dp of Eq. 16 at the frame's
+    moisture (where the shrunk wood would hold them) less that excess at ``first``, summed in
+    SECTORS sectors of the angle around the pith. Returns the total opening (m), the sectors
+    holding at least a tenth of the widest one's, and the opening-weighted sector count
+    (sum w)^2 / sum w^2: a few when a few wide radial cracks hold the opening, many when it is
+    spread over hairlines all round."""
+    e = model.reg_edges
+    across = ~frame.mech["edge_ok"][:, 0] & (model.reg_dir_weights[:, 1] > 0.5)
     ok = frame.mech["element_ok"]
-    gap[~(ok[e[:, 0]] & ok[e[:, 1]])] = 0.0
-    opening = np.bincount(label, weights=gap)
-    total = float(np.sum(opening**2))
-    return {"cracks": int(len(opening)), "effective_cracks": float(opening.sum() ** 2 / total) if total > 0 else 0.0}
+    across &= ok[e[:, 0]] & ok[e[:, 1]]
+    e = e[across]
+    fp, cs = model.mech.fp, model.coupling
+    offset0, M_0, g = model.mech.offset0[across], cs.M_0_pair[across], cs.g_pair[across]
+
+    def excess(f):
+        c = 0.5 * (f.mech["x"][fp] + f.mech["x"][fp + 1])
+        M = 0.5 * (f.fields["M"][e[:, 0]] + f.fields["M"][e[:, 1]])
+        return np.linalg.norm(c[e[:, 1]] - c[e[:, 0]], axis=1) - offset0 * (1.0 - np.maximum(M_0 - M, 0.0) * g)
+
+    gap = np.maximum(excess(frame) - excess(first), 0.0)
+    phi = np.angle(np.exp(1j * model.wood_coords[e[:, 0], 1]) + np.exp(1j * model.wood_coords[e[:, 1], 1]))
+    sector = np.floor((phi + np.pi) / (2.0 * np.pi) * SECTORS).astype(np.int64) % SECTORS
+    opening = np.bincount(sector, weights=gap, minlength=SECTORS)
+    total, widest = float(opening.sum()), float(opening.max(initial=0.0))
+    return {"radial_crack_opening_m": total,
+            "radial_crack_sectors": int(np.count_nonzero(opening >= 0.1 * widest)) if widest > 0 else 0,
+            "effective_radial_cracks": total**2 / float(np.sum(opening**2)) if widest > 0 else 0.0}
 
 
 def part(model, frame, mask: np.ndarray) -> dict:

@@ -1,0 +1,47 @@
+"""Fig. 6's radial-crack measure (wooddecay.gallery.measures.radial_cracks) on rods held at rest
+while their moisture drops: every broken connection opens by exactly its shrinkage."""
+from __future__ import annotations
+
+import numpy as np
+
+from wooddecay.gallery import measures
+from wooddecay.sim.driver import Frame
+
+from .conftest import sample
+
+
+def _frame(model, M, broken):
+    edge_ok = np.ones((len(model.reg_edges), 3), dtype=bool)
+    edge_ok[broken] = False
+    mech = {"x": model.particles.astype(np.float64), "edge_ok": edge_ok,
+            "element_ok": np.ones(model.n_elements, dtype=bool)}
+    return Frame(index=0, t_days=0.0, fields={"M": np.full(model.n_elements, M)}, mech=mech, diagnostics={})
+
+
+def test_radial_cracks_sum_the_shrinkage_of_broken_tangential_connections_per_sector():
+    model = sample("log")[1]
+    cs, e = model.coupling, model.reg_edges
+    M_0 = float(cs.M_0_pair.max())
+    dry = M_0 - 0.1
+    phi = model.wood_coords[:, 1]
+    pair_phi = np.angle(np.exp(1j * phi[e[:, 0]]) + np.exp(1j * phi[e[:, 1]]))
+    tangential = model.reg_dir_weights[:, 1] > 0.5
+    middle = -np.pi + (np.array([20, 7, 28]) + 0.5) * 2.0 * np.pi / measures.SECTORS  # of three sectors
+    sector_a = tangential & (np.abs(pair_phi - middle[0]) < 0.08)
+    sector_b = tangential & (np.abs(pair_phi - middle[1]) < 0.08)
+    radial = (model.reg_dir_weights[:, 0] > 0.5) & (np.abs(pair_phi - middle[2]) < 0.08)
+    assert sector_a.sum() >= 3 and sector_b.sum() >= 3 and radial.sum() >= 3
+    first = _frame(model, M_0, np.zeros(len(e), dtype=bool))
+    shrink = model.mech.offset0 * 0.1 * cs.g_pair  # rest offset lost at M_0 - 0.1, positions unchanged
+
+    one = measures.radial_cracks(model, first, _frame(model, dry, sector_a | radial))
+    np.testing.assert_allclose(one["radial_crack_opening_m"], shrink[sector_a].sum(), rtol=1e-9)
+    assert one["radial_crack_sectors"] == 1 and one["effective_radial_cracks"] == 1.0
+
+    two = measures.radial_cracks(model, first, _frame(model, dry, sector_a | sector_b))
+    a, b = shrink[sector_a].sum(), shrink[sector_b].sum()
+    np.testing.assert_allclose(two["effective_radial_cracks"], (a + b) ** 2 / (a * a + b * b), rtol=1e-9)
+    assert two["radial_crack_sectors"] == 2
+
+    none = measures.radial_cracks(model, first, _frame(model, M_0, np.zeros(len(e), dtype=bool)))
+    assert none == {"radial_crack_opening_m": 0.0, "radial_crack_sectors": 0, "effective_radial_cracks": 0.0}
