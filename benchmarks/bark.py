@@ -1,8 +1,8 @@
-"""Cost of the bark (wooddecay.bark, wooddecay.sim.bark) on samples/log.toml: building the sheet,
+"""Cost of the bark (wooddecay.bark, wooddecay.sim.bark) on samples/log.toml (or SCENE): building the sheet,
 the growth cracks at day 0, one biology step of a drying log (dt_bio days) with and without the
 bark step after it (its cracks growing), and the export's crack fields and grooves of one frame.
 
-    python benchmarks/bark.py [REPEAT]      (default 5)
+    python benchmarks/bark.py [REPEAT] [SCENE]      (default 5, samples/log.toml)
 
 Prints ``name value unit`` lines, each the median of REPEAT runs after a warm-up, with its spread.
 """
@@ -24,7 +24,7 @@ from timing import SAMPLES, spread, times
 
 def main() -> None:
     repeat = int(sys.argv[1]) if len(sys.argv) > 1 else 5
-    scene = wd.load_scene(SAMPLES / "log.toml", overrides={"climate.preset": "dry"})
+    scene = wd.load_scene(sys.argv[2] if len(sys.argv) > 2 else SAMPLES / "log.toml", overrides={"climate.preset": "dry"})
     model = wd.build_model(scene)
     sim = wd.Simulation(model, mechanics=False)
     state = sim.state

@@ -52,6 +52,29 @@ def test_tensor_algebra_matches_numpy():
     assert np.allclose(out, along[:, None] * np.array([t[0] ** 2, t[1] ** 2, t[0] * t[1]]))
 
 
+@pytest.mark.parametrize("scene", ["log.toml", "meshes/forked_branch.toml"])
+def test_shadows_from_the_grid_equal_the_kd_tree_reference(scene):
+    """cast_shadows finds the faces of each crack edge's strip in the sheet's grid and adds the
+    same bits as the KD-tree reference, which visits every face within reach (around each
+    branch of the forked one); the faces it skips get no shadow there."""
+    sheet = wd.build_model(wd.load_scene(SAMPLES / scene)).bark
+    rng = np.random.default_rng(3)
+    g = sheet.face_grid
+    assert np.array_equal(np.sort(g.faces), np.arange(sheet.n_faces)) and g.ptr[-1] == sheet.n_faces
+    for count in (1, 40, 600):
+        new = np.unique(rng.integers(0, len(sheet.edges), count))
+        a = cracks.CrackState.empty(sheet)
+        a.shadow[:] = rng.random(a.shadow.shape)
+        b = cracks.CrackState(cracked=a.cracked.copy(), shadow=a.shadow.copy())
+        before = a.shadow.copy()
+        fa = cracks.cast_shadows(sheet, a, new, 0.02)
+        fb = cracks.cast_shadows_reference(sheet, b, new, 0.02)
+        np.testing.assert_array_equal(a.shadow, b.shadow)
+        assert len(fa) and np.isin(fa, fb).all()
+        np.testing.assert_array_equal(a.shadow[np.setdiff1d(fb, fa)], before[np.setdiff1d(fb, fa)])
+    assert len(cracks.cast_shadows(sheet, a, np.zeros(0, dtype=np.int64), 0.02)) == 0
+
+
 def test_recent_growth_is_the_outer_rings_share():
     Q = np.linspace(0.0, 1.0, 11)  # ten equal rings
     assert recent_growth(Q, 3) == pytest.approx(0.3)

@@ -31,9 +31,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
+import numba as nb
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, dijkstra
+
+from .sheet import branch_trees
 
 #: a crack edge follows the crack direction within 60 degrees
 ALIGN = 0.5
@@ -152,13 +157,116 @@ def _new_edges(sheet, st: CrackState, deg: np.ndarray, l1: np.ndarray, e1: np.nd
 
 
 def cast_shadows(sheet, st: CrackState, new: np.ndarray, shadow_length: float) -> np.ndarray:
-    """Add the shadows of the crack edges ``new`` to the faces near them (module docstring);
-    returns those faces (sorted, unique)."""
+    """Add the shadows of the crack edges ``new`` to the faces near them (module docstring):
+    every face whose centroid lies within REACH shadow lengths plus an edge length ``h`` of an
+    edge's midpoint (periodically around the branch) and has a weight there, found in the sheet's
+    :class:`~.sheet.FaceGrid`; returns those faces (sorted). The edges add in the order of their
+    branch, then of ``new``, and the weights take numpy's exp: the bits of
+    :func:`cast_shadows_reference`, which visits every face within reach (27x the time on the log,
+    14x the faces)."""
+    g = sheet.face_grid
+    eb = sheet.vertex_branch[sheet.edges[new, 0]]
+    new = new[np.argsort(eb, kind="stable")]
+    eb = sheet.vertex_branch[sheet.edges[new, 0]]
+    P = sheet.period[eb]
+    qx = sheet.edge_mid[new, 0] % P
+    qy = np.clip(sheet.edge_mid[new, 1] - g.y0[eb], 0.0, None)
+    args = (new, eb, qx, qy, sheet.edge_mid, sheet.edge_dir, sheet.edge_length, sheet.face_xy, sheet.period, g.x,
+            g.y, g.y0, g.wx, g.wy, g.nx, g.ny, g.base, g.ptr, g.faces, REACH * shadow_length + sheet.h,
+            shadow_length)
+    none_i, none_f = np.zeros(0, dtype=np.int64), np.zeros(0)
+    n = _strip_pairs(*args, False, none_i, none_i, none_f, none_f)
+    edge, face, arg, hat = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64), np.empty(n), np.empty(n)
+    _strip_pairs(*args, True, edge, face, arg, hat)
+    _accumulate(new[edge], face, np.exp(arg) * hat, sheet.edge_dir, st.shadow)
+    touched = np.zeros(sheet.n_faces, dtype=np.bool_)
+    touched[face] = True
+    return np.flatnonzero(touched)
+
+
+#: faces further than this many shadow lengths (plus an edge) from a crack edge get no shadow
+REACH = 4.0
+
+
+@nb.njit(cache=True)
+def _strip_pairs(new, eb, qx, qy, mid, edir, elen, face_xy, period, gx, gy, y0, wx, wy, nx, ny, base, ptr, faces,
+                 reach, shadow_length, fill, edge, face, arg, hat):
+    """The (edge, face) pairs of :func:`cast_shadows` with a weight, edge after edge; with
+    ``fill`` written to ``edge`` (position in ``new``), ``face``, ``arg`` (the exponent
+    -|r.n| / shadow_length) and ``hat`` (1 - |r.t| / l); returns their count. The faces of an
+    edge are those of the cells over its strip (within its length along it, where the hat is
+    positive, and ``reach`` across) that lie within ``reach`` of the query point (qx, qy),
+    periodically in x, tested as a periodic KD-tree tests it."""
+    r2 = reach * reach
+    n = 0
+    for t in range(len(new)):
+        k, b = new[t], eb[t]
+        per = period[b]
+        half = 0.5 * per
+        t0, t1 = edir[k, 0], edir[k, 1]
+        n0, n1 = -t1, t0
+        Lk = elen[k]
+        my = mid[k, 1] - y0[b]
+        across = reach + abs(qy[t] - my)
+        ex = Lk * abs(t0) + across * abs(n0)
+        ey = Lk * abs(t1) + across * abs(n1)
+        lo_y = max(my - ey, qy[t] - reach)
+        hi_y = min(my + ey, qy[t] + reach)
+        if hi_y < lo_y:
+            continue
+        iy0 = max(int(math.floor(lo_y / wy)), 0)
+        iy1 = min(int(math.floor(hi_y / wy)), ny[b] - 1)
+        mx = qx[t]
+        ix0 = int(math.floor((mx - ex) / wx[b]))
+        ix1 = int(math.floor((mx + ex) / wx[b]))
+        if ix1 - ix0 + 1 >= nx[b]:
+            ix0, ix1 = 0, nx[b] - 1
+        for iy in range(iy0, iy1 + 1):
+            for ixr in range(ix0, ix1 + 1):
+                c = base[b] + iy * nx[b] + ixr % nx[b]
+                for p in range(ptr[c], ptr[c + 1]):
+                    f = faces[p]
+                    dx = gx[f] - mx
+                    if dx < -half:
+                        dx += per
+                    elif dx > half:
+                        dx -= per
+                    dy = gy[f] - qy[t]
+                    if dx * dx + dy * dy > r2:
+                        continue
+                    rx = (face_xy[f, 0] - mid[k, 0] + half) % per - half
+                    ry = face_xy[f, 1] - mid[k, 1]
+                    h = 1.0 - abs(rx * t0 + ry * t1) / Lk
+                    if h <= 0.0:
+                        continue
+                    if fill:
+                        edge[n], face[n] = t, f
+                        arg[n] = -abs(rx * n0 + ry * n1) / shadow_length
+                        hat[n] = h
+                    n += 1
+    return n
+
+
+@nb.njit(cache=True)
+def _accumulate(edge, face, w, edir, shadow):
+    """shadow[face] += w n n^T pair after pair, in order (n the normal of the crack edge)."""
+    for p in range(len(face)):
+        n0, n1 = -edir[edge[p], 1], edir[edge[p], 0]
+        f = face[p]
+        shadow[f, 0] += w[p] * (n0 * n0)
+        shadow[f, 1] += w[p] * (n1 * n1)
+        shadow[f, 2] += w[p] * (n0 * n1)
+
+
+def cast_shadows_reference(sheet, st: CrackState, new: np.ndarray, shadow_length: float) -> np.ndarray:
+    """:func:`cast_shadows` with numpy and a periodic KD-tree of each branch's faces; returns
+    every face within reach, with a weight or not."""
     touched = [np.zeros(0, dtype=np.int64)]
-    reach = 4.0 * shadow_length + sheet.h
+    reach = REACH * shadow_length + sheet.h
+    trees = branch_trees(sheet.period, sheet.face_branch, sheet.face_xy)
     eb = sheet.vertex_branch[sheet.edges[new, 0]]
     for b in np.unique(eb):
-        tree, rows, y0 = sheet.face_trees[int(b)]
+        tree, rows, y0 = trees[int(b)]
         sel = new[eb == b]
         P = sheet.period[b]
         mids = np.stack([sheet.edge_mid[sel, 0] % P, np.clip(sheet.edge_mid[sel, 1] - y0, 0.0, None)], 1)

@@ -45,6 +45,8 @@ JITTER = 0.25
 WIDTH_NOISE = 0.3
 #: relative noise on the bark's initial bond to the wood (features of the plates' size)
 BOND_NOISE = 0.5
+#: side of a :class:`FaceGrid` cell in sheet edges h
+GRID_CELLS = 2.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,7 +80,7 @@ class BarkSheet:
     period: np.ndarray  # (n_branches,) flat width around each branch (m), 0 without a sheet
     pattern: tuple[float, float]  # (P_t, P_l)
     element_face: np.ndarray  # (n_elements,) face an element of the bark layer lies under, -1 otherwise
-    face_trees: dict  # :func:`branch_trees` of the face centroids
+    face_grid: "FaceGrid"  # the face centroids in cells (:func:`face_grid`)
 
     @property
     def n_faces(self) -> int:
@@ -218,7 +220,51 @@ def build_sheet(model, bark, recent: np.ndarray, eccentricity: float, rng: np.ra
                      bond=b_v[faces].mean(1),
                      width_noise=1.0 + WIDTH_NOISE * rng.uniform(-1.0, 1.0, nv), period=period,
                      pattern=PATTERNS[pattern], element_face=element_face,
-                     face_trees=branch_trees(period, fb, face_xy))
+                     face_grid=face_grid(period, fb, face_xy, GRID_CELLS * h))
+
+
+@dataclass(frozen=True, eq=False)
+class FaceGrid:
+    """The face centroids bucketed per branch in cells of about ``cell`` square, periodic around
+    the branch (:mod:`.cracks` finds the faces near a crack edge in them). Cell (b, iy, ix), ix
+    around, iy along, is ``base[b] + iy nx[b] + ix``; its faces are ``faces[ptr[c]:ptr[c + 1]]``,
+    ascending. Columns split the branch's period evenly (width ``wx[b]``), rows are ``wy`` apart
+    from the branch's lowest centroid ``y0[b]``."""
+
+    x: np.ndarray  # (F,) centroid x modulo the branch's period
+    y: np.ndarray  # (F,) centroid y above y0 of its branch
+    y0: np.ndarray  # (B,)
+    wx: np.ndarray  # (B,)
+    wy: float
+    nx: np.ndarray  # (B,) columns, 0 on a branch without faces
+    ny: np.ndarray  # (B,) rows
+    base: np.ndarray  # (B,)
+    ptr: np.ndarray  # (cells + 1,)
+    faces: np.ndarray  # (F,)
+
+
+def face_grid(period: np.ndarray, branch: np.ndarray, xy: np.ndarray, cell: float) -> FaceGrid:
+    """:class:`FaceGrid` of the face centroids ``xy`` on their ``branch``."""
+    B = len(period)
+    has = np.bincount(branch, minlength=B) > 0
+    y0 = np.full(B, np.inf)
+    np.minimum.at(y0, branch, xy[:, 1])
+    y0[~has] = 0.0
+    y = xy[:, 1] - y0[branch]
+    span = np.zeros(B)
+    np.maximum.at(span, branch, y)
+    nx = np.where(has, np.maximum(np.floor(period / cell), 1.0), 0.0).astype(np.int64)
+    ny = np.where(has, np.floor(span / cell) + 1.0, 0.0).astype(np.int64)
+    wx = np.where(nx > 0, period / np.maximum(nx, 1), 1.0)
+    base = np.concatenate([[0], np.cumsum(nx * ny)[:-1]]).astype(np.int64)
+    x = xy[:, 0] % np.where(period > 0, period, 1.0)[branch]
+    ix = np.minimum((x / wx[branch]).astype(np.int64), nx[branch] - 1)
+    iy = np.minimum((y / cell).astype(np.int64), ny[branch] - 1)
+    c = base[branch] + iy * nx[branch] + ix
+    order = np.argsort(c, kind="stable")
+    ptr = np.concatenate([[0], np.cumsum(np.bincount(c, minlength=int((nx * ny).sum())))]).astype(np.int64)
+    return FaceGrid(x=x, y=y, y0=y0, wx=wx, wy=float(cell), nx=nx, ny=ny, base=base, ptr=ptr,
+                    faces=order.astype(np.int64))
 
 
 def branch_trees(period: np.ndarray, branch: np.ndarray, xy: np.ndarray) -> dict:
@@ -289,4 +335,5 @@ def _empty(h, pattern, period, n_elements) -> BarkSheet:
                      vertex_nbrs=np.zeros((0, 1), dtype=np.int64),
                      vertex_faces=np.zeros((0, 1), dtype=np.int64), threshold=np.zeros(0), bond=np.zeros(0),
                      width_noise=np.zeros(0), period=period, pattern=PATTERNS[pattern],
-                     element_face=np.full(n_elements, -1, dtype=np.int64), face_trees={})
+                     element_face=np.full(n_elements, -1, dtype=np.int64),
+                     face_grid=face_grid(period, zi, z2, GRID_CELLS * h))

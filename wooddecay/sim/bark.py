@@ -96,6 +96,16 @@ def step(model, state, dt_days: float) -> None:
     st.bond = shedding.weaken(st.bond, float(b["shedding"]), dt_days, state.H_c[fe], state.H_l[fe],
                               M_face - st.M_last, sheet.M_0)
     st.M_last = M_face
+    if (st.bond[~st.shed] <= 0.0).any():  # else no plate comes off: its mean bond exceeds its least face's
+        _shed(model, st)
+    if state.mech is not None:
+        apply_cuts(state.mech, st)
+
+
+def _shed(model, st: BarkState) -> None:
+    """The plates that come off now, the cracks where they broke from the rest of their plate
+    and the pairs and links that let them fall (:mod:`wooddecay.bark.shedding`)."""
+    sheet, b = model.bark, model.bark_setup
     label = shedding.plates(sheet, st.crack.cracked, st.shed)
     label, off, breaks = shedding.falling(sheet, label, st.bond, float(b["plate_area"]))
     breaks = breaks[~st.crack.cracked[breaks]]
@@ -106,8 +116,6 @@ def step(model, state, dt_days: float) -> None:
         edge_cut, link_cut, _ = shedding.cuts(model, sheet, label, off)
         st.edge_cut |= edge_cut
         st.link_cut |= link_cut
-    if state.mech is not None:
-        apply_cuts(state.mech, st)
 
 
 def apply_cuts(ms, st: BarkState) -> None:
