@@ -75,6 +75,18 @@ def test_shadows_from_the_grid_equal_the_kd_tree_reference(scene):
     assert len(cracks.cast_shadows(sheet, a, np.zeros(0, dtype=np.int64), 0.02)) == 0
 
 
+def test_separation_equals_its_numpy_reference(tiny_bark):
+    sheet = tiny_bark.bark
+    rng = np.random.default_rng(5)
+    plus = rng.normal(size=(sheet.n_faces, 3))
+    plus[rng.random(sheet.n_faces) < 0.3] = -0.0  # the sign of a zero survives as numpy's sum keeps it
+    np.testing.assert_array_equal(cracks.separation(sheet, plus), cracks.separation_reference(sheet, plus))
+    some = rng.integers(0, len(sheet.phi), 50)
+    got, want = cracks.separation(sheet, plus, some), cracks.separation_reference(sheet, plus, some)
+    np.testing.assert_array_equal(got, want)
+    assert np.array_equal(np.signbit(got), np.signbit(want))
+
+
 def test_recent_growth_is_the_outer_rings_share():
     Q = np.linspace(0.0, 1.0, 11)  # ten equal rings
     assert recent_growth(Q, 3) == pytest.approx(0.3)

@@ -105,7 +105,35 @@ def tensile(sigma: np.ndarray) -> np.ndarray:
 
 def separation(sheet, plus: np.ndarray, vertices: np.ndarray | None = None) -> np.ndarray:
     """(V, 3) mean of the faces' tensile stresses ``plus`` around each vertex (of ``vertices``
-    only, when given: the same values, row by row)."""
+    only, when given: the same values, row by row). Summed face after face in the order of
+    ``vertex_faces``: the bits of :func:`separation_reference`, without its (V, K, 3) gather."""
+    vertices = np.arange(len(sheet.vertex_faces)) if vertices is None else vertices
+    out = np.empty((len(vertices), 3))
+    _separation(sheet.vertex_faces, plus, vertices, out)
+    return out
+
+
+@nb.njit(parallel=True, cache=True)
+def _separation(vertex_faces, plus, vertices, out):
+    for t in nb.prange(len(vertices)):
+        v = vertices[t]
+        s0 = s1 = s2 = 0.0
+        n = 0
+        for k in range(vertex_faces.shape[1]):
+            f = vertex_faces[v, k]
+            a0 = plus[f, 0] if f >= 0 else 0.0
+            a1 = plus[f, 1] if f >= 0 else 0.0
+            a2 = plus[f, 2] if f >= 0 else 0.0
+            if k == 0:  # numpy's sum starts from the first term, not from +0 (the sign of a zero)
+                s0, s1, s2 = a0, a1, a2
+            else:
+                s0, s1, s2 = s0 + a0, s1 + a1, s2 + a2
+            n += f >= 0
+        n = max(n, 1)
+        out[t, 0], out[t, 1], out[t, 2] = s0 / n, s1 / n, s2 / n
+
+
+def separation_reference(sheet, plus: np.ndarray, vertices: np.ndarray | None = None) -> np.ndarray:
     vf = sheet.vertex_faces if vertices is None else sheet.vertex_faces[vertices]
     valid = vf >= 0
     total = np.where(valid[..., None], plus[np.maximum(vf, 0)], 0.0).sum(1)
