@@ -1,6 +1,8 @@
 """Cost of the bark (wooddecay.bark, wooddecay.sim.bark) on samples/log.toml (or SCENE): building the sheet,
 the growth cracks at day 0, one biology step of a drying log (dt_bio days) with and without the
-bark step after it (its cracks growing), and the export's crack fields and grooves of one frame.
+bark step after it (its cracks growing), the export's crack fields and grooves of one frame, and
+the crack kernels against their numpy references in the same run: the shadows of 600 crack edges
+(face grid against KD-tree) and the separation tensors of every vertex, with the ratio per pair.
 
     python benchmarks/bark.py [REPEAT] [SCENE]      (default 5, samples/log.toml)
 
@@ -14,7 +16,7 @@ import sys
 import numpy as np
 
 import wooddecay as wd
-from wooddecay.bark import surface
+from wooddecay.bark import cracks, surface
 from wooddecay.bark.sheet import build_sheet
 from wooddecay.meshlets.sweep import build_meshlets
 from wooddecay.sim import bark, biology
@@ -55,6 +57,21 @@ def main() -> None:
     t = times(lambda: surface.frame_bark(model, mesh, frame), repeat)
     print(f"export_crack_fields_per_frame_s {statistics.median(t):.4f} s {spread(t)}")
     print(f"crack_length_m {bark.statistics(model, state.bark)['bark_crack_length_m']:.2f} m")
+    rng = np.random.default_rng(0)
+    new = np.unique(rng.integers(0, len(sheet.edges), 600))
+    st = cracks.CrackState.empty(sheet)
+    plus = rng.normal(size=(sheet.n_faces, 3))
+    for name, fast, ref in (("shadows", lambda: cracks.cast_shadows(sheet, st, new, 0.02),
+                             lambda: cracks.cast_shadows_reference(sheet, st, new, 0.02)),
+                            ("separation", lambda: cracks.separation(sheet, plus),
+                             lambda: cracks.separation_reference(sheet, plus))):
+        fast()
+        pairs = [(times(fast, 1)[0], times(ref, 1)[0]) for _ in range(repeat)]
+        a, b = [p[0] for p in pairs], [p[1] for p in pairs]
+        print(f"{name}_s {statistics.median(a):.5f} s {spread(a)}")
+        print(f"{name}_reference_s {statistics.median(b):.5f} s {spread(b)}")
+        r = [y / x for x, y in pairs]
+        print(f"{name}_speedup {statistics.median(r):.1f} x {spread(r)}")
 
 
 if __name__ == "__main__":
