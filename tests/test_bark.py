@@ -75,6 +75,19 @@ def test_shadows_from_the_grid_equal_the_kd_tree_reference(scene):
     assert len(cracks.cast_shadows(sheet, a, np.zeros(0, dtype=np.int64), 0.02)) == 0
 
 
+def test_relieved_and_tensile_equal_their_numpy_references():
+    """The numba products give numpy's bits, signed zeros included."""
+    rng = np.random.default_rng(4)
+    T = rng.normal(size=(5000, 3))
+    S = np.abs(rng.normal(size=(5000, 3))) * 0.7
+    S[::3] = 0.0
+    T[::7] = -0.0
+    for a, b in ((cracks.relieved(T, S), cracks.relieved_reference(T, S)),
+                 (cracks.tensile(T), cracks.tensile_reference(T))):
+        np.testing.assert_array_equal(a, b)
+        assert np.array_equal(np.signbit(a), np.signbit(b))
+
+
 def test_separation_equals_its_numpy_reference(tiny_bark):
     sheet = tiny_bark.bark
     rng = np.random.default_rng(5)

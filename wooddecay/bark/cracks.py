@@ -89,7 +89,45 @@ def _mul(A, B):
 
 
 def relieved(sigma_inf: np.ndarray, shadow: np.ndarray) -> np.ndarray:
-    """sigma = Pi sigma_inf Pi, Pi = I - clip(S, 0, 1) (module docstring)."""
+    """sigma = Pi sigma_inf Pi, Pi = I - clip(S, 0, 1) (module docstring). The eigenpairs come
+    from :func:`eig2` (numpy's transcendentals), the products from a numba kernel in
+    :func:`relieved_reference`'s order: the same bits without its (N, 4) temporaries."""
+    l1, l2, e = eig2(shadow)
+    out = np.empty((len(l1), 3))
+    _relieved(l1, l2, e, sigma_inf, out)
+    return out
+
+
+@nb.njit(inline="always", cache=True)
+def _positive(x):
+    """np.maximum(x, 0.0), a negative zero included (+0.0)."""
+    return x if x > 0.0 else 0.0
+
+
+@nb.njit(inline="always", cache=True)
+def _clip01(x):
+    """np.clip(x, 0.0, 1.0), a negative zero included (+0.0)."""
+    return 1.0 if x > 1.0 else _positive(x)
+
+
+@nb.njit(parallel=True, cache=True)
+def _relieved(l1, l2, e, sg, out):
+    """:func:`relieved` from the eigenpairs of the shadows, one face per iteration."""
+    for i in nb.prange(len(l1)):
+        c, s = e[i, 0], e[i, 1]
+        p1 = 1.0 - _clip01(l1[i])
+        p2 = 1.0 - _clip01(l2[i])
+        a0, a3, a1 = p1 * c * c + p2 * s * s, p1 * s * s + p2 * c * c, (p1 - p2) * c * s  # Pi: 00, 11, 01 = 10
+        b0, b1, b3 = sg[i, 0], sg[i, 2], sg[i, 1]
+        m0, m1 = a0 * b0 + a1 * b1, a0 * b1 + a1 * b3  # Pi sigma_inf
+        m2, m3 = a1 * b0 + a3 * b1, a1 * b1 + a3 * b3
+        o1, o2 = m0 * a1 + m1 * a3, m2 * a0 + m3 * a1  # (Pi sigma_inf) Pi
+        out[i, 0] = m0 * a0 + m1 * a1
+        out[i, 1] = m2 * a1 + m3 * a3
+        out[i, 2] = 0.5 * (o1 + o2)
+
+
+def relieved_reference(sigma_inf: np.ndarray, shadow: np.ndarray) -> np.ndarray:
     l1, l2, e = eig2(shadow)
     Pi = _from_eig(1.0 - np.clip(l1, 0.0, 1.0), 1.0 - np.clip(l2, 0.0, 1.0), e)
     Pm = Pi[:, [0, 2, 2, 1]]
@@ -99,6 +137,24 @@ def relieved(sigma_inf: np.ndarray, shadow: np.ndarray) -> np.ndarray:
 
 def tensile(sigma: np.ndarray) -> np.ndarray:
     """(N, 3) tensile parts (positive eigenvalues only) of the stresses ``sigma``."""
+    l1, l2, e = eig2(sigma)
+    out = np.empty((len(l1), 3))
+    _tensile(l1, l2, e, out)
+    return out
+
+
+@nb.njit(parallel=True, cache=True)
+def _tensile(l1, l2, e, out):
+    """:func:`tensile` from the eigenpairs, in :func:`_from_eig`'s order."""
+    for i in nb.prange(len(l1)):
+        c, s = e[i, 0], e[i, 1]
+        p1, p2 = _positive(l1[i]), _positive(l2[i])
+        out[i, 0] = p1 * c * c + p2 * s * s
+        out[i, 1] = p1 * s * s + p2 * c * c
+        out[i, 2] = (p1 - p2) * c * s
+
+
+def tensile_reference(sigma: np.ndarray) -> np.ndarray:
     l1, l2, e = eig2(sigma)
     return _from_eig(np.maximum(l1, 0.0), np.maximum(l2, 0.0), e)
 
