@@ -251,8 +251,8 @@ def cast_shadows(sheet, st: CrackState, new: np.ndarray, shadow_length: float) -
     ``benchmarks/bark.py``; 13x the faces on the tree)."""
     g = sheet.face_grid
     eb = sheet.vertex_branch[sheet.edges[new, 0]]
-    new = new[np.argsort(eb, kind="stable")]
-    eb = sheet.vertex_branch[sheet.edges[new, 0]]
+    order = np.argsort(eb, kind="stable")
+    new, eb = new[order], eb[order]
     P = sheet.period[eb]
     qx = sheet.edge_mid[new, 0] % P
     qy = np.clip(sheet.edge_mid[new, 1] - g.y0[eb], 0.0, None)
