@@ -30,7 +30,11 @@ section RISE r_s on, by the strands that leave into the other branches, carried 
 site here (:func:`_foreign_sites`; the sweep makes the faces against them walls to those strands'
 elements). From the rise section on the mirrors go across the convex hull of the branch's own
 sites offset by r_s (:func:`~wooddecay.meshlets.offset.offset_contour`), so its cells do not swell
-into the wood the other branch took. A site the fork's profile does not bound (deeper than
+into the wood the other branch took. Where the source surface is known (a scene built from a mesh),
+sections every JUNCTION r_s from the fork to the next node slice it, and the contour around the
+branch's sites is its own section once it holds none of the leaving strands: from the first such
+section on the mirrors go across it (a site outside it, carried straight from the fork's profile,
+gets a cell OUTSIDE_GAP r_s deep), and the leaving strands bound the cells up to there. A site the fork's profile does not bound (deeper than
 GHOST_DEPTH r_s there, or its mirror invalid) gets its ghost from the rise section on; at an inner
 fork each ghost is two (one up to the fork section, one from it), and a mirror across the fork
 profile's notches is held from the sections around instead of costing the strand its ghost for
@@ -46,6 +50,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from ..strands import profiles
+from ..strands.mesh_skeleton import contour_around
 from .offset import offset_contour
 
 #: sites closer than this many r_s to the profile at each of their nodes get a mirrored ghost
@@ -62,6 +67,11 @@ MILD_RADIUS = 4.0
 #: past a fork the ghosts reach the hull of the branch's own sites RISE r_s on (at most halfway
 #: to the next node): the crotch's wood between the branches tapers over that rise
 RISE = 4.0
+#: where the source surface is known (a scene built from a mesh), sections every JUNCTION r_s from
+#: a fork to the next node mirror across the surface's own section there
+JUNCTION = 1.0
+#: a site outside the source surface's own section past a fork: its cell ends this many r_s beyond it
+OUTSIDE_GAP = 0.25
 #: a corner: the second mirror edge turns by more than this from the nearest one
 CORNER = np.deg2rad(30.0)
 
@@ -183,6 +193,22 @@ def _site_hull(pts: np.ndarray, r_s: float) -> np.ndarray | None:
     return offset_contour(pts[convex.vertices], r_s, "round")[0]
 
 
+def _mirrors(poly: np.ndarray, pts: np.ndarray, r_s: float, surface: bool = False):
+    """Offsets (n, 2, 2) of the mirrors of ``pts`` across ``poly`` (:func:`_feet`), their
+    distances and validity (:func:`_valid_mirrors`). Across the ``surface``'s own section a site
+    can lie outside it (strands run straight between node sections, the surface need not): its
+    cell ends OUTSIDE_GAP r_s beyond it, along the way out."""
+    foot, dist = _feet(poly, pts)
+    ok = _valid_mirrors(poly, pts, foot, r_s)
+    off = 2.0 * (foot - pts[:, None])
+    if surface:
+        out = profiles.signed_distance(poly, pts) < 0.0
+        way = pts[out] - foot[out, 0]
+        off[out, 0] = 2.0 * OUTSIDE_GAP * r_s * way / np.maximum(np.linalg.norm(way, axis=1), 1e-300)[:, None]
+        dist[out, 0], ok[out, 0] = 0.0, True
+    return off, dist, ok
+
+
 def section_frame(skel, topo, chain, s_chain, d):
     """Origin and axes (U, V) of the cross-section at distances ``d`` along a branch's chain:
     interpolated linearly between its nodes (re-orthonormalised)."""
@@ -274,8 +300,17 @@ def setup_branch(model, b: int) -> Branch | None:
     fork_at = [0, *fork_at] if starts else fork_at
     s_rise = {float(s_chain[j]): float(s_chain[j] + min(RISE * r_s, 0.5 * (s_chain[j + 1] - s_chain[j])))
               for j in fork_at}
+    # the junction sections past a fork: its rise, and where the source surface gives the
+    # branch's own section, every JUNCTION r_s up to the next node
+    s_junction = {}
+    for j in fork_at:
+        k, v = float(s_chain[j]), s_rise[float(s_chain[j])]
+        if s0.min() <= k and v <= s1.max():
+            every = (np.arange(k + JUNCTION * r_s, s_chain[j + 1] - 0.5 * JUNCTION * r_s, JUNCTION * r_s)
+                     if skel.surface is not None else np.zeros(0))
+            s_junction[k] = np.union1d(every, [v])
     d = np.unique(np.concatenate([s_chain[(s_chain >= s0.min()) & (s_chain <= s1.max())], s0, s1,
-                                  [v for k, v in s_rise.items() if s0.min() <= k and v <= s1.max()]]))
+                                  *s_junction.values()]))
     n = len(strands)
     P = np.zeros((len(d), n, 2))
     alive = (d[:, None] >= s0[None]) & (d[:, None] <= s1[None])
@@ -306,21 +341,38 @@ def setup_branch(model, b: int) -> Branch | None:
     tapered = _mirror_tapered(P, offset, nearest, polys, alive, depth, valid, r_s)
     # past a fork the sites fill only part of its profile (where side branches leave, the sites
     # that go on; where this branch starts, its own): from the fork's profile at the fork they
-    # mirror, by the rise section, across the hull of their own sites offset by r_s
-    rise = {}  # rise section -> (fork section, sites, offsets, distances, valid)
-    for k in np.flatnonzero(np.isin(d, list(s_rise))):
+    # mirror, by the rise section, across the hull of their own sites offset by r_s; where the source
+    # surface is known, across its section around them at each junction section where it has parted
+    # from the other branches' (up to there the leaving strands bound them)
+    rise = {}  # rise section (the first parted junction section) -> fork section
+    junction = {}  # junction section -> (fork section, sites, offsets, distances, valid, profile)
+    surfaced = []  # the junction sections across the source surface
+    leaving = []  # the strands that leave into other branches, ghosts of no site here up to the rise
+    for k in np.flatnonzero(np.isin(d, list(s_junction))):
+        rows = np.searchsorted(d, s_junction[float(d[k])])
         kr = int(np.searchsorted(d, s_rise[float(d[k])]))
-        if kr >= len(d) or d[kr] != s_rise[float(d[k])]:
-            continue
         on = np.flatnonzero(alive[k] & alive[kr])
         if k > 0 and alive[k].sum() == len(on):
             continue
-        poly = _site_hull(P[kr, on], r_s)
-        if poly is None:
+        hull = _site_hull(P[kr, on], r_s)
+        if hull is None:
             continue
-        foot, dist = _feet(poly, P[kr, on])
-        rise[kr] = (k, on, 2.0 * (foot - P[kr, on][:, None]), dist, _valid_mirrors(poly, P[kr, on], foot, r_s), poly)
-    forks = [v[0] for v in rise.values() if v[0] > 0]
+        X, other = _foreign_sites(model, b, chain, s_chain, d, k, max(kr, int(rows[-1])))
+        near = np.linalg.norm(X[0][:, None] - P[k, alive[k]][None], axis=2).min(axis=1) < GHOST_DEPTH * r_s
+        parted = {}  # the surface's own section where it no longer holds a leaving strand
+        for kj in rows if skel.surface is not None else ():
+            origin, U, V = section_frame(skel, topo, chain, s_chain, d[[kj]])
+            poly = contour_around(skel.surface, origin[0], U[0], V[0], P[kj, on[alive[kj, on]]], r_s)
+            if poly is not None and not profiles.contains(poly, X[kj - k][near]).any():
+                parted[int(kj)] = poly
+        kr = min(parted, default=kr)  # the leaving strands bound the cells until the sections part
+        leaving += [(k, kr, X[:kr - k + 1, j], int(other[j])) for j in np.flatnonzero(near)]
+        for kj, poly in parted.items() if parted else [(kr, hull)]:
+            here = on[alive[kj, on]]
+            junction[kj] = (k, here, *_mirrors(poly, P[kj, here], r_s, surface=bool(parted)), poly)
+        surfaced += list(parted)
+        rise[kr] = k
+    forks = [k for k in rise.values() if k > 0]
     # a run between two nodes: mirrors across the nearer node's profile
     between = {}
     for i in range(n):
@@ -343,15 +395,6 @@ def setup_branch(model, b: int) -> Branch | None:
             return 0.5 * np.linalg.norm(offset[k, i, 0]) < GHOST_DEPTH * r_s
         return row_valid[k, i, r] and row_dist[k, i, r] < GHOST_DEPTH * r_s
 
-    # from a fork to its rise section the strands that leave into other branches bound the cells
-    # too: the wood between the branches is shared at their bisectors
-    leaving = []
-    for kr, (k, *_) in rise.items():
-        X, other = _foreign_sites(model, b, chain, s_chain, d, k, kr)
-        own = P[k, alive[k]]
-        near = np.linalg.norm(X[0][:, None] - own[None], axis=2).min(axis=1) < GHOST_DEPTH * r_s
-        leaving += [(k, kr, X[:, j], int(other[j])) for j in np.flatnonzero(near)]
-
     for r, i in ((r, i) for r in range(2) for i in range(n)):
         rows_i = np.flatnonzero(alive[:, i])
         if i in between:
@@ -360,24 +403,27 @@ def setup_branch(model, b: int) -> Branch | None:
                 g[rows_i] = 2.0 * between[i][:, r] - P[rows_i, i]
                 ghost(g, i, rows_i)
             continue
-        mine = {kr: (k, int(np.flatnonzero(on == i)[0]), off, dist, ok)
-                for kr, (k, on, off, dist, ok, _) in rise.items() if i in on}
-        if r == 0 and i in tapered:  # a tapered ghost keeps its side: across the hull along its direction
+        mine = {kj: (k, int(np.flatnonzero(on == i)[0]), off, dist, ok)
+                for kj, (k, on, off, dist, ok, _) in junction.items() if i in on}
+        steady = r == 0 and i in tapered
+        if steady:  # a tapered ghost keeps its side: across the junction profile along its direction
             unit, held = tapered[i], {}
-            for kr, (k, c, off, dist, ok) in mine.items():
-                step = float(profiles.ray_extent(rise[kr][5], P[kr, i], [np.arctan2(unit[1], unit[0])])[0])
+            for kj, (k, c, off, dist, ok) in mine.items():
+                step = float(profiles.ray_extent(junction[kj][5], P[kj, i], [np.arctan2(unit[1], unit[0])])[0])
                 if step > 0.0:
                     off = off.copy()
                     off[c, 0] = 2.0 * step * unit
-                    held[kr] = (k, c, off, dist, ok)
+                    held[kj] = (k, c, off, dist, ok)
             mine = held
-        # the ghost is two at a fork: one up to it and one from it (held from the rise section where
-        # the fork's profile does not bound the site)
-        cuts = sorted(k for k, *_ in mine.values() if k > 0)
+        # the ghost is two at a fork: one up to it and one from it, from the fork where its profile
+        # and every junction section bound the site, else from the first junction section from which
+        # on they all do (bounded by the other branches' strands up to there), else the rise
+        cuts = sorted({k for k, *_ in mine.values() if k > 0})
         for lo, hi in zip([rows_i[0], *cuts], [*cuts, rows_i[-1]]):
-            kr = next((kr for kr, (k, *_) in mine.items() if k == lo), None)
-            if kr is not None and not usable(lo, i, r):
-                lo = kr  # bounded by the other branches' strands up to the rise
+            js = sorted(kj for kj, (k, *_) in mine.items() if k == lo)
+            bound = [steady or mine[kj][3][mine[kj][1], r] < GHOST_DEPTH * r_s for kj in js]
+            if js and not (usable(lo, i, r) and all(bound)):
+                lo = js[next((t for t in range(len(js)) if all(bound[t:])), len(js) - 1)]
             rows = rows_i[(rows_i >= lo) & (rows_i <= hi)]
             known = rows[is_node[rows] | np.isin(rows, list(mine))]
             off, dist, ok = offset[known, i, r].copy(), row_dist[known, i, r].copy(), row_valid[known, i, r].copy()
@@ -385,9 +431,9 @@ def setup_branch(model, b: int) -> Branch | None:
                 if k in mine:
                     _, c, o, t, v = mine[k]
                     off[j], dist[j], ok[j] = o[c, r], t[c, r], v[c, r]
-            if r == 0 and i in tapered:
+            if steady:
                 dist, ok = np.full(len(known), depth[i, 0]), np.ones(len(known), dtype=bool)
-            drop = np.isin(known, forks) & ~ok  # across a fork's notches: held from the sections around
+            drop = np.isin(known, forks + surfaced) & ~ok  # across notches: held from the sections around
             if drop.any() and not drop.all():
                 known, off, dist, ok = known[~drop], off[~drop], dist[~drop], ok[~drop]
             if not (len(known) and dist.max() < GHOST_DEPTH * r_s and ok.all()):

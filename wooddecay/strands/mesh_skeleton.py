@@ -289,11 +289,9 @@ def _resample(poly: np.ndarray, spacing: float, most: int) -> np.ndarray:
     return profiles.resample_closed(poly, int(np.clip(k, MIN_POINTS, most)))
 
 
-def profile_at(mi: MeshInput, origin, frame, resolution: float, node: str) -> profiles.Profile:
-    """The polygon profile at a node (module docstring); ``frame`` rows U, V, T."""
-    poly = section(mi.mesh, origin, frame[2], frame[0], frame[1])
-    if poly is None:
-        raise InputError(mi.source, f"node {node}", "the slice perpendicular to the centreline misses the mesh")
+def _contour_polygon(poly: np.ndarray, resolution: float) -> np.ndarray:
+    """A slice's contour as the strands resolve it (module docstring, Profiles): smoothed,
+    scaled back to its area, its shallow pockets filled, resampled ``resolution`` apart, CCW."""
     fine = _resample(poly, resolution / 4.0, MAX_POINTS * 4)
     step = np.linalg.norm(fine[1] - fine[0])
     smooth = gaussian_filter1d(fine, SMOOTH * resolution / step, axis=0, mode="wrap")
@@ -302,10 +300,32 @@ def profile_at(mi: MeshInput, origin, frame, resolution: float, node: str) -> pr
     fine = _fill_shallow(c + (smooth - c) * math.sqrt(profiles.polygon_area(poly) / profiles.polygon_area(smooth)),
                          POCKET * resolution)
     out = _resample(fine, resolution, MAX_POINTS)
+    return out if profiles.is_ccw(out) else out[::-1]
+
+
+def profile_at(mi: MeshInput, origin, frame, resolution: float, node: str) -> profiles.Profile:
+    """The polygon profile at a node (module docstring); ``frame`` rows U, V, T."""
+    poly = section(mi.mesh, origin, frame[2], frame[0], frame[1])
+    if poly is None:
+        raise InputError(mi.source, f"node {node}", "the slice perpendicular to the centreline misses the mesh")
+    out = _contour_polygon(poly, resolution)
     if not profiles.is_simple(out) or not profiles.polygon_area(out) > 0.0:
         raise InputError(mi.source, f"node {node}", f"the mesh's cross-section there is not a simple polygon at "
                          f"{resolution * 1e3:.1f} mm resolution")
-    return profiles.polygon(out if profiles.is_ccw(out) else out[::-1])
+    return profiles.polygon(out)
+
+
+def contour_around(mesh, origin, U, V, sites: np.ndarray, resolution: float) -> np.ndarray | None:
+    """Of the slice through ``origin`` across U x V, the outer contour that holds the most of
+    ``sites`` ((n, 2) in (U, V)), as :func:`profile_at` makes a profile of it; None where no
+    contour holds one of them or the result is not a simple polygon (past a fork:
+    :mod:`wooddecay.meshlets.branch`)."""
+    polys = outer_contours(mesh, origin, np.cross(U, V), U, V)
+    held = [int(profiles.contains(p, sites).sum()) for p in polys]
+    if not polys or max(held) == 0:
+        return None
+    out = _contour_polygon(polys[int(np.argmax(held))], resolution)
+    return out if profiles.is_simple(out) and profiles.polygon_area(out) > 0.0 else None
 
 
 class _Branches(Exception):
