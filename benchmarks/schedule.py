@@ -3,7 +3,8 @@ on the same thread count (wooddecay.studies.schedule).
 
     python benchmarks/schedule.py [SCENE ...]      (default samples/log.toml samples/tree.toml)
 
-Prints per scene both runs (wall time of the simulation with settling, seconds of mechanics,
+Prints per scene both runs, from one settled state (wall time of the simulation after settling,
+seconds of mechanics after settling,
 chunks of N_mech substeps, solves, broken REG connections) and the lines
     adaptive_speedup <v> x                      fixed wall / adaptive wall
     adaptive_max_position_error <v> m           largest particle position difference at the end

@@ -2,11 +2,13 @@
 its days with the fixed schedule (Algorithm 1, the reference) and the adaptive one at tolerance
 settings scaled by :data:`FACTORS`, in one process on the same thread count.
 
-Per run: the wall time of the simulation (settling included, the model built beforehand and the
-kernels compiled by a warm-up), the seconds of mechanics simulated, the solves and chunks of
-N_mech substeps the schedule ran, the broken REG connections at the end, and against the fixed
-run the largest particle position difference at the end (the meshlet vertices are skinned to
-the particles). Used by ``benchmarks/schedule.py`` and ``wooddecay chart schedule``.
+Every run starts from one settled state (settled once, then read from a settled-state cache:
+:mod:`wooddecay.sim.settled`, the same bits), so the runs differ by their schedule alone. Per run:
+the wall time of the simulation after settling (the model built beforehand and the kernels
+compiled by a warm-up), the seconds of mechanics simulated, the solves and chunks of N_mech
+substeps the schedule ran, the broken REG connections at the end, and against the fixed run the
+largest particle position difference at the end (the meshlet vertices are skinned to the
+particles). Used by ``benchmarks/schedule.py`` and ``wooddecay chart schedule``.
 """
 from __future__ import annotations
 
@@ -26,8 +28,8 @@ class Run:
     """One simulation of :func:`run`."""
 
     label: str
-    wall: float  # s
-    mechanics_seconds: float  # simulated, settling included
+    wall: float  # s, after settling
+    mechanics_seconds: float  # simulated after settling
     solves: int
     chunks: int
     broken: int  # broken REG connections at the end
@@ -38,9 +40,10 @@ class Run:
         return float(np.sqrt(np.max(np.sum((self.x - reference.x) ** 2, axis=1), initial=0.0)))
 
 
-def run(path, schedule: str, factor: float = 1.0, overrides: dict | None = None) -> Run:
+def run(path, schedule: str, factor: float = 1.0, overrides: dict | None = None, settle_cache=None) -> Run:
     """Simulate the scene at ``path`` to its last day with ``schedule`` ("fixed" or "adaptive",
-    the latter with its tolerances times ``factor``); one output frame."""
+    the latter with its tolerances times ``factor``) from the settled state in ``settle_cache``
+    (settled there first if it is not); one output frame."""
     import wooddecay as wd
 
     base = wd.load_scene(path)
@@ -48,13 +51,14 @@ def run(path, schedule: str, factor: float = 1.0, overrides: dict | None = None)
     if schedule == "adaptive":
         sets.update({f"time.{k}": float(base.time[k]) * factor for k in TOLERANCE_KEYS})
     model = wd.build_model(wd.load_scene(path, overrides=sets))
+    sim = wd.Simulation(model, settle_cache=settle_cache)
+    settled = sim.state.mech.t_seconds
     t0 = time.perf_counter()
-    sim = wd.Simulation(model)
     frame = list(sim.run())[-1]
     wall = time.perf_counter() - t0
     s = sim.schedule_summary()
     label = "fixed" if schedule == "fixed" else f"adaptive x{factor:g}"
-    return Run(label=label, wall=wall, mechanics_seconds=s["mechanics_seconds"], solves=s["solves"],
+    return Run(label=label, wall=wall, mechanics_seconds=s["mechanics_seconds"] - settled, solves=s["solves"],
                chunks=s["chunks"], broken=frame.diagnostics["mechanics"]["broken_connections"],
                x=frame.mech["x"])
 
@@ -66,9 +70,12 @@ def warm_up(path) -> None:
 
 def compare(path, factors=FACTORS, overrides: dict | None = None) -> tuple[Run, list[Run]]:
     """The fixed run and one adaptive run per factor of ``path`` (module docstring)."""
+    import tempfile
+
     warm_up(path)
-    fixed = run(path, "fixed", overrides=overrides)
-    return fixed, [run(path, "adaptive", f, overrides=overrides) for f in factors]
+    with tempfile.TemporaryDirectory(prefix="wooddecay-settled-") as cache:
+        fixed = run(path, "fixed", overrides=overrides, settle_cache=cache)
+        return fixed, [run(path, "adaptive", f, overrides=overrides, settle_cache=cache) for f in factors]
 
 
 def describe(run_: Run, fixed: Run) -> str:
