@@ -52,7 +52,8 @@ class Skeleton:
     source : str
         File the nodes came from (for messages).
     surface : trimesh.Trimesh or None
-        The surface mesh the skeleton was built from (:mod:`.mesh_skeleton`), for reports.
+        The surface mesh the skeleton was built from (:mod:`.mesh_skeleton`): the meshlets past a
+        fork follow its sections (:mod:`wooddecay.meshlets.branch`); reports compare the bark with it.
     """
 
     ids: tuple[str, ...]
