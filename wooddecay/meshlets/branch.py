@@ -360,11 +360,11 @@ def setup_branch(model, b: int) -> Branch | None:
         X, other = _foreign_sites(model, b, chain, s_chain, d, k, max(kr, int(rows[-1])))
         near = np.linalg.norm(X[0][:, None] - P[k, alive[k]][None], axis=2).min(axis=1) < GHOST_DEPTH * r_s
         parted = {}  # the surface's own section where it no longer holds a leaving strand
-        for kj in rows if skel.surface is not None else ():
-            origin, U, V = section_frame(skel, topo, chain, s_chain, d[[kj]])
-            poly = contour_around(skel.surface, origin[0], U[0], V[0], P[kj, on[alive[kj, on]]], r_s)
-            if poly is not None and not profiles.contains(poly, X[kj - k][near]).any():
-                parted[int(kj)] = poly
+        if skel.surface is not None:
+            for kj, origin, U, V in zip(rows, *section_frame(skel, topo, chain, s_chain, d[rows])):
+                poly = contour_around(skel.surface, origin, U, V, P[kj, on[alive[kj, on]]], r_s)
+                if poly is not None and not profiles.contains(poly, X[kj - k][near]).any():
+                    parted[int(kj)] = poly
         kr = min(parted, default=kr)  # the leaving strands bound the cells until the sections part
         leaving += [(k, kr, X[:kr - k + 1, j], int(other[j])) for j in np.flatnonzero(near)]
         for kj, poly in parted.items() if parted else [(kr, hull)]:

@@ -289,9 +289,10 @@ def _resample(poly: np.ndarray, spacing: float, most: int) -> np.ndarray:
     return profiles.resample_closed(poly, int(np.clip(k, MIN_POINTS, most)))
 
 
-def _contour_polygon(poly: np.ndarray, resolution: float) -> np.ndarray:
+def _contour_polygon(poly: np.ndarray, resolution: float) -> np.ndarray | None:
     """A slice's contour as the strands resolve it (module docstring, Profiles): smoothed,
-    scaled back to its area, its shallow pockets filled, resampled ``resolution`` apart, CCW."""
+    scaled back to its area, its shallow pockets filled, resampled ``resolution`` apart, CCW;
+    None where that is not a simple polygon of positive area."""
     fine = _resample(poly, resolution / 4.0, MAX_POINTS * 4)
     step = np.linalg.norm(fine[1] - fine[0])
     smooth = gaussian_filter1d(fine, SMOOTH * resolution / step, axis=0, mode="wrap")
@@ -300,6 +301,8 @@ def _contour_polygon(poly: np.ndarray, resolution: float) -> np.ndarray:
     fine = _fill_shallow(c + (smooth - c) * math.sqrt(profiles.polygon_area(poly) / profiles.polygon_area(smooth)),
                          POCKET * resolution)
     out = _resample(fine, resolution, MAX_POINTS)
+    if not profiles.is_simple(out) or not profiles.polygon_area(out) > 0.0:
+        return None
     return out if profiles.is_ccw(out) else out[::-1]
 
 
@@ -309,7 +312,7 @@ def profile_at(mi: MeshInput, origin, frame, resolution: float, node: str) -> pr
     if poly is None:
         raise InputError(mi.source, f"node {node}", "the slice perpendicular to the centreline misses the mesh")
     out = _contour_polygon(poly, resolution)
-    if not profiles.is_simple(out) or not profiles.polygon_area(out) > 0.0:
+    if out is None:
         raise InputError(mi.source, f"node {node}", f"the mesh's cross-section there is not a simple polygon at "
                          f"{resolution * 1e3:.1f} mm resolution")
     return profiles.polygon(out)
@@ -324,8 +327,7 @@ def contour_around(mesh, origin, U, V, sites: np.ndarray, resolution: float) -> 
     held = [int(profiles.contains(p, sites).sum()) for p in polys]
     if not polys or max(held) == 0:
         return None
-    out = _contour_polygon(polys[int(np.argmax(held))], resolution)
-    return out if profiles.is_simple(out) and profiles.polygon_area(out) > 0.0 else None
+    return _contour_polygon(polys[int(np.argmax(held))], resolution)
 
 
 class _Branches(Exception):

@@ -12,6 +12,7 @@ particles). Used by ``benchmarks/schedule.py`` and ``wooddecay chart schedule``.
 """
 from __future__ import annotations
 
+import tempfile
 import time
 from dataclasses import dataclass
 
@@ -70,8 +71,6 @@ def warm_up(path) -> None:
 
 def compare(path, factors=FACTORS, overrides: dict | None = None) -> tuple[Run, list[Run]]:
     """The fixed run and one adaptive run per factor of ``path`` (module docstring)."""
-    import tempfile
-
     warm_up(path)
     with tempfile.TemporaryDirectory(prefix="wooddecay-settled-") as cache:
         fixed = run(path, "fixed", overrides=overrides, settle_cache=cache)
