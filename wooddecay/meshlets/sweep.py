@@ -34,7 +34,8 @@ and is clipped at the fork section; the next element of the strand covers the re
 sweeps overlap slightly near junctions (woodstock §8.1 leaves junction gaps and overlaps;
 ``docs/decisions.md``, "Forks and hull repair"); bark faces with another branch's wood right
 behind them become walls to it, open end caps there with nothing behind them bark
-(:mod:`wooddecay.meshlets.junction`).
+(:mod:`wooddecay.meshlets.junction`). For a model built from a mesh or a scan, the bark is then
+pulled into a band around the source surface (:mod:`wooddecay.meshlets.conform`).
 
 Output: :class:`Meshlets`, disjoint closed shells (each meshlet owns copies of its vertices), faces
 tagged bark / side (with the neighbouring element) / cap, rest wood-local coordinates and ring age
@@ -44,6 +45,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 from scipy.spatial import ConvexHull
@@ -51,6 +53,7 @@ from scipy.spatial import ConvexHull
 from ..quaternion import conj_np, rotate_np
 from .branch import Branch, section_frame, setup_branch
 from .checks import closed_oriented
+from .conform import conform_bark
 from .junction import junction_walls
 from .kinetic import FLIP, REPAIR, SECTION, perturbation, sweep
 
@@ -516,7 +519,6 @@ def _branch_arrays(model, b: int, br, kin, bs):
 def build_meshlets(model) -> Meshlets:
     """Rest meshlets of every rod element of ``model`` (see the module docstring)."""
     t0 = time.perf_counter()
-    r_s = model.r_s
     parts, counts = [], {"flips": 0, "hull": 0, "inserts": 0, "deletes": 0, "repairs": 0,
                          "sections": 0, "unmatched": 0, "branches": 0}
     off = 0
@@ -551,13 +553,7 @@ def build_meshlets(model) -> Meshlets:
     skin_indptr = np.concatenate([[0], np.cumsum(cnt)])
     rows = np.repeat(g_ptr[v_gid], cnt) + (np.arange(skin_indptr[-1]) - np.repeat(skin_indptr[:-1], cnt))
     skin_element = ce[rows]
-    vrow = np.repeat(np.arange(len(points)), cnt)
-    rel = points[vrow] - model.centers[skin_element]
-    w = 1.0 / ((rel * rel).sum(1) + r_s * r_s)
-    wsum = np.bincount(vrow, weights=w, minlength=len(points))
-    skin_weight = w / wsum[vrow]
-    skin_local = rotate_np(conj_np(model.rest_quat[skin_element]), rel)
-    ring = np.bincount(vrow, weights=skin_weight * model.ring_age[skin_element], minlength=len(points))
+    skin_weight, skin_local, ring = _skinning(model, points, skin_indptr, skin_element)
     uvv = guv[v_gid]
     wood = np.stack([np.hypot(uvv[:, 0], uvv[:, 1]), np.arctan2(uvv[:, 1], uvv[:, 0]), gd[v_gid]], axis=1)
     mesh = Meshlets(
@@ -569,10 +565,26 @@ def build_meshlets(model) -> Meshlets:
         skin_local=skin_local, stats=counts,
     )
     mesh = junction_walls(model, hull_repair(mesh), BARK, SIDE, CAP)
+    if model.skeleton.surface is not None:
+        mesh = conform_bark(model, mesh, BARK, partial(_skinning, model))
     if model.bark_thickness == 0.0:
         mesh = replace(mesh, face_kind=np.where(mesh.face_kind == BARK, SIDE, mesh.face_kind).astype(mesh.face_kind.dtype))
     counts["seconds"] = time.perf_counter() - t0
     return mesh
+
+
+def _skinning(model, points, skin_indptr, skin_element):
+    """Rest skinning of ``points`` over their candidate elements (CSR ``skin_indptr``,
+    ``skin_element``): weights 1 / (|x - c_e|^2 + r_s^2) normalised per vertex, the vertex in each
+    element's rest frame, and the weighted ring age."""
+    vrow = np.repeat(np.arange(len(points)), np.diff(skin_indptr))
+    rel = points[vrow] - model.centers[skin_element]
+    w = 1.0 / ((rel * rel).sum(1) + model.r_s * model.r_s)
+    wsum = np.bincount(vrow, weights=w, minlength=len(points))
+    weight = w / wsum[vrow]
+    local = rotate_np(conj_np(model.rest_quat[skin_element]), rel)
+    ring = np.bincount(vrow, weights=weight * model.ring_age[skin_element], minlength=len(points))
+    return weight, local, ring
 
 
 def hull_repair(mesh: Meshlets) -> Meshlets:

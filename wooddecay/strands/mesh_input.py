@@ -194,11 +194,11 @@ def _closest_on_triangles(p, a, b, c):
     return out
 
 
-def surface_distance(mesh, points, edge: float, candidates: int = 24) -> np.ndarray:
-    """Distance (m) from each of ``points`` (n, 3) to the surface of ``mesh``: the mesh is
-    subdivided to edges of at most ``edge`` and the distance taken exactly to the ``candidates``
-    triangles whose centroids are nearest (a KD-tree; the closest point's triangle has its
-    centroid within ``edge`` of it)."""
+def surface_closest(mesh, points, edge: float, candidates: int = 24) -> np.ndarray:
+    """(n, 3) closest point on the surface of ``mesh`` to each of ``points`` (n, 3): the mesh is
+    subdivided to edges of at most ``edge`` and the closest point taken exactly on the
+    ``candidates`` triangles whose centroids are nearest (a KD-tree; the closest point's triangle
+    has its centroid within ``edge`` of it)."""
     from scipy.spatial import cKDTree
     from trimesh.remesh import subdivide_to_size
 
@@ -209,5 +209,11 @@ def surface_distance(mesh, points, edge: float, candidates: int = 24) -> np.ndar
     idx = idx.reshape(len(points), k)
     p = np.repeat(points, k, axis=0)
     t = tri[idx.ravel()]
-    q = _closest_on_triangles(p, t[:, 0], t[:, 1], t[:, 2])
-    return np.linalg.norm(p - q, axis=1).reshape(len(points), k).min(axis=1)
+    q = _closest_on_triangles(p, t[:, 0], t[:, 1], t[:, 2]).reshape(len(points), k, 3)
+    best = np.linalg.norm(q - points[:, None], axis=2).argmin(axis=1)
+    return q[np.arange(len(points)), best]
+
+
+def surface_distance(mesh, points, edge: float, candidates: int = 24) -> np.ndarray:
+    """Distance (m) from each of ``points`` (n, 3) to the surface of ``mesh`` (:func:`surface_closest`)."""
+    return np.linalg.norm(points - surface_closest(mesh, points, edge, candidates), axis=1)
