@@ -3,6 +3,7 @@ plane's surface, their bark pulled into the band around it, every copy of a shar
 and a move that would turn a cell inside out held short."""
 from __future__ import annotations
 
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -87,3 +88,11 @@ def test_a_move_that_would_turn_a_cell_over_is_held_short():
     assert np.allclose(z[0], BAND * R_S) and np.allclose(z[3], BAND * R_S)
     assert checks.closed_oriented(out).all() and (checks.volumes(out) > 0).all()
     assert out.stats["conform_held"] == 2 and out.stats["conformed"] == 2
+
+
+def test_meshlets_without_bark_are_left_as_they_are():
+    # a sawn board's wood surface is not bark: nothing to pull
+    model, mesh = _two_cells(apex_z=-0.02)
+    sawn = replace(mesh, face_kind=np.where(mesh.face_kind == BARK, SIDE, mesh.face_kind))
+    out = _conform(model, sawn)
+    assert np.array_equal(out.points, mesh.points) and out.stats["conformed"] == 0

@@ -33,13 +33,17 @@ def _normals(P, F):
 
 
 def conform_bark(model, mesh, bark: int, skinning):
-    """``mesh`` with its bark vertices (on faces of kind ``bark``) on ``model.skeleton.surface``
-    (module docstring); ``skinning(points, skin_indptr, skin_element)`` gives the rest skinning
+    """``mesh`` with its bark vertices (on faces of kind ``bark``) within BAND r_s of
+    ``model.skeleton.surface`` where that turns no face over (module docstring);
+    ``skinning(points, skin_indptr, skin_element)`` gives the rest skinning
     ``(skin_weight, skin_local, ring)`` of the moved points."""
     from ..strands.mesh_input import surface_closest
 
     vs = mesh.vertex_shared
     on_bark = np.unique(vs[mesh.faces[mesh.face_kind == bark]])
+    mesh.stats.update(conformed=0, conform_held=0, conform_max=0.0)
+    if len(on_bark) == 0:
+        return mesh
     first = np.full(vs.max() + 1, -1)
     first[vs[::-1]] = np.arange(len(vs))[::-1]
     p = mesh.points[first[on_bark]]
