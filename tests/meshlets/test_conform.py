@@ -91,7 +91,7 @@ def test_a_move_that_would_turn_a_cell_over_is_held_short():
 
 
 def test_meshlets_without_bark_are_left_as_they_are():
-    # a sawn board's wood surface is not bark: nothing to pull
+    # no bark face (all walls and caps): nothing to pull
     model, mesh = _two_cells(apex_z=-0.02)
     sawn = replace(mesh, face_kind=np.where(mesh.face_kind == BARK, SIDE, mesh.face_kind))
     out = _conform(model, sawn)
