@@ -7,6 +7,7 @@ Prints ``name value unit`` lines:
     meshlets_per_s <v> 1/s        meshlets built per second
     meshing_faces / meshing_vertices   size of the shells
     meshing_closed_fraction       closed and oriented meshlets (must be 1)
+    closed_check_seconds <v> s    ``checks.closed_oriented`` over all meshlets (median of 3, spread)
     meshing_volume_error          sum of meshlet volumes against the bark's, relative
     narrow_notes_seconds <v> s    the build's check for profile parts narrower than a strand
                                   (ellipse and polygon profiles; best of 3)
@@ -15,6 +16,7 @@ Usage: python benchmarks/meshing.py [samples/tree.toml]
 """
 from __future__ import annotations
 
+import statistics
 import sys
 import time
 
@@ -25,7 +27,7 @@ from wooddecay.meshlets import checks, skin
 
 from wooddecay.model import narrow_notes
 
-from timing import SAMPLES, best
+from timing import SAMPLES, best, spread, times
 
 
 def main(path: str = str(SAMPLES / "tree.toml")) -> None:
@@ -41,6 +43,7 @@ def main(path: str = str(SAMPLES / "tree.toml")) -> None:
             np.ones((model.n_edges, 3), dtype=bool), np.ones(model.n_elements, dtype=bool),
             np.ones(model.n_elements), fields)
     t_skin = best(lambda: skin.skin(model, mesh, link, *args))
+    t_closed = times(lambda: checks.closed_oriented(mesh), 3)
     print(f"meshing_scene {scene.name}")
     print(f"meshing_elements {model.n_elements}")
     print(f"meshing_seconds {sec:.3f} s")
@@ -48,6 +51,7 @@ def main(path: str = str(SAMPLES / "tree.toml")) -> None:
     print(f"meshing_faces {mesh.n_faces}")
     print(f"meshing_vertices {len(mesh.points)}")
     print(f"meshing_closed_fraction {closed.mean():.6f}")
+    print(f"closed_check_seconds {statistics.median(t_closed):.3f} s {spread(t_closed)}")
     print(f"meshing_volume_error {checks.volumes(mesh).sum() / checks.bark_volume(model) - 1.0:+.2e}")
     print(f"meshing_events {mesh.stats}")
     print(f"narrow_notes_seconds {best(lambda: narrow_notes(scene.skeleton, scene.strands.r_s)):.4f} s")

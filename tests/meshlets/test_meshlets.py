@@ -51,6 +51,23 @@ def test_every_meshlet_is_closed_oriented_with_positive_volume(name):
     assert mesh.stats["hull_repairs"] == 0  # every shell comes from the sweep itself
 
 
+def test_closed_oriented_finds_what_the_reference_finds():
+    # the tiny scene's meshlets, then one face flipped, one repeated and one dropped
+    _, _, mesh = meshed("tiny")
+    F = mesh.faces.copy()
+    F[5] = F[5][::-1]
+    F[40] = F[41]
+    keep = np.arange(mesh.n_faces) != 90
+    broken = [mesh, dataclasses.replace(mesh, faces=F),
+              dataclasses.replace(mesh, faces=mesh.faces[keep], face_element=mesh.face_element[keep])]
+    bad = []
+    for m in broken:
+        got = checks.closed_oriented(m)
+        assert np.array_equal(got, checks.closed_oriented_reference(m))
+        bad.append(int((~got).sum()))
+    assert bad[0] == 0 and bad[1] >= 2 and bad[2] == 1
+
+
 @pytest.mark.parametrize("name", ["board", "log"])
 def test_trimesh_and_manifold3d_accept_sampled_meshlets(name):
     _, _, mesh = meshed(name)

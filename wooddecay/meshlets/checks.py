@@ -1,7 +1,8 @@
 """Checks of the meshlet contract (SPEC §5): closed, oriented, positive volume, a partition.
 
 * :func:`closed_oriented`: per meshlet, every directed edge of its triangles appears exactly once
-  and its reverse exactly once (a closed, consistently oriented 2-manifold surface).
+  and its reverse exactly once (a closed, consistently oriented 2-manifold surface); plain-Python
+  reference :func:`closed_oriented_reference`.
 * :func:`volumes`: signed volume per meshlet by the divergence theorem, sum over faces of
   x0 . (x1 x x2) / 6 (relative to the meshlet's first vertex, for precision).
 * :func:`bark_volume`: the volume inside the bark surface: the model's skeleton profiles lofted along
@@ -21,24 +22,34 @@ from ..strands.profiles import polygon_area, polygon_centroid, ray_extent
 
 
 def closed_oriented(mesh) -> np.ndarray:
-    """(n,) bool: meshlet e is closed and consistently oriented (see the module docstring)."""
+    """(n,) bool: meshlet e is closed and consistently oriented (see the module docstring). Each
+    directed edge (e, a, b) is one int64 key, (e nv + a) nv + b, so one 1-D sort finds the edges
+    used twice and the reverse edges missing."""
     F, E = mesh.faces, mesh.face_element
-    n = mesh.count
-    a = F.ravel()
-    b = np.roll(F, -1, axis=1).ravel()
-    e = np.repeat(E, 3)
-    nv = len(mesh.points)
-    fwd = np.unique(np.stack([e, a, b], 1), axis=0, return_counts=True)
+    n, nv = mesh.count, np.int64(len(mesh.points))
+    a = F.ravel().astype(np.int64)
+    b = np.roll(F, -1, axis=1).ravel().astype(np.int64)
+    e = np.repeat(E, 3).astype(np.int64)
+    keys, cnt = np.unique((e * nv + a) * nv + b, return_counts=True)
+    ke, ka, kb = keys // (nv * nv), keys // nv % nv, keys % nv
     ok = np.ones(n, dtype=bool)
-    keys, cnt = fwd
-    np.logical_and.at(ok, keys[cnt > 1, 0], False)  # a directed edge used twice
-    code = keys[:, 1] * nv + keys[:, 2]
-    rev = keys[:, 2] * nv + keys[:, 1]
-    # reverse edge present within the same meshlet (faces are sorted by element, so are keys)
-    ek = keys[:, 0] * (nv * nv) + code
-    rk = keys[:, 0] * (nv * nv) + rev
-    np.logical_and.at(ok, keys[~np.isin(rk, ek), 0], False)
+    ok[ke[cnt > 1]] = False  # a directed edge used twice
+    rev = (ke * nv + kb) * nv + ka
+    at = np.minimum(np.searchsorted(keys, rev), len(keys) - 1)
+    ok[ke[keys[at] != rev]] = False  # its reverse is not in the same meshlet
     ok &= np.bincount(E, minlength=n) >= 4
+    return ok
+
+
+def closed_oriented_reference(mesh) -> np.ndarray:
+    """Plain-Python :func:`closed_oriented`: per meshlet, a count of its directed edges."""
+    from collections import Counter
+
+    ok = np.zeros(mesh.count, dtype=bool)
+    for e in range(mesh.count):
+        tri = mesh.faces[mesh.face_element == e]
+        used = Counter((int(t[k]), int(t[(k + 1) % 3])) for t in tri for k in range(3))
+        ok[e] = len(tri) >= 4 and all(c == 1 and (b, a) in used for (a, b), c in used.items())
     return ok
 
 
