@@ -7,6 +7,7 @@ import re
 from click.testing import CliRunner
 
 from wooddecay.cli import main
+from wooddecay.studies.schedule import settings
 
 from ..conftest import SAMPLES
 
@@ -32,3 +33,12 @@ def test_chart_schedule_names_a_bad_scene_in_one_line(tmp_path):
     bad.write_text("[time]\nschedule = 'sometimes'\n")
     r = CliRunner().invoke(main, ["chart", "schedule", str(bad), "-o", str(tmp_path / "x.png")])
     assert r.exit_code == 2 and "time.schedule" in r.output and not (tmp_path / "x.png").exists()
+
+
+def test_a_study_scales_the_tolerances_it_is_given():
+    scene = str(SAMPLES / "tiny.toml")
+    sets = settings(scene, "adaptive", 4.0, overrides={"time.tolerance": 0.05, "time.days": 3.0})
+    assert sets["time.tolerance"] == 0.2 and sets["time.days"] == 3.0 and sets["time.schedule"] == "adaptive"
+    plain = settings(scene, "adaptive", 4.0)
+    assert plain["time.strain_tolerance"] == sets["time.strain_tolerance"] and plain["time.tolerance"] != 0.2
+    assert "time.tolerance" not in settings(scene, "fixed", 4.0)

@@ -47,11 +47,7 @@ def run(path, schedule: str, factor: float = 1.0, overrides: dict | None = None,
     (settled there first if it is not); one output frame."""
     import wooddecay as wd
 
-    base = wd.load_scene(path)
-    sets = {"time.schedule": schedule, "time.frames": 1, **(overrides or {})}
-    if schedule == "adaptive":
-        sets.update({f"time.{k}": float(base.time[k]) * factor for k in TOLERANCE_KEYS})
-    model = wd.build_model(wd.load_scene(path, overrides=sets))
+    model = wd.build_model(wd.load_scene(path, overrides=settings(path, schedule, factor, overrides)))
     sim = wd.Simulation(model, settle_cache=settle_cache)
     settled = sim.state.mech.t_seconds
     t0 = time.perf_counter()
@@ -62,6 +58,18 @@ def run(path, schedule: str, factor: float = 1.0, overrides: dict | None = None,
     return Run(label=label, wall=wall, mechanics_seconds=s["mechanics_seconds"] - settled, solves=s["solves"],
                chunks=s["chunks"], broken=frame.diagnostics["mechanics"]["broken_connections"],
                x=frame.mech["x"])
+
+
+def settings(path, schedule: str, factor: float = 1.0, overrides: dict | None = None) -> dict:
+    """The scene overrides of a :func:`run`: ``overrides``, the schedule, one frame and, when
+    adaptive, the tolerances (the scene's, or the ones ``overrides`` sets) times ``factor``."""
+    import wooddecay as wd
+
+    sets = {"time.schedule": schedule, "time.frames": 1, **(overrides or {})}
+    if schedule == "adaptive":
+        base = wd.load_scene(path, overrides=overrides)
+        sets.update({f"time.{k}": float(base.time[k]) * factor for k in TOLERANCE_KEYS})
+    return sets
 
 
 def warm_up(path) -> None:
