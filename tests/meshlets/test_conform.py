@@ -12,7 +12,7 @@ import trimesh
 
 from wooddecay.meshlets import checks
 from wooddecay.meshlets.conform import BAND, conform_bark
-from wooddecay.meshlets.sweep import BARK, CAP, SIDE, Meshlets, _skinning
+from wooddecay.meshlets.sweep import BARK, CAP, SIDE, Meshlets
 
 R_S = 0.005
 
@@ -59,7 +59,7 @@ def _two_cells(apex_z: float):
 
 
 def _conform(model, mesh):
-    return conform_bark(model, mesh, BARK, lambda P, ip, el: _skinning(model, P, ip, el))
+    return conform_bark(model, mesh, BARK)
 
 
 def test_bark_comes_into_the_band_and_copies_move_alike():

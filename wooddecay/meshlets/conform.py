@@ -22,6 +22,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from .skin import rest_skinning
+
 #: bark vertices farther than this many r_s from the surface move to this distance from it
 BAND = 0.5
 #: how often a move that turns a face over is halved before it is dropped
@@ -32,11 +34,9 @@ def _normals(P, F):
     return np.cross(P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]])
 
 
-def conform_bark(model, mesh, bark: int, skinning):
+def conform_bark(model, mesh, bark: int):
     """``mesh`` with its bark vertices (on faces of kind ``bark``) within BAND r_s of
-    ``model.skeleton.surface`` where that turns no face over (module docstring);
-    ``skinning(points, skin_indptr, skin_element)`` gives the rest skinning
-    ``(skin_weight, skin_local, ring)`` of the moved points."""
+    ``model.skeleton.surface`` where that turns no face over (module docstring)."""
     from ..strands.mesh_input import surface_closest
 
     vs = mesh.vertex_shared
@@ -51,9 +51,9 @@ def conform_bark(model, mesh, bark: int, skinning):
     gap = surface_closest(model.skeleton.surface, p, model.r_s) - p
     dist = np.linalg.norm(gap, axis=1)
     move[on_bark] = gap * np.maximum(0.0, 1.0 - BAND * model.r_s / np.maximum(dist, 1e-300))[:, None]
-    scale = np.zeros(len(first))
-    scale[on_bark] = 1.0
-    touched = np.flatnonzero(scale[vs][mesh.faces].any(axis=1))
+    wanted = np.any(move != 0.0, axis=1)
+    scale = wanted.astype(float)
+    touched = np.flatnonzero(wanted[vs][mesh.faces].any(axis=1))
     F = mesh.faces[touched]
     rest = _normals(mesh.points, F)
     flat = np.einsum("ij,ij->i", rest, rest) == 0.0
@@ -66,9 +66,8 @@ def conform_bark(model, mesh, bark: int, skinning):
         turned = np.unique(vs[F[over]])
         scale[turned] = 0.5 * scale[turned] if halved < HALVINGS else 0.0
         halved += 1
-    wanted = np.any(move != 0.0, axis=1)
     mesh.stats.update(conformed=int(np.count_nonzero(wanted & (scale == 1.0))),
                       conform_held=int(np.count_nonzero(wanted & (scale < 1.0))),
                       conform_max=float(np.linalg.norm(scale[:, None] * move, axis=1).max(initial=0.0)))
-    weight, local, ring = skinning(P, mesh.skin_indptr, mesh.skin_element)
+    weight, local, ring = rest_skinning(model, P, mesh.skin_indptr, mesh.skin_element)
     return replace(mesh, points=P, skin_weight=weight, skin_local=local, ring=ring)

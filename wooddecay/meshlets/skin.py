@@ -22,7 +22,8 @@ connection each side follows only its own elements, so the crack opens cleanly. 
 M, ...) per element are interpolated with the same weights: smooth inside a piece, discontinuous
 across a crack.
 
-:func:`skin` is the numba kernel (parallel over vertices, each writes its own rows: race-free and
+:func:`rest_skinning` computes w_c and l_c once, from the rest partition (or its bark moved onto
+a source surface, :mod:`wooddecay.meshlets.conform`). :func:`skin` is the numba kernel (parallel over vertices, each writes its own rows: race-free and
 deterministic); :func:`skin_reference` is the plain-numpy twin used by the tests. :func:`frame_arrays`
 skins one :class:`~wooddecay.sim.driver.Frame` (points and its six fields), as both exporters do.
 """
@@ -39,6 +40,20 @@ from ..sim.state import FIELDS
 
 #: link kinds of a (vertex, candidate) pair, besides a REG edge index >= 0
 ALWAYS, BY_COMPONENT, STRAND = -1, -2, -3
+
+
+def rest_skinning(model, points, skin_indptr, skin_element):
+    """Rest skinning of ``points`` over their candidate elements (CSR ``skin_indptr``,
+    ``skin_element``): the weights w_c = 1 / (|x_0 - c_c0|^2 + r_s^2) normalised per vertex, the
+    rest local coordinates l_c (module docstring) and the weighted ring age."""
+    vrow = np.repeat(np.arange(len(points)), np.diff(skin_indptr))
+    rel = points[vrow] - model.centers[skin_element]
+    w = 1.0 / ((rel * rel).sum(1) + model.r_s * model.r_s)
+    wsum = np.bincount(vrow, weights=w, minlength=len(points))
+    weight = w / wsum[vrow]
+    local = rotate_np(conj_np(model.rest_quat[skin_element]), rel)
+    ring = np.bincount(vrow, weights=weight * model.ring_age[skin_element], minlength=len(points))
+    return weight, local, ring
 
 
 def links(model, mesh) -> np.ndarray:

@@ -45,16 +45,15 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
-from functools import partial
 
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from ..quaternion import conj_np, rotate_np
 from .branch import Branch, section_frame, setup_branch
 from .checks import closed_oriented
 from .conform import conform_bark
 from .junction import junction_walls
+from .skin import rest_skinning
 from .kinetic import FLIP, REPAIR, SECTION, perturbation, sweep
 
 #: face kinds (DESIGN "USD stage": uniform int faceKind)
@@ -553,7 +552,7 @@ def build_meshlets(model) -> Meshlets:
     skin_indptr = np.concatenate([[0], np.cumsum(cnt)])
     rows = np.repeat(g_ptr[v_gid], cnt) + (np.arange(skin_indptr[-1]) - np.repeat(skin_indptr[:-1], cnt))
     skin_element = ce[rows]
-    skin_weight, skin_local, ring = _skinning(model, points, skin_indptr, skin_element)
+    skin_weight, skin_local, ring = rest_skinning(model, points, skin_indptr, skin_element)
     uvv = guv[v_gid]
     wood = np.stack([np.hypot(uvv[:, 0], uvv[:, 1]), np.arctan2(uvv[:, 1], uvv[:, 0]), gd[v_gid]], axis=1)
     mesh = Meshlets(
@@ -566,25 +565,11 @@ def build_meshlets(model) -> Meshlets:
     )
     mesh = junction_walls(model, hull_repair(mesh), BARK, SIDE, CAP)
     if model.skeleton.surface is not None:
-        mesh = conform_bark(model, mesh, BARK, partial(_skinning, model))
+        mesh = conform_bark(model, mesh, BARK)
     if model.bark_thickness == 0.0:
         mesh = replace(mesh, face_kind=np.where(mesh.face_kind == BARK, SIDE, mesh.face_kind).astype(mesh.face_kind.dtype))
     counts["seconds"] = time.perf_counter() - t0
     return mesh
-
-
-def _skinning(model, points, skin_indptr, skin_element):
-    """Rest skinning of ``points`` over their candidate elements (CSR ``skin_indptr``,
-    ``skin_element``): weights 1 / (|x - c_e|^2 + r_s^2) normalised per vertex, the vertex in each
-    element's rest frame, and the weighted ring age."""
-    vrow = np.repeat(np.arange(len(points)), np.diff(skin_indptr))
-    rel = points[vrow] - model.centers[skin_element]
-    w = 1.0 / ((rel * rel).sum(1) + model.r_s * model.r_s)
-    wsum = np.bincount(vrow, weights=w, minlength=len(points))
-    weight = w / wsum[vrow]
-    local = rotate_np(conj_np(model.rest_quat[skin_element]), rel)
-    ring = np.bincount(vrow, weights=weight * model.ring_age[skin_element], minlength=len(points))
-    return weight, local, ring
 
 
 def hull_repair(mesh: Meshlets) -> Meshlets:
