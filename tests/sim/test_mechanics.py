@@ -137,6 +137,24 @@ def test_the_shipped_log_settles_at_rest_on_the_ground():
     assert moved < 3e-4
 
 
+def test_settle_tests_failure_once_with_the_bits_of_testing_every_substep(monkeypatch):
+    """With its limits infinite, settling fails only decayed connections, which fail whatever the
+    positions: it tests them on its first substep alone (mechanics.settle), and the state, flags and
+    failure count are those of a settle that tests every substep."""
+    scene, model = sample("tiny")
+    s0 = wd.Simulation(model, settle=False).state
+    decayed = np.arange(0, len(model.mech.edges), 7)
+    s0.mech.integrity[decayed] = 0.0
+    a, b = s0.copy(), s0.copy()
+    mechanics.settle(model, a, 0.01, scene.mechanics.settle_damping, tol=0.05)
+    advance = mechanics._advance
+    monkeypatch.setattr(mechanics, "_advance", lambda *args, check=True: advance(*args))
+    mechanics.settle(model, b, 0.01, scene.mechanics.settle_damping, tol=0.05)
+    assert not a.mech.edge_ok[decayed, 0].any() and a.mech.failures >= len(decayed)
+    assert a.mech.failures == b.mech.failures
+    assert digest(a.mech) == digest(b.mech)
+
+
 def test_settle_with_tol_stops_at_the_first_quiet_chunk():
     """mechanics.settle(tol=...) goes on in chunks until the strain drift of a chunk is within
     tol of the limits: the last chunk is within it, the one before is not, and the state is that

@@ -79,8 +79,12 @@ def crack_map(model, frames) -> np.ndarray | None:
         r, c = np.meshgrid(np.arange(nrow), np.arange(W), indexing="ij")
         P = sheet.period[b]
         q = np.stack([(c.ravel() + 0.5) / W * P, s0[b] + r.ravel() * texel - y0], 1)
-        d, k = tree.query(np.stack([q[:, 0] % P, np.clip(q[:, 1], 0.0, None)], 1))
-        g = np.clip(1.0 - d / np.maximum(w[rows[k]], 1e-12), 0.0, 1.0)
+        # a texel farther than the widest crack from every sample is 0 whichever is nearest
+        d, k = tree.query(np.stack([q[:, 0] % P, np.clip(q[:, 1], 0.0, None)], 1),
+                          distance_upper_bound=float(w[rows].max()), workers=-1)
+        near = k < len(rows)
+        g = np.zeros(len(q))
+        g[near] = np.clip(1.0 - d[near] / np.maximum(w[rows[k[near]]], 1e-12), 0.0, 1.0)
         tile = out[first[b]:first[b] + nrow].reshape(-1, 3)
         inside = g > 0.0
         tile[inside, 0] = opened[edge[rows[k[inside]]]]
