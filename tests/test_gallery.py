@@ -12,6 +12,7 @@ too alike at that size to decide it (0.297 against 0.300 m high, 2026-11-26), th
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 
@@ -75,13 +76,19 @@ def test_signatures_json_and_page(quick):
 
 @pytest.mark.slow
 @pytest.mark.blender
-def test_gallery_command_renders_panels(tmp_path):
-    """`wooddecay gallery 6 --quick`: three panels rendered through the add-on, listed in
-    signatures.json, each of its variant's last frame."""
-    proc = subprocess.run([sys.executable, "-m", "wooddecay.cli", "gallery", "6", "--quick", "-o", str(tmp_path)],
-                          capture_output=True, text=True)
+def test_gallery_command_resumes_and_renders_panels(quick, tmp_path):
+    """`wooddecay gallery 6 --quick --resume` over the quick bakes of Fig. 6: it bakes nothing
+    (each variant's bake reused, its summary untouched) and renders three panels through the
+    add-on, listed in signatures.json, each of its variant's last frame."""
+    shutil.copytree(quick[0] / "fig6", tmp_path / "fig6")
+    summaries = sorted((tmp_path / "fig6").glob("*/summary.json"))
+    before = [p.stat().st_mtime_ns for p in summaries]
+    proc = subprocess.run([sys.executable, "-m", "wooddecay.cli", "gallery", "6", "--quick", "--resume", "-o",
+                           str(tmp_path)], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr[-2000:]
     entry = json.loads((tmp_path / "signatures.json").read_text())["fig6"]
+    assert len(summaries) == 3 and [p.stat().st_mtime_ns for p in summaries] == before
+    assert all(v["reused"] for v in entry["variants"].values()) and proc.stderr.count("(bake reused)") == 3
     assert len(entry["panels"]) == 3
     for name, v in entry["variants"].items():
         assert f"fig6/{name}_f{len(v['frames']) - 1}.png" in entry["panels"]

@@ -170,14 +170,14 @@ def bake_variant(variant: Variant, out: str, threads: int | None) -> dict:
 def finished(variant: Variant, out: Path) -> dict | None:
     """The summary of an earlier bake of ``variant`` in ``out`` when its scene hash matches the
     variant's resolved scene, else None."""
+    from .bake import finished as finished_bake
     from .scene import load_scene
 
     try:
-        summary = json.loads((out / "summary.json").read_text("utf-8"))
         scene = load_scene(variant.scene, overrides=variant.overrides)
     except (OSError, ValueError):
         return None
-    return summary if summary.get("scene_hash") == scene.hash else None
+    return finished_bake(scene, out)
 
 
 def client_for(scheduler: str | None, workers: int | None):

@@ -395,14 +395,18 @@ def batch(batch_path: str, out: str | None, scheduler: str | None, workers: int 
 @click.option("--quick", is_flag=True, help="Reduced scenes (coarser strands, fewer days) that fit CI.")
 @click.option("--render/--no-render", default=True, show_default=True,
               help="Render the panels through the add-on (needs the bpy wheel: wooddecay[render]).")
-def gallery(figures: tuple[str, ...], out: str, quick: bool, render: bool) -> None:
+@click.option("--resume", is_flag=True,
+              help="Reuse the finished bakes in DIR of variants whose scene is unchanged (same scene hash); "
+                   "studies (figs. 17, 18, 20) run again.")
+def gallery(figures: tuple[str, ...], out: str, quick: bool, render: bool, resume: bool) -> None:
     """Bake, render and measure the paper's figures (FIG: fig6, fig11, ..., fig19, or 6, 11, ...;
     default all) and write DIR/signatures.json with, per figure, whether its claim holds."""
     from .gallery.run import run_gallery, select
 
     select(figures)  # a bad name fails before anything is written
     t0 = time.perf_counter()
-    result = run_gallery(figures, out, quick=quick, renders=render, log=lambda m: click.echo(m, err=True))
+    result = run_gallery(figures, out, quick=quick, renders=render, log=lambda m: click.echo(m, err=True),
+                         resume=resume)
     for key, e in result.items():
         click.echo(f"{key:6s} holds {str(e['holds']).lower():5s} {e['seconds']:7.0f} s  {e['title']}")
     click.echo(f"wrote {Path(out) / 'signatures.json'} in {time.perf_counter() - t0:.0f} s")

@@ -6,7 +6,7 @@ import time
 from pathlib import Path
 
 from .. import render
-from ..bake import bake, load_frame
+from ..bake import bake, finished, load_frame
 from ..model import build_model
 from ..scene import load_scene
 
@@ -16,15 +16,22 @@ SCENES = Path(__file__).resolve().parent.parent / "samples" / "gallery"
 PANEL_OPTIONS = ("--width", "480", "--height", "270", "--samples", "12", "--max-kb", "90")
 
 
-def bake_scene(scene_file: str, overrides: dict, folder: Path):
+def bake_scene(scene_file: str, overrides: dict, folder: Path, resume: bool = False):
     """Bake ``samples/gallery/<scene_file>`` with ``overrides`` into ``folder``; returns the model,
-    the summary, the frames (:func:`wooddecay.bake.load_frame`), the USD path and the seconds."""
+    the summary, the frames (:func:`wooddecay.bake.load_frame`), the USD path, the seconds and
+    whether an earlier bake was reused: with ``resume``, a finished bake of the same scene in
+    ``folder`` (:func:`wooddecay.bake.finished`, its frames and USD file there) is not baked again."""
     scene = load_scene(SCENES / scene_file, overrides=overrides)
     t0 = time.perf_counter()
     model = build_model(scene)
-    summary = bake(scene, folder, model=model)
-    frames = [load_frame(p) for p in sorted((folder / ".bake").glob("frame_*.npz"))]
-    return model, summary, frames, folder / f"{scene.name}.usdc", time.perf_counter() - t0
+    usd = folder / f"{scene.name}.usdc"
+    summary = finished(scene, folder) if resume else None
+    frames = sorted((folder / ".bake").glob("frame_*.npz")) if summary is not None else []
+    reused = summary is not None and len(frames) == len(summary["frames"]) and usd.is_file()
+    if not reused:
+        summary = bake(scene, folder, model=model)
+        frames = sorted((folder / ".bake").glob("frame_*.npz"))
+    return model, summary, [load_frame(p) for p in frames], usd, time.perf_counter() - t0, reused
 
 
 def frame_rows(summary: dict) -> list[dict]:

@@ -4,10 +4,13 @@ the add-on, measure, decide and write ``DIR/signatures.json``.
 ``DIR/<fig>/<variant>/`` holds each bake (as ``wooddecay bake`` writes it), ``DIR/<fig>/*.png``
 the panels (``<variant>_f<frame>.png``) or the study's chart. ``signatures.json`` is an object
 keyed by figure: title, caption, claim, test, ``variants`` (label, overrides, the last frame's
-signature, the per-frame signatures and the figure's statistic), ``panels``, ``seconds`` and
-``holds`` (true/false). It is rewritten atomically after every figure, so an interrupted gallery
-keeps the figures it finished, and so is ``DIR/gallery.md`` (:func:`markdown`), the page a user
-reads: per figure the caption, the panels, the statistic and whether the claim holds.
+signature, the per-frame signatures, the figure's statistic and ``reused``), ``panels``,
+``seconds`` and ``holds`` (true/false). It is rewritten atomically after every figure, so an
+interrupted gallery keeps the figures it finished, and so is ``DIR/gallery.md``
+(:func:`markdown`), the page a user reads: per figure the caption, the panels, the statistic and
+whether the claim holds. With ``resume`` a variant whose finished bake of the same scene is in its
+folder is measured and rendered from it, not baked again (``reused``): a gallery stopped
+mid-figure, or re-run to render, bakes only what is missing.
 """
 from __future__ import annotations
 
@@ -34,15 +37,17 @@ def select(names) -> list[Figure]:
     return out
 
 
-def _bake_variant(fig: Figure, variant, folder: Path, quick: bool, log) -> tuple[dict, list, Path]:
-    """Bake one variant into ``folder``; its measurement, its frames and its USD file."""
+def _bake_variant(fig: Figure, variant, folder: Path, quick: bool, resume: bool, log) -> tuple[dict, list, Path]:
+    """Bake one variant into ``folder`` (with ``resume`` reusing a finished bake of the same
+    scene there); its measurement, its frames and its USD file."""
     overrides = {**variant.overrides, **(fig.quick if quick else {})}
-    model, summary, frames, usd, seconds = bake_scene(variant.scene or fig.scene, overrides, folder)
+    model, summary, frames, usd, seconds, reused = bake_scene(variant.scene or fig.scene, overrides, folder, resume)
     measured = {"label": variant.label, "overrides": overrides, "signature": summary["frames"][-1]["signature"],
-                "frames": frame_rows(summary), "seconds": round(seconds, 1)}
+                "frames": frame_rows(summary), "seconds": round(seconds, 1), "reused": reused}
     if fig.measure is not None:
         measured.update(fig.measure(model, frames))
-    log(f"  {fig.key}/{variant.name}: {measured['seconds']:.0f} s, {_brief(measured['signature'])}")
+    log(f"  {fig.key}/{variant.name}: {measured['seconds']:.0f} s{' (bake reused)' if reused else ''}, "
+        f"{_brief(measured['signature'])}")
     return measured, frames, usd
 
 
@@ -53,8 +58,9 @@ def _brief(sig: dict) -> str:
             f"hollow {sig['hollow_fraction']:.2f}, height {sig['debris_height_m']:.3f} m")
 
 
-def run_figure(fig: Figure, out: Path, quick: bool, renders: bool, log=print) -> dict:
-    """Bake (or study), render and decide one figure; its entry of signatures.json."""
+def run_figure(fig: Figure, out: Path, quick: bool, renders: bool, log=print, resume: bool = False) -> dict:
+    """Bake (or study), render and decide one figure; its entry of signatures.json. ``resume``:
+    reuse the finished bakes of variants whose scene is unchanged (a study runs again)."""
     t0 = time.perf_counter()
     folder = out / fig.key
     folder.mkdir(parents=True, exist_ok=True)
@@ -65,7 +71,7 @@ def run_figure(fig: Figure, out: Path, quick: bool, renders: bool, log=print) ->
     else:
         measured = {}
         for v in fig.variants:
-            measured[v.name], frames, usd = _bake_variant(fig, v, folder / v.name, quick, log)
+            measured[v.name], frames, usd = _bake_variant(fig, v, folder / v.name, quick, resume, log)
             if renders:
                 rows = measured[v.name]["frames"]
                 picked = [p(rows) if callable(p) else p % len(rows) for p in fig.panels]
@@ -81,9 +87,10 @@ def run_figure(fig: Figure, out: Path, quick: bool, renders: bool, log=print) ->
     return entry
 
 
-def run_gallery(names, out, quick: bool = False, renders: bool = True, log=print) -> dict:
+def run_gallery(names, out, quick: bool = False, renders: bool = True, log=print, resume: bool = False) -> dict:
     """Run the figures ``names`` (all when empty) into ``out``; returns signatures.json's object.
-    Figures already in an existing signatures.json are kept unless run again."""
+    Figures already in an existing signatures.json are kept unless run again; ``resume``: see
+    :func:`run_figure`."""
     figures = select(names)
     out = Path(out)
     if renders and not render.available():
@@ -93,7 +100,7 @@ def run_gallery(names, out, quick: bool = False, renders: bool = True, log=print
     path = out / "signatures.json"
     result = json.loads(path.read_text()) if path.is_file() else {}
     for fig in figures:
-        result[fig.key] = run_figure(fig, out, quick, renders, log)
+        result[fig.key] = run_figure(fig, out, quick, renders, log, resume)
         write_bytes(path, json.dumps(result, indent=1).encode())
         write_bytes(out / "gallery.md", markdown(result).encode())
     return result
@@ -126,7 +133,7 @@ def markdown(result: dict, prefix: str = "") -> str:
         lines += [f"![{p}]({prefix}{p})" for p in e["panels"]]
         rows = {name: v for name, v in e["variants"].items()}
         own = sorted({k for v in rows.values() for k, x in v.items()
-                      if isinstance(x, (int, float)) and k != "seconds"} - set(SHOWN))
+                      if isinstance(x, (int, float)) and not isinstance(x, bool) and k != "seconds"} - set(SHOWN))
         nested = sorted({k for v in rows.values() for k, x in v.items() if isinstance(x, dict) and k != "overrides"
                          and k != "signature"})
         cols = [c for c in SHOWN if any("signature" in v for v in rows.values())] + own

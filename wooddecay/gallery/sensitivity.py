@@ -42,7 +42,7 @@ def run(out: Path, quick: bool, renders: bool, log) -> tuple[dict, list]:
                     "sparse2": {"strands.r_s": scene.strands.r_s * math.sqrt(2.0)},
                     "sparse4": {"strands.r_s": scene.strands.r_s * 2.0}}
         for v, overrides in variants.items():
-            _, summary, fr, usd, seconds = bake_scene(scene_file, {**base, **overrides}, out / name / v)
+            _, summary, fr, usd, seconds, _ = bake_scene(scene_file, {**base, **overrides}, out / name / v)
             runs[v] = {"overrides": {**base, **overrides}, "signature": summary["frames"][-1]["signature"],
                        "seconds": round(seconds, 1), "elements": summary["counts"]["elements"]}
             frames[v], usds[v], summaries[v] = fr, usd, summary
