@@ -15,11 +15,15 @@ def model(**overrides):
 
 
 def arrays(sim) -> dict:
-    return {**sim.state.mech.arrays(), "t": np.array(sim.state.mech.t_seconds)}
+    """The rods, their clock and the bark."""
+    return {**sim.state.mech.arrays(), "t": np.array(sim.state.mech.t_seconds),
+            **{f"bark_{k}": v for k, v in sim.state.bark.arrays().items()}}
 
 
 def test_a_cached_settle_gives_the_settled_bits(tmp_path):
+    """Rods and the bark's day-0 cracks, loaded, are the bits settling and cracking give."""
     first = wd.Simulation(model(), settle_cache=tmp_path)
+    assert first.state.bark.crack.cracked.any()
     assert first.settled == "settled" and len(list(tmp_path.glob("*.npz"))) == 1
     again = wd.Simulation(model(**{"time.days": 3.0, "time.frames": 2, "scene.name": "other"}),
                           settle_cache=tmp_path)

@@ -69,18 +69,25 @@ def _grow(model, st: BarkState, eps: np.ndarray) -> None:
     cracks.grow(model.bark, st.crack, eps, float(b["tip_gain"]), float(b["shadow"]))
 
 
-def initial(model, state) -> BarkState | None:
-    """The bark at day 0 (module docstring); None without a sheet."""
+def uncracked(model, state) -> BarkState | None:
+    """The bark of ``state`` before any crack: whole, bonded, nothing shed; None without a sheet."""
     sheet = model.bark
     if sheet is None:
         return None
     M_face = state.M[sheet.face_element]
-    st = BarkState(crack=cracks.CrackState.empty(sheet), bond=sheet.bond.copy(),
-                   shed=np.zeros(sheet.n_faces, dtype=bool), M_last=M_face.copy(), eps_seen=np.zeros(sheet.n_faces),
-                   edge_cut=np.zeros(model.n_edges, dtype=bool), link_cut=np.zeros(model.n_elements, dtype=bool))
+    return BarkState(crack=cracks.CrackState.empty(sheet), bond=sheet.bond.copy(),
+                     shed=np.zeros(sheet.n_faces, dtype=bool), M_last=M_face.copy(), eps_seen=np.zeros(sheet.n_faces),
+                     edge_cut=np.zeros(model.n_edges, dtype=bool), link_cut=np.zeros(model.n_elements, dtype=bool))
+
+
+def initial(model, state) -> BarkState | None:
+    """The bark at day 0 (module docstring); None without a sheet."""
+    st = uncracked(model, state)
+    if st is None:
+        return None
     for k in range(1, GROWTH_STAGES + 1):
-        _grow(model, st, sheet.growth * (k / GROWTH_STAGES))
-    _grow(model, st, _strain(model, M_face))
+        _grow(model, st, model.bark.growth * (k / GROWTH_STAGES))
+    _grow(model, st, _strain(model, st.M_last))
     return st
 
 

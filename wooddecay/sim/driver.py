@@ -94,13 +94,14 @@ class Simulation:
         #: keeps it current; it is checkpointed)
         self.wall_seconds = 0.0
         self.settled = "no"  # "settled", or "cached" when loaded from ``settle_cache``
-        self.state.bark = bark.initial(model, self.state)
         if mechanics:
             coupling.step(model, self.state)
-            if settle:
+            if settle:  # the bark's day-0 cracks and the settled rods, or both from the cache
                 self.settled = settled.settle(model, self.state, settle_cache,
                                               run=None if threads is None else threads.run)
             schedule.mark(model, self.state.mech, self.state.t_days, quiet=settle)
+        if self.settled == "no":
+            self.state.bark = bark.initial(model, self.state)
         self.history: list[dict] = [self._diagnostics()]
         if mechanics:
             self.history[0]["mechanics"]["strain_excess"] = mech.strain_excess(model.mech, self.state.mech)

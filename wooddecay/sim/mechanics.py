@@ -684,8 +684,7 @@ def refresh_pairs(setup: MechSetup, ms: MechState) -> None:
     margin = CONTACT_MARGIN * float(setup.radius.max(initial=0.0))
     if ms.pairs_x is not None and np.max(np.abs(ms.x - ms.pairs_x), initial=0.0) < 0.5 * margin:
         return
-    pairs = contact.candidate_pairs(ms.x, setup.fp, setup.radius, ms.component, margin)
-    ms.pairs = np.ascontiguousarray(pairs[ms.element_ok[pairs[:, 0]] & ms.element_ok[pairs[:, 1]]])
+    ms.pairs = contact.candidate_pairs(ms.x, setup.fp, setup.radius, ms.component, margin, active=ms.element_ok)
     ms.pairs_rest = contact.pair_overlaps(setup.x_rest, setup.fp, setup.radius, ms.pairs)
     ms.pairs_sep = np.full(len(ms.pairs), -1, dtype=np.int64)
     if len(ms.sep_keys) and len(ms.pairs):

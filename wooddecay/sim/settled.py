@@ -1,13 +1,15 @@
-"""The settled-state cache: the rods after :func:`wooddecay.sim.mechanics.settle`, stored by the
-hash of everything they depend on (``model.info.settle_hash``: the scene without [time],
-[export] and its name and description), so bakes of the same wood with other days, frames,
-schedules or outputs, and re-bakes, skip the settling (0.2 s of mechanics, 2,000 substeps: 40% of
-an adaptive year of the log).
+"""The settled-state cache: the wood at the start of a coupled bake, the bark's day-0 cracks
+(:func:`wooddecay.sim.bark.initial`) and the rods after :func:`wooddecay.sim.mechanics.settle`,
+stored by the hash of everything they depend on (``model.info.settle_hash``: the scene without
+[time], [export] and its name and description), so bakes of the same wood with other days,
+frames, schedules or outputs, and re-bakes, skip both (settling is 0.2 s of mechanics, 2,000
+substeps: 40% of an adaptive year of the log; the tree's bark cracks 14 s).
 
 The cache is a folder of ``<settle_hash>.npz`` files, each the mechanics arrays a checkpoint
-holds plus the clock, written to a temporary name and renamed. A file that cannot be read, of
-another version, hash or shape, is settled again and replaced. Loading gives the bits settling
-gives (every kernel is deterministic), so a bake is the same with and without the cache.
+holds plus the clock, and the bark's arrays (``bark_*``), written to a temporary name and renamed.
+A file that cannot be read, of another version, hash or shape, is settled again and replaced.
+Loading gives the bits settling gives (every kernel is deterministic), so a bake is the same with
+and without the cache.
 """
 from __future__ import annotations
 
@@ -19,9 +21,10 @@ import numpy as np
 
 from ..atomic import replace_with
 from ..errors import InputError
+from . import bark
 from . import mechanics as mech
 
-VERSION = 2
+VERSION = 3
 #: environment variable naming the cache folder ("" or "off": no cache)
 ENV = "WOODDECAY_CACHE"
 
@@ -37,41 +40,51 @@ def default_folder() -> Path | None:
 
 
 def settle(model, state, folder: Path | None, run=None) -> str:
-    """Settle the rods of ``state`` (:func:`mechanics.settle` with the model's time and damping,
-    chunks through ``run``) or load them from ``folder``; store them there when settled. Returns
-    "cached" or "settled"."""
+    """Crack the bark of ``state`` at day 0 (:func:`bark.initial`) and settle its rods
+    (:func:`mechanics.settle` with the model's time and damping, chunks through ``run``), or load
+    both from ``folder``; store them there when computed. Returns "cached" or "settled"."""
     path = None if folder is None else Path(folder) / f"{model.info.settle_hash}.npz"
-    if path is not None and _load(path, model, state.mech):
+    if path is not None and _load(path, model, state):
         return "cached"
+    state.bark = bark.initial(model, state)
     mech.settle(model, state, model.time.settle, model.time.settle_damping, run=run)
     if path is not None:
-        _save(path, model, state.mech)
+        _save(path, model, state)
     return "settled"
 
 
-def _load(path: Path, model, ms: mech.MechState) -> bool:
+def _arrays(ms: mech.MechState, bark_state) -> dict:
+    """The file's arrays: the rods' and the bark's (``bark_*``, none without a sheet)."""
+    return {**ms.arrays(), **({} if bark_state is None else {f"bark_{k}": v for k, v in bark_state.arrays().items()})}
+
+
+def _load(path: Path, model, state) -> bool:
     try:
         with np.load(path) as z:
             meta = json.loads(str(z["meta"]))
             arrays = {k: z[k] for k in z.files if k != "meta"}
     except (OSError, ValueError, KeyError, EOFError):
         return False
-    own = ms.arrays()
+    bark_now = bark.uncracked(model, state)
+    own = _arrays(state.mech, bark_now)
     if (meta.get("version") != VERSION or meta.get("settle_hash") != model.info.settle_hash
             or set(arrays) != set(own) or any(arrays[k].shape != own[k].shape or arrays[k].dtype != own[k].dtype
                                               for k in own)):
         return False
-    ms.restore({k: v.copy() for k, v in arrays.items()}, meta["t_seconds"], meta["failures"])
+    state.mech.restore({k: arrays[k].copy() for k in state.mech.arrays()}, meta["t_seconds"], meta["failures"])
+    if bark_now is not None:
+        state.bark = bark.BarkState.from_arrays({k: arrays[f"bark_{k}"].copy() for k in bark_now.arrays()})
     return True
 
 
-def _save(path: Path, model, ms: mech.MechState) -> None:
+def _save(path: Path, model, state) -> None:
+    ms = state.mech
     meta = {"version": VERSION, "settle_hash": model.info.settle_hash, "t_seconds": ms.t_seconds,
             "failures": ms.failures}
 
     def write(tmp: Path) -> None:
         with open(tmp, "wb") as fh:
-            np.savez(fh, meta=np.array(json.dumps(meta)), **ms.arrays())
+            np.savez(fh, meta=np.array(json.dumps(meta)), **_arrays(ms, state.bark))
 
     try:
         path.parent.mkdir(parents=True, exist_ok=True)

@@ -59,8 +59,7 @@ def fragment(sim) -> None:
 def penetration(st, ms) -> tuple[float, float]:
     """Largest overlap of two intact capsules of different pieces beyond the overlap they had in
     the intact wood, and the largest raw one (m)."""
-    pairs = contact.candidate_pairs(ms.x, st.fp, st.radius, ms.component, 0.0)
-    pairs = pairs[ms.element_ok[pairs[:, 0]] & ms.element_ok[pairs[:, 1]]]
+    pairs = contact.candidate_pairs(ms.x, st.fp, st.radius, ms.component, 0.0, active=ms.element_ok)
     phi = contact.pair_overlaps(ms.x, st.fp, st.radius, pairs)
     rest = contact.pair_overlaps(st.x_rest, st.fp, st.radius, pairs)
     return float(np.max(phi - rest, initial=0.0)), float(phi.max(initial=0.0))

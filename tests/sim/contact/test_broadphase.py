@@ -67,6 +67,17 @@ def test_candidate_pairs_crowded():
     assert np.array_equal(got, C.candidate_pairs_reference(x, fp, r, comp, 0.0))
 
 
+def test_candidate_pairs_of_active_elements():
+    """With ``active`` the pairs are those of the active elements in the full list, however long
+    the inactive segments are (a failed element spans two pieces)."""
+    x, fp, r, comp = _chains(4)
+    active = np.random.default_rng(4).random(len(fp)) > 0.3
+    x[fp[~active][:3] + 1] += 5.0  # a few inactive segments metres long
+    full = C.candidate_pairs(x, fp, r, comp, 0.005)
+    got = C.candidate_pairs(x, fp, r, comp, 0.005, active=active)
+    assert len(got) > 0 and np.array_equal(got, full[active[full[:, 0]] & active[full[:, 1]]])
+
+
 def test_candidate_pairs_trivial_inputs():
     x, fp, r, comp = _segment_soup(0, n_seg=50)
     assert C.candidate_pairs(x, fp, r, np.zeros(50, dtype=np.int64), 0.1).shape == (0, 2)

@@ -228,14 +228,21 @@ def _sort_pairs(raw, indptr, out):
             out[w + 1, 1] = v
 
 
-def candidate_pairs(x, first_particle, radius, component, margin) -> np.ndarray:
+def candidate_pairs(x, first_particle, radius, component, margin, active=None) -> np.ndarray:
     """(k, 2) int64 element pairs i < j, sorted lexicographically, with component[i] !=
     component[j], no shared particle, and capsule gap dist(i, j) < r_i + r_j + margin (Eq. 3 with a
-    margin, so the pairs can be reused over the substeps of a step).
+    margin, so the pairs can be reused over the substeps of a step); with ``active`` (a mask) only
+    pairs of active elements, found among them alone. Callers pass the intact elements: a failed
+    element's segment runs from the end of one piece to the start of another, metres long in a
+    collapse, and would size the grid's cell (on Fig. 16's quick dry tree, 2,337 of 4,410 elements
+    failed, up to 2.6 m long: 61 ms per call instead of 1.6 ms, the same pairs).
 
     A pair in reach has centres closer than the cell h (module docstring). Every array is allocated
     here with numpy and filled by the kernels: large allocations inside numba kernels page-fault
     on every call (several ms at 50k elements)."""
+    if active is not None:
+        idx = np.flatnonzero(active)
+        return idx[candidate_pairs(x, first_particle[idx], radius[idx], component[idx], margin)]
     n = len(first_particle)
     if n < 2 or np.all(component == component[0]):
         return np.zeros((0, 2), dtype=np.int64)
