@@ -203,3 +203,21 @@ def test_a_second_bake_loads_the_settled_rods_and_bakes_the_same_stage(tmp_path,
     assert s["solves"] == sum(s["due"].values())
     diff = run("diff", tmp_path / "0" / "tiny.usdc", tmp_path / "1" / "tiny.usdc", "--rtol", "0", "--atol", "0")
     assert diff.exit_code == 0, diff.output
+
+
+@pytest.mark.parametrize("summary, reused", [
+    ({"frames": [{"frame": 0}]}, True),
+    ({"frames": [{"frame": 0}], "scene_hash": "other"}, False),
+    ({}, False), ({"frames": None}, False), ({"frames": []}, False), ({"frames": [1, 2]}, False),
+])
+def test_a_finished_bake_is_a_summary_of_the_scene_with_its_frame_rows(tmp_path, summary, reused):
+    """`--resume` (bake.finished) reuses a summary.json of the same scene hash with a row per
+    frame; one of another scene, or without rows, is baked again."""
+    from wooddecay.bake import finished
+    from wooddecay.scene import load_scene
+
+    scene = load_scene(TINY)
+    (tmp_path / "summary.json").write_text(json.dumps({"scene_hash": scene.hash, **summary}))
+    assert (finished(scene, tmp_path) is not None) is reused
+    (tmp_path / "summary.json").write_text("[1, 2")
+    assert finished(scene, tmp_path) is None

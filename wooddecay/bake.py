@@ -84,13 +84,16 @@ def frame_summary(frame: Frame) -> dict:
 
 
 def finished(scene, out) -> dict | None:
-    """The ``summary.json`` of an earlier bake of ``scene`` in ``out`` (the same scene hash), else
-    None. A bake writes its summary last, so a summary means the bake finished."""
+    """The ``summary.json`` of an earlier bake of ``scene`` in ``out`` (the same scene hash, a row
+    per frame), else None. A bake writes its summary last, so a summary means the bake finished."""
     try:
         summary = json.loads((Path(out) / "summary.json").read_text("utf-8"))
     except (OSError, ValueError):
         return None
-    return summary if isinstance(summary, dict) and summary.get("scene_hash") == scene.hash else None
+    if not (isinstance(summary, dict) and summary.get("scene_hash") == scene.hash):
+        return None
+    rows = summary.get("frames")
+    return summary if isinstance(rows, list) and rows and all(isinstance(r, dict) for r in rows) else None
 
 
 def bake(scene, out, resume: bool = False, quality: str = "final", progress=None, threads: int | None = None,

@@ -34,6 +34,18 @@ def test_a_cached_settle_gives_the_settled_bits(tmp_path):
     assert bare.settled == "settled" and all(np.array_equal(arrays(bare)[k], a[k]) for k in a)
 
 
+def test_another_bark_loads_the_rods_and_cracks_its_own_bark(tmp_path):
+    """[bark] is not in the key: of another crack threshold the rods are loaded and the bark is
+    cracked again, the bits of a bake without the cache."""
+    first = arrays(wd.Simulation(model(), settle_cache=tmp_path))
+    other = {"bark.threshold": 0.5 * model().bark_setup["threshold"]}
+    again = wd.Simulation(model(**other), settle_cache=tmp_path)
+    assert again.settled == "cached"
+    a, b = arrays(again), arrays(wd.Simulation(model(**other)))
+    assert all(np.array_equal(a[k], b[k]) for k in a)
+    assert a["bark_cracked"].sum() > first["bark_cracked"].sum()
+
+
 def test_the_key_covers_the_wood_and_not_the_schedule():
     base = model().info.settle_hash
     assert model(**{"time.days": 9.0, "time.schedule": "fixed", "export.gltf": False}).info.settle_hash == base

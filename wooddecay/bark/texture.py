@@ -19,6 +19,7 @@ texel row of its s in its branch's tile.
 """
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from .cracks import widths
@@ -81,7 +82,7 @@ def crack_map(model, frames) -> np.ndarray | None:
         q = np.stack([(c.ravel() + 0.5) / W * P, s0[b] + r.ravel() * texel - y0], 1)
         # a texel farther than the widest crack from every sample is 0 whichever is nearest
         d, k = tree.query(np.stack([q[:, 0] % P, np.clip(q[:, 1], 0.0, None)], 1),
-                          distance_upper_bound=float(w[rows].max()), workers=-1)
+                          distance_upper_bound=float(w[rows].max()), workers=numba.get_num_threads())
         near = k < len(rows)
         g = np.zeros(len(q))
         g[near] = np.clip(1.0 - d[near] / np.maximum(w[rows[k[near]]], 1e-12), 0.0, 1.0)

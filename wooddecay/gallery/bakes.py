@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 from .. import render
 from ..bake import bake, finished, load_frame
+from ..errors import InputError
 from ..model import build_model
 from ..scene import load_scene
 
@@ -16,22 +18,40 @@ SCENES = Path(__file__).resolve().parent.parent / "samples" / "gallery"
 PANEL_OPTIONS = ("--width", "480", "--height", "270", "--samples", "12", "--max-kb", "90")
 
 
-def bake_scene(scene_file: str, overrides: dict, folder: Path, resume: bool = False):
-    """Bake ``samples/gallery/<scene_file>`` with ``overrides`` into ``folder``; returns the model,
-    the summary, the frames (:func:`wooddecay.bake.load_frame`), the USD path, the seconds and
-    whether an earlier bake was reused: with ``resume``, a finished bake of the same scene in
-    ``folder`` (:func:`wooddecay.bake.finished`, its frames and USD file there) is not baked again."""
+class Baked(NamedTuple):
+    """A gallery bake: the model, ``summary.json``, the frames (:func:`wooddecay.bake.load_frame`),
+    the USD path, the seconds it took (of the earlier bake where reused) and whether it was reused."""
+
+    model: object
+    summary: dict
+    frames: list
+    usd: Path
+    seconds: float
+    reused: bool
+
+
+def bake_scene(scene_file: str, overrides: dict, folder: Path, resume: bool = False) -> Baked:
+    """Bake ``samples/gallery/<scene_file>`` with ``overrides`` into ``folder``. With ``resume``, a
+    finished bake of the same scene in ``folder`` (:func:`wooddecay.bake.finished`, its frames and
+    USD file there) is reused, and an unfinished one continued from its checkpoint."""
     scene = load_scene(SCENES / scene_file, overrides=overrides)
     t0 = time.perf_counter()
     model = build_model(scene)
     usd = folder / f"{scene.name}.usdc"
     summary = finished(scene, folder) if resume else None
     frames = sorted((folder / ".bake").glob("frame_*.npz")) if summary is not None else []
-    reused = summary is not None and len(frames) == len(summary["frames"]) and usd.is_file()
-    if not reused:
-        summary = bake(scene, folder, model=model)
-        frames = sorted((folder / ".bake").glob("frame_*.npz"))
-    return model, summary, [load_frame(p) for p in frames], usd, time.perf_counter() - t0, reused
+    if (summary is not None and summary.get("quality") == "final" and len(frames) == len(summary["frames"])
+            and usd.is_file()):
+        seconds = sum(v for v in summary.get("seconds", {}).values() if isinstance(v, (int, float)))
+        return Baked(model, summary, [load_frame(p) for p in frames], usd, float(seconds), True)
+    try:
+        summary = bake(scene, folder, resume=resume, model=model)
+    except InputError:
+        if not resume:
+            raise
+        summary = bake(scene, folder, model=model)  # its checkpoint is of another scene: start over
+    frames = sorted((folder / ".bake").glob("frame_*.npz"))
+    return Baked(model, summary, [load_frame(p) for p in frames], usd, time.perf_counter() - t0, False)
 
 
 def frame_rows(summary: dict) -> list[dict]:

@@ -41,14 +41,14 @@ def _bake_variant(fig: Figure, variant, folder: Path, quick: bool, resume: bool,
     """Bake one variant into ``folder`` (with ``resume`` reusing a finished bake of the same
     scene there); its measurement, its frames and its USD file."""
     overrides = {**variant.overrides, **(fig.quick if quick else {})}
-    model, summary, frames, usd, seconds, reused = bake_scene(variant.scene or fig.scene, overrides, folder, resume)
-    measured = {"label": variant.label, "overrides": overrides, "signature": summary["frames"][-1]["signature"],
-                "frames": frame_rows(summary), "seconds": round(seconds, 1), "reused": reused}
+    b = bake_scene(variant.scene or fig.scene, overrides, folder, resume)
+    measured = {"label": variant.label, "overrides": overrides, "signature": b.summary["frames"][-1]["signature"],
+                "frames": frame_rows(b.summary), "seconds": round(b.seconds, 1), "reused": b.reused}
     if fig.measure is not None:
-        measured.update(fig.measure(model, frames))
-    log(f"  {fig.key}/{variant.name}: {measured['seconds']:.0f} s{' (bake reused)' if reused else ''}, "
+        measured.update(fig.measure(b.model, b.frames))
+    log(f"  {fig.key}/{variant.name}: {measured['seconds']:.0f} s{' (bake reused)' if b.reused else ''}, "
         f"{_brief(measured['signature'])}")
-    return measured, frames, usd
+    return measured, b.frames, b.usd
 
 
 def _brief(sig: dict) -> str:

@@ -42,11 +42,11 @@ def run(out: Path, quick: bool, renders: bool, log) -> tuple[dict, list]:
                     "sparse2": {"strands.r_s": scene.strands.r_s * math.sqrt(2.0)},
                     "sparse4": {"strands.r_s": scene.strands.r_s * 2.0}}
         for v, overrides in variants.items():
-            _, summary, fr, usd, seconds, _ = bake_scene(scene_file, {**base, **overrides}, out / name / v)
-            runs[v] = {"overrides": {**base, **overrides}, "signature": summary["frames"][-1]["signature"],
-                       "seconds": round(seconds, 1), "elements": summary["counts"]["elements"]}
-            frames[v], usds[v], summaries[v] = fr, usd, summary
-            log(f"  fig20/{name}/{v}: {seconds:.0f} s")
+            b = bake_scene(scene_file, {**base, **overrides}, out / name / v)
+            runs[v] = {"overrides": {**base, **overrides}, "signature": b.summary["frames"][-1]["signature"],
+                       "seconds": round(b.seconds, 1), "elements": b.summary["counts"]["elements"]}
+            frames[v], usds[v], summaries[v] = b.frames, b.usd, b.summary
+            log(f"  fig20/{name}/{v}: {b.seconds:.0f} s")
         entry = {"runs": runs}
         ref = runs["dt"]["signature"]
         entry["within_tolerance"] = {v: within_tolerance(runs[v]["signature"], ref) for v in ("sparse2", "sparse4")}

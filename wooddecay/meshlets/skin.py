@@ -22,10 +22,11 @@ connection each side follows only its own elements, so the crack opens cleanly. 
 M, ...) per element are interpolated with the same weights: smooth inside a piece, discontinuous
 across a crack.
 
-:func:`rest_skinning` computes w_c and l_c once, from the rest partition (or its bark moved onto
-a source surface, :mod:`wooddecay.meshlets.conform`). :func:`skin` is the numba kernel (parallel over vertices, each writes its own rows: race-free and
-deterministic); :func:`skin_reference` is the plain-numpy twin used by the tests. :func:`frame_arrays`
-skins one :class:`~wooddecay.sim.driver.Frame` (points and its six fields), as both exporters do.
+:func:`rest_skinning` computes w_c and l_c from the rest partition (again for its bark moved onto
+a source surface, :mod:`wooddecay.meshlets.conform`). :func:`skin` is the numba kernel (parallel
+over vertices, each writes its own rows: race-free and deterministic); :func:`skin_reference` is
+the plain-numpy twin used by the tests. :func:`frame_arrays` skins one
+:class:`~wooddecay.sim.driver.Frame` (points and its six fields), as both exporters do.
 """
 from __future__ import annotations
 

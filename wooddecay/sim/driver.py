@@ -82,7 +82,8 @@ class Simulation:
     ``history`` collects the diagnostics at day 0 and after every macro step."""
 
     def __init__(self, model, mechanics: bool = True, checkpoint_dir=None, checkpoint_every: int = 0,
-                 settle: bool = True, threads: ThreadChoice | None = None, settle_cache=None):
+                 settle: bool = True, threads: ThreadChoice | None = None, settle_cache=None,
+                 crack_bark: bool = True):
         self.model = model
         self.threads = threads
         self.state: SimState = initial_state(model, rods=mechanics)
@@ -100,7 +101,7 @@ class Simulation:
                 self.settled = settled.settle(model, self.state, settle_cache,
                                               run=None if threads is None else threads.run)
             schedule.mark(model, self.state.mech, self.state.t_days, quiet=settle)
-        if self.settled == "no":
+        if self.settled == "no" and crack_bark:  # False: the caller restores a later bark (resume)
             self.state.bark = bark.initial(model, self.state)
         self.history: list[dict] = [self._diagnostics()]
         if mechanics:
@@ -243,15 +244,16 @@ class Simulation:
             arrays = {k: z[k].copy() for k in z.files if k != "meta"}
         if meta.get("version") != CHECKPOINT_VERSION or meta["scene_hash"] != model.info.hash:
             raise ValueError(f"{path}: checkpoint of another scene or version; cannot resume")
-        sim = cls(model, mechanics=meta["mechanics"], settle=False, **kwargs)
+        sim = cls(model, mechanics=meta["mechanics"], settle=False, crack_bark=False, **kwargs)
         s = sim.state
         for f in FIELDS:
             setattr(s, f, arrays[f"field_{f}"])
         s.t_days, s.clamp_count, s.applied = meta["t_days"], meta["clamp_count"], set(meta["applied"])
         if sim.mechanics:
             s.mech.restore({k: arrays[f"mech_{k}"] for k in s.mech.arrays()}, meta["t_seconds"], meta["failures"])
-        if s.bark is not None:
-            s.bark = bark.BarkState.from_arrays({k: arrays[f"bark_{k}"] for k in s.bark.arrays()})
+        sheet = bark.uncracked(model, s)
+        if sheet is not None:
+            s.bark = bark.BarkState.from_arrays({k: arrays[f"bark_{k}"] for k in sheet.arrays()})
         sim.history = meta["history"]
         sim.last_frame = meta["frame"]
         sim.wall_seconds = float(meta["wall_seconds"])

@@ -160,11 +160,10 @@ def _flag_edges(edges, fp, x, q, rest_offset, edge_length, edge_rest, strain_ref
 def record_separations(setup, ms, before: np.ndarray) -> int:
     """Remember the overlap of every pair of intact capsules (only they become contacts) whose
     elements were in one component (``before``) and are now in different ones (``ms.component``),
-    in ``ms.sep_keys`` (keys
-    i n + j, i < j, sorted) and ``ms.sep_overlap``: contact pushes such an overlap out at most
-    at v_depenetration (:func:`mechanics.refresh_pairs`, docs/decisions.md "Separation
-    overlap"). Components only split, so a pair is recorded once. Returns the number of pairs
-    added."""
+    in ``ms.sep_keys`` (keys i n + j, i < j, sorted) and ``ms.sep_overlap``: contact pushes such
+    an overlap out at most at v_depenetration (:func:`mechanics.refresh_pairs`, docs/decisions.md
+    "Separation overlap"). Components only split, so a pair is recorded once. Returns the number
+    of pairs added."""
     pairs = contact.candidate_pairs(ms.x, setup.fp, setup.radius, ms.component, 0.0, active=ms.element_ok)
     pairs = pairs[before[pairs[:, 0]] == before[pairs[:, 1]]]
     keys = pairs[:, 0] * setup.n_elements + pairs[:, 1]

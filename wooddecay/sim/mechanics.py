@@ -700,8 +700,10 @@ def refresh_pairs(setup: MechSetup, ms: MechState) -> None:
 
 def settle(model, state, seconds: float, damping: float, tol: float | None = None,
            max_seconds: float = 10.0, run=None) -> float:
-    """Let the rods of ``state`` come to rest under gravity with failure off, no external forces
-    and viscous damping ``damping`` for ``seconds``, then take the strains they hold as the
+    """Let the rods of ``state`` come to rest under gravity with infinite limits (only decayed
+    connections and crumbled elements fail, tested on the first substep: whether they fail does
+    not depend on the positions), no external forces and viscous damping ``damping`` for
+    ``seconds``, then take the strains they hold as the
     reference of :func:`failure.update` and zero the velocities (docs/decisions.md, "Settling"):
     the wood starts undamaged in equilibrium with its own weight, as a grown tree is, so only
     strain added later by shrinkage, decay, loads and impacts counts against L(M).
@@ -720,12 +722,9 @@ def settle(model, state, seconds: float, damping: float, tol: float | None = Non
     ms.force = np.zeros((setup.n_particles, 3))
     run = run or (lambda fn: fn())
     n, chunk = int(round(seconds / setup.dt)), max(int(model.time.N_mech), 1)
-    # with the limits infinite only decayed connections and crumbled elements fail, whatever the
-    # positions, and the fields stay as they are: the first substep flags them all, the others
-    # test nothing (the bits of testing every substep; 17% of a substep on the tree)
-    first = min(1, n)
-    stiff = _advance(damped, ms, first)[1]
-    for start in range(first, n, chunk):
+    checked = n > 0  # the first substep flags every failure settling can have, the others test nothing
+    stiff = run(lambda: _advance(damped, ms, min(n, 1))[1])
+    for start in range(1, n, chunk):
         stiff = run(lambda m=min(chunk, n - start), s=stiff: _advance(damped, ms, m, s, check=False)[1])
     done = float(seconds)
     now = failure.strains(setup, ms)
@@ -733,8 +732,8 @@ def settle(model, state, seconds: float, damping: float, tol: float | None = Non
         chunk = int(round(SETTLE_CHUNK / setup.dt))
         while done < max_seconds - 1e-12:
             before = now
-            stiff = _advance(damped, ms, chunk, stiff, check=not first)[1]
-            first, done = 1, done + chunk * setup.dt
+            stiff = _advance(damped, ms, chunk, stiff, check=not checked)[1]
+            checked, done = True, done + chunk * setup.dt
             now = failure.strains(setup, ms)
             if failure.drift(setup, ms, before, now, *limits) <= tol:
                 break

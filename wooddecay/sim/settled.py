@@ -1,9 +1,11 @@
 """The settled-state cache: the wood at the start of a coupled bake, the bark's day-0 cracks
 (:func:`wooddecay.sim.bark.initial`) and the rods after :func:`wooddecay.sim.mechanics.settle`,
-stored by the hash of everything they depend on (``model.info.settle_hash``: the scene without
-[time], [export] and its name and description), so bakes of the same wood with other days,
-frames, schedules or outputs, and re-bakes, skip both (settling is 0.2 s of mechanics, 2,000
-substeps: 40% of an adaptive year of the log; the tree's bark cracks 14 s).
+stored by the hash of everything the rods depend on (``model.info.settle_hash``: the scene
+without [time], [export], [climate], [bark] and its name and description), so bakes of the same
+wood with other days, frames, schedules, climates or outputs, and re-bakes, skip both (settling is
+0.2 s of mechanics, 2,000 substeps: 40% of an adaptive year of the log; the tree's bark cracks
+14 s). The bark's cracks depend on the wood and the resolved [bark] section (``model.bark_setup``,
+stored in the file): of another [bark] they are cracked again, the rods loaded.
 
 The cache is a folder of ``<settle_hash>.npz`` files, each the mechanics arrays a checkpoint
 holds plus the clock, and the bark's arrays (``bark_*``), written to a temporary name and renamed.
@@ -24,7 +26,7 @@ from ..errors import InputError
 from . import bark
 from . import mechanics as mech
 
-VERSION = 3
+VERSION = 4
 #: environment variable naming the cache folder ("" or "off": no cache)
 ENV = "WOODDECAY_CACHE"
 
@@ -42,15 +44,22 @@ def default_folder() -> Path | None:
 def settle(model, state, folder: Path | None, run=None) -> str:
     """Crack the bark of ``state`` at day 0 (:func:`bark.initial`) and settle its rods
     (:func:`mechanics.settle` with the model's time and damping, chunks through ``run``), or load
-    both from ``folder``; store them there when computed. Returns "cached" or "settled"."""
+    them from ``folder``; store what was computed there. Returns "cached" (the rods loaded) or
+    "settled"."""
     path = None if folder is None else Path(folder) / f"{model.info.settle_hash}.npz"
-    if path is not None and _load(path, model, state):
-        return "cached"
-    state.bark = bark.initial(model, state)
-    mech.settle(model, state, model.time.settle, model.time.settle_damping, run=run)
-    if path is not None:
+    rods, cracks = _load(path, model, state) if path is not None else (False, False)
+    if not cracks:
+        state.bark = bark.initial(model, state)
+    if not rods:
+        mech.settle(model, state, model.time.settle, model.time.settle_damping, run=run)
+    if path is not None and not (rods and cracks):
         _save(path, model, state)
-    return "settled"
+    return "cached" if rods else "settled"
+
+
+def _bark_key(model) -> str | None:
+    """What the day-0 cracks depend on beyond the wood: the resolved [bark] section."""
+    return None if model.bark is None else json.dumps(model.bark_setup, sort_keys=True, default=str)
 
 
 def _arrays(ms: mech.MechState, bark_state) -> dict:
@@ -58,29 +67,39 @@ def _arrays(ms: mech.MechState, bark_state) -> dict:
     return {**ms.arrays(), **({} if bark_state is None else {f"bark_{k}": v for k, v in bark_state.arrays().items()})}
 
 
-def _load(path: Path, model, state) -> bool:
+def _matches(arrays: dict, own: dict) -> bool:
+    return all(k in arrays and arrays[k].shape == v.shape and arrays[k].dtype == v.dtype for k, v in own.items())
+
+
+def _load(path: Path, model, state) -> tuple[bool, bool]:
+    """Restore the rods and the bark from ``path`` where they match; (rods loaded, bark loaded)."""
     try:
         with np.load(path) as z:
             meta = json.loads(str(z["meta"]))
             arrays = {k: z[k] for k in z.files if k != "meta"}
     except (OSError, ValueError, KeyError, EOFError):
-        return False
+        return False, False
+    if (not isinstance(meta, dict) or meta.get("version") != VERSION or meta.get("settle_hash") != model.info.settle_hash
+            or not isinstance(meta.get("t_seconds"), float) or not isinstance(meta.get("failures"), int)):
+        return False, False
+    rods = state.mech.arrays()
+    if not _matches(arrays, rods):
+        return False, False
+    state.mech.restore({k: arrays[k].copy() for k in rods}, meta["t_seconds"], meta["failures"])
     bark_now = bark.uncracked(model, state)
-    own = _arrays(state.mech, bark_now)
-    if (meta.get("version") != VERSION or meta.get("settle_hash") != model.info.settle_hash
-            or set(arrays) != set(own) or any(arrays[k].shape != own[k].shape or arrays[k].dtype != own[k].dtype
-                                              for k in own)):
-        return False
-    state.mech.restore({k: arrays[k].copy() for k in state.mech.arrays()}, meta["t_seconds"], meta["failures"])
-    if bark_now is not None:
-        state.bark = bark.BarkState.from_arrays({k: arrays[f"bark_{k}"].copy() for k in bark_now.arrays()})
-    return True
+    if bark_now is None:
+        return True, True
+    own = {f"bark_{k}": v for k, v in bark_now.arrays().items()}
+    if meta.get("bark") != _bark_key(model) or not _matches(arrays, own):
+        return True, False
+    state.bark = bark.BarkState.from_arrays({k: arrays[f"bark_{k}"].copy() for k in bark_now.arrays()})
+    return True, True
 
 
 def _save(path: Path, model, state) -> None:
     ms = state.mech
-    meta = {"version": VERSION, "settle_hash": model.info.settle_hash, "t_seconds": ms.t_seconds,
-            "failures": ms.failures}
+    meta = {"version": VERSION, "settle_hash": model.info.settle_hash, "bark": _bark_key(model),
+            "t_seconds": ms.t_seconds, "failures": ms.failures}
 
     def write(tmp: Path) -> None:
         with open(tmp, "wb") as fh:

@@ -104,8 +104,8 @@ def fisher_speed_ratio(direction: str, alpha: float = 1.0) -> tuple[float, int]:
     D_dir = 0.0025 if direction == "l" else 0.0016
     if direction == "l":
         scene, model = block(4.0, 0.05, 0.05, 0.01, alpha, D_dir / a)
-    else:
-        scene, model = block(0.06, 3.4, 0.04, 0.015, alpha, D_dir / a)
+    else:  # two elements along the grain: the front is uniform along x, so more add only copies
+        scene, model = block(0.03, 3.4, 0.04, 0.015, alpha, D_dir / a)
     model = constant_frame_model(model, scene, direction)
     setup = model.bio
     x = model.centers[:, AXIS[direction]]

@@ -234,8 +234,8 @@ def candidate_pairs(x, first_particle, radius, component, margin, active=None) -
     margin, so the pairs can be reused over the substeps of a step); with ``active`` (a mask) only
     pairs of active elements, found among them alone. Callers pass the intact elements: a failed
     element's segment runs from the end of one piece to the start of another, metres long in a
-    collapse, and would size the grid's cell (on Fig. 16's quick dry tree, 2,337 of 4,410 elements
-    failed, up to 2.6 m long: 61 ms per call instead of 1.6 ms, the same pairs).
+    collapse, and would size the grid's cell (docs/decisions.md, "Broad phase among intact
+    elements").
 
     A pair in reach has centres closer than the cell h (module docstring). Every array is allocated
     here with numpy and filled by the kernels: large allocations inside numba kernels page-fault
