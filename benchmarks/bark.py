@@ -2,7 +2,8 @@
 the growth cracks at day 0, one biology step of a drying log (dt_bio days) with and without the
 bark step after it (its cracks growing), the export's crack fields and grooves of one frame, and
 the crack kernels against their numpy references in the same run: the shadows of 600 crack edges
-(face grid against KD-tree) and the separation tensors of every vertex, with the ratio per pair.
+(face grid against KD-tree), the separation tensors of every vertex and the split of the first
+branch's bark into 16 plates (farthest-point sites), with the ratio per pair.
 
     python benchmarks/bark.py [REPEAT] [SCENE]      (default 5, samples/log.toml)
 
@@ -16,7 +17,7 @@ import sys
 import numpy as np
 
 import wooddecay as wd
-from wooddecay.bark import cracks, surface
+from wooddecay.bark import cracks, shedding, surface
 from wooddecay.bark.sheet import build_sheet
 from wooddecay.meshlets.sweep import build_meshlets
 from wooddecay.sim import bark, biology
@@ -61,10 +62,13 @@ def main() -> None:
     new = np.unique(rng.integers(0, len(sheet.edges), 600))
     st = cracks.CrackState.empty(sheet)
     plus = rng.normal(size=(sheet.n_faces, 3))
+    faces = np.flatnonzero(sheet.face_branch == 0)  # one plate over the first branch, in 16 pieces
     for name, fast, ref in (("shadows", lambda: cracks.cast_shadows(sheet, st, new, 0.02),
                              lambda: cracks.cast_shadows_reference(sheet, st, new, 0.02)),
                             ("separation", lambda: cracks.separation(sheet, plus),
-                             lambda: cracks.separation_reference(sheet, plus))):
+                             lambda: cracks.separation_reference(sheet, plus)),
+                            ("partition", lambda: shedding.partition(sheet, faces, 16),
+                             lambda: shedding.partition_reference(sheet, faces, 16))):
         fast()
         pairs = [(times(fast, 1)[0], times(ref, 1)[0]) for _ in range(repeat)]
         a, b = [p[0] for p in pairs], [p[1] for p in pairs]

@@ -242,6 +242,22 @@ def test_partition_spreads_plates_along_the_grain(tiny_bark):
     assert area.max() < 3.0 * area.min()
 
 
+@pytest.mark.parametrize("threads", [1, 2])
+def test_partition_kernel_equals_numpy_reference(tiny_bark, threads):
+    """The farthest-point kernel gives the reference's pieces, bit for bit, on whole and scattered
+    plates, for k from one site to more sites than faces, on any thread count."""
+    sheet = tiny_bark.bark
+    rng = np.random.default_rng(3)
+    faces = np.arange(sheet.n_faces)
+    numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+    try:
+        for sub in (faces, np.sort(rng.choice(faces, sheet.n_faces // 3, replace=False)), faces[:5]):
+            for k in (1, 2, 9, 40):
+                assert np.array_equal(shedding.partition(sheet, sub, k), shedding.partition_reference(sheet, sub, k))
+    finally:
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+
+
 def test_bonds_weaken_with_decay_and_cycles():
     b = np.ones(3)
     one = np.ones(3)

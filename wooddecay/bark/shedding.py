@@ -17,6 +17,7 @@ plate falls as a piece of debris.
 """
 from __future__ import annotations
 
+import numba as nb
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
@@ -28,6 +29,9 @@ DAYS_PER_YEAR = 365.25
 MIN_PLATE_SHARE = 8.0
 #: plates a loose sheet breaks into are this much longer along the grain than across
 ELONGATION = 2.0
+#: fixed blocks of faces a farthest-point pass is split into (:func:`partition`; the result does
+#: not depend on it)
+CHUNKS = 64
 #: passes that move elements cut at both their strand links into the run before them
 MAX_REASSIGN = 16
 
@@ -91,13 +95,26 @@ def falling(sheet, label: np.ndarray, bond: np.ndarray, plate_area: float):
 def partition(sheet, faces: np.ndarray, k: int) -> np.ndarray:
     """(len(faces),) piece in [0, k) of each face of one plate: the nearest of k sites spread by
     farthest-point sampling from its first face, distances along the grain counted 1 / ELONGATION
-    (plates longer along the grain, as bark's are)."""
+    (plates longer along the grain, as bark's are). A numba kernel, one pass over the faces per
+    site (serial: the farthest face is the first of the largest distances, as np.argmax's); the
+    bits of :func:`partition_reference`."""
+    P = float(sheet.period[sheet.face_branch[faces[0]]])
+    xy = np.ascontiguousarray(sheet.face_xy[faces])
+    piece = np.zeros(len(faces), dtype=np.int64)
+    _farthest_sites(xy, P, ELONGATION, min(k, len(faces)), piece, np.empty(len(faces)))
+    return piece
+
+
+def partition_reference(sheet, faces: np.ndarray, k: int) -> np.ndarray:
+    """Plain-numpy twin of :func:`partition`."""
     P = sheet.period[sheet.face_branch[faces[0]]]
     xy = sheet.face_xy[faces]
 
-    def dist(i):
-        dx = (xy[:, 0] - xy[i, 0] + 0.5 * P) % P - 0.5 * P
-        return np.hypot(dx, (xy[:, 1] - xy[i, 1]) / ELONGATION)
+    def dist(i):  # squared, around the branch the shorter way (x in [0, P))
+        dx = xy[:, 0] - xy[i, 0]
+        dx = np.where(dx >= 0.5 * P, dx - P, np.where(dx < -0.5 * P, dx + P, dx))
+        dy = (xy[:, 1] - xy[i, 1]) / ELONGATION
+        return dx * dx + dy * dy
 
     d = dist(0)
     near, piece = d.copy(), np.zeros(len(faces), dtype=np.int64)
@@ -107,6 +124,42 @@ def partition(sheet, faces: np.ndarray, k: int) -> np.ndarray:
         closer = d < near
         piece[closer], near[closer] = j, d[closer]
     return piece
+
+
+@nb.njit(cache=True)
+def _dist(xy, f, i, P, elongation):
+    """Squared distance of faces f and i as :func:`partition_reference`'s ``dist``."""
+    dx = xy[f, 0] - xy[i, 0]
+    if dx >= 0.5 * P:
+        dx -= P
+    elif dx < -0.5 * P:
+        dx += P
+    dy = (xy[f, 1] - xy[i, 1]) / elongation
+    return dx * dx + dy * dy
+
+
+@nb.njit(parallel=True, cache=True)
+def _farthest_sites(xy, P, elongation, k, piece, near):
+    """Fill ``piece`` (zeros) with the nearest of ``k`` farthest-point sites; ``near`` is scratch.
+    Per site one parallel pass over CHUNKS fixed blocks of faces, each keeping its first farthest
+    face; the blocks' are compared in order, so the site is np.argmax's for any thread count."""
+    n = len(near)
+    size = (n + CHUNKS - 1) // CHUNKS
+    far, best = np.zeros(CHUNKS, dtype=np.int64), np.full(CHUNKS, -1.0)
+    i = 0
+    for j in range(k):
+        for c in nb.prange(CHUNKS):
+            far[c], best[c] = 0, -1.0
+            for f in range(c * size, min(n, (c + 1) * size)):
+                d = _dist(xy, f, i, P, elongation)
+                if j == 0 or d < near[f]:
+                    near[f], piece[f] = d, j
+                if near[f] > best[c]:
+                    far[c], best[c] = f, near[f]
+        top = -1.0
+        for c in range(CHUNKS):
+            if best[c] > top:
+                i, top = far[c], best[c]
 
 
 def cuts(model, sheet, label: np.ndarray, off: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
