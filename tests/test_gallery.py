@@ -2,8 +2,8 @@
 in CI, the direction of each claim asserted through its ``holds``, one figure rendered through the
 add-on, and the command's errors.
 
-CI bakes the seven figures whose quick scenes bake within about 1.5 min each on 2 cores (CI_FIGURES,
-about 4.5 min in all) and decides six of them; of Fig. 6 it asserts the part that holds, the first
+CI bakes the seven figures whose quick scenes bake within about 1 min each on 2 cores (CI_FIGURES,
+about 3 min in all) and decides six of them; of Fig. 6 it asserts the part that holds, the first
 cracks' orientation per shrinkage ratio: its balanced section spreads the opening of its radial
 cracks all round instead of into a few (docs/gallery.md). The others are decided by the full
 gallery and their scenes are loaded here: Fig. 12's two quick logs take 3 min and their piles are
