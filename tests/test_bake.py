@@ -221,3 +221,33 @@ def test_a_finished_bake_is_a_summary_of_the_scene_with_its_frame_rows(tmp_path,
     assert (finished(scene, tmp_path) is not None) is reused
     (tmp_path / "summary.json").write_text("[1, 2")
     assert finished(scene, tmp_path) is None
+
+
+@pytest.mark.parametrize("damage", [b"not a checkpoint", b"PK\x03\x04 truncated"])
+def test_resume_from_a_damaged_checkpoint_is_one_line(tmp_path, damage):
+    """`--resume` over a checkpoint that is not one fails with one line naming the file and the
+    way out, exit 2, and leaves the folder as it was."""
+    out = tmp_path / "out"
+    (out / ".bake").mkdir(parents=True)
+    ckpt = out / ".bake" / "checkpoint.npz"
+    ckpt.write_bytes(damage)
+    res = run("bake", TINY, "-o", out, *SHORT, "--resume")
+    assert res.exit_code == 2
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and str(ckpt) in lines[0] and "without --resume" in lines[0], res.output
+    assert ckpt.read_bytes() == damage and sorted(p.name for p in out.rglob("*")) == [".bake", "checkpoint.npz"]
+
+
+def test_gallery_resume_continues_its_own_checkpoint_and_starts_over_on_another_scenes(tmp_path):
+    """A gallery bake with ``resume``: a finished bake is reused (its recorded seconds), another
+    scene's checkpoint in the folder is baked over from day 0, not an error."""
+    from wooddecay.gallery.bakes import bake_scene
+
+    short = {"time.days": 1.0, "time.frames": 2}
+    first = bake_scene("fig6.toml", short, tmp_path)
+    again = bake_scene("fig6.toml", short, tmp_path, resume=True)
+    assert not first.reused and again.reused and again.summary == first.summary
+    assert again.seconds == pytest.approx(sum(first.summary["seconds"].values()))
+    other = bake_scene("fig6.toml", {**short, "mechanics.S_R": 0.5}, tmp_path, resume=True)
+    assert not other.reused and other.summary["scene_hash"] != first.summary["scene_hash"]
+    assert len(other.frames) == 2
