@@ -105,6 +105,31 @@ def test_unknown_figure_is_one_line(tmp_path):
     assert not (tmp_path / "g").exists()
 
 
+@pytest.mark.parametrize("earlier", ["[1,", '{"fig6": {"title": "Shrinkage"}}', "[]"])
+def test_a_damaged_signatures_json_is_one_line_before_any_bake(tmp_path, earlier):
+    """An -o folder whose signatures.json is not the gallery's: one line naming it, exit 2, the
+    file untouched and nothing baked (gallery.md is rewritten from every figure in it)."""
+    from click.testing import CliRunner
+
+    from wooddecay.cli import main
+
+    (tmp_path / "signatures.json").write_text(earlier)
+    res = CliRunner().invoke(main, ["gallery", "6", "--quick", "--no-render", "-o", str(tmp_path)])
+    assert res.exit_code == 2
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and "signatures.json" in lines[0] and "another -o" in lines[0], res.output
+    assert (tmp_path / "signatures.json").read_text() == earlier and sorted(tmp_path.iterdir()) == [
+        tmp_path / "signatures.json"]
+
+
+def test_an_output_folder_that_cannot_be_made_is_one_line(tmp_path):
+    (tmp_path / "file").write_text("")
+    proc = subprocess.run([sys.executable, "-m", "wooddecay.cli", "gallery", "18", "--no-render", "-o",
+                           str(tmp_path / "file" / "g")], capture_output=True, text=True)
+    assert proc.returncode == 2 and proc.stderr.strip().count("\n") == 0, proc.stderr
+    assert "cannot create the output folder" in proc.stderr
+
+
 def test_panel_frames_and_shared_camera_box():
     """Panels picked by the claim's frame (Fig. 15: the most checks before decay); the
     sensitivity study's one camera box holds both bakes' elements."""

@@ -96,13 +96,39 @@ def run_gallery(names, out, quick: bool = False, renders: bool = True, log=print
     if renders and not render.available():
         raise InputError("--render", "bpy", 'rendering needs the bpy wheel: pip install "wooddecay[render]" '
                                             "(or give --no-render)")
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise InputError(str(out), "", f"cannot create the output folder: {err}") from None
     path = out / "signatures.json"
-    result = json.loads(path.read_text()) if path.is_file() else {}
+    result = earlier(path)
     for fig in figures:
         result[fig.key] = run_figure(fig, out, quick, renders, log, resume)
         write_bytes(path, json.dumps(result, indent=1).encode())
         write_bytes(out / "gallery.md", markdown(result).encode())
+    return result
+
+
+#: what gallery.md reads of every figure in signatures.json
+ENTRY_KEYS = ("title", "caption", "claim", "test", "holds", "quick", "seconds", "panels", "variants")
+
+
+def earlier(path: Path) -> dict:
+    """The figures of an existing ``signatures.json`` (none when there is no file), checked for
+    what :func:`markdown` reads before anything is baked: InputError for anything else."""
+    if not path.is_file():
+        return {}
+    try:
+        result = json.loads(path.read_text("utf-8"))
+    except (OSError, ValueError) as err:
+        raise InputError(str(path), "", f"not readable JSON ({err}); remove it or give another -o") from None
+    for key, e in (result.items() if isinstance(result, dict) else [(None, None)]):
+        if not (isinstance(e, dict) and all(k in e for k in ENTRY_KEYS) and isinstance(e["panels"], list)
+                and isinstance(e["seconds"], (int, float)) and isinstance(e["variants"], dict)
+                and all(isinstance(v, dict) for v in e["variants"].values())):
+            where = "" if key is None else str(key)
+            raise InputError(str(path), where, "not a figure of wooddecay gallery's signatures.json (keys "
+                             f"{', '.join(ENTRY_KEYS)}); remove the file or give another -o")
     return result
 
 
