@@ -726,3 +726,19 @@ def test_render_source_mesh_through_the_same_cameras(bake, tmp_path):
     for pic in pictures:
         assert np.mean(np.linalg.norm(pic - pic[0, 0], axis=-1) > 30) > 0.02
     assert np.mean(np.abs(pictures[0] - pictures[1])) > 2.0
+
+
+@pytest.mark.blender
+def test_render_of_a_file_that_is_no_bake_is_one_line_exit_2(tmp_path):
+    """render_bake over a file the add-on cannot read: exit 2, its last line names the file and
+    why, no picture."""
+    from wooddecay import render
+
+    bad = tmp_path / "bad.usdc"
+    bad.write_bytes(b"not a USD file")
+    proc = subprocess.run([sys.executable, str(render.BLENDER_BAKE), str(bad), str(tmp_path / "x.png")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    last = proc.stderr.strip().splitlines()[-1]
+    assert last.startswith(f"render_bake: {bad}: not a readable bake"), last
+    assert not (tmp_path / "x.png").exists()

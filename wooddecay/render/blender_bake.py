@@ -202,11 +202,19 @@ def compose(paths, out, layout, captions, footer):
     img.save(out, optimize=True)
 
 
+class BadFile(Exception):
+    """An input file that cannot be rendered: one line, exit status 2."""
+
+
 def render(bpy, args, t0):
     import numpy as np
 
     before = set(bpy.data.objects)
-    res = bpy.ops.import_scene.wooddecay(filepath=os.path.abspath(args.usd))
+    try:
+        res = bpy.ops.import_scene.wooddecay(filepath=os.path.abspath(args.usd))
+    except RuntimeError as err:  # the importer reported an error: a file it cannot read
+        reason = str(err).strip().splitlines()[0].replace("Error: ", "")
+        raise BadFile(f"render_bake: {args.usd}: not a readable bake ({reason})") from None
     if "FINISHED" not in res:
         raise SystemExit(f"render_bake: the Wood Decay import failed: {res}")
     obs = [ob for ob in bpy.data.objects if ob not in before and ob.type == "MESH"]
@@ -308,6 +316,9 @@ def main(argv=None) -> int:
                              "`wooddecay addon build`)")
         render(bpy, args, t0)
         return 0
+    except BadFile as exc:
+        print(exc, file=sys.stderr)
+        return 2
     except SystemExit as exc:
         print(exc, file=sys.stderr)
         return 1
