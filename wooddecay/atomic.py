@@ -5,12 +5,18 @@ and renamed).
 suffix last (USD picks its format from it), flushes it to disk and renames it over the target;
 :func:`replace_with` runs any writer on such a temporary path. A failure raises
 :class:`~wooddecay.errors.InputError` naming the file, and removes the temporary file.
-:func:`check_output` validates an output path before any work is done.
+:func:`check_output` validates an output path before any work is done. :func:`read_archive` reads
+back an ``.npz`` of arrays and a JSON ``meta`` (checkpoints, the settled-state cache).
 """
 from __future__ import annotations
 
+import json
 import os
+import pickle
+import zipfile
 from pathlib import Path
+
+import numpy as np
 
 from .errors import InputError
 
@@ -50,3 +56,17 @@ def write_bytes(path, data: bytes, what: str = "output") -> Path:
             fh.flush()
             os.fsync(fh.fileno())
     return replace_with(path, write, what)
+
+
+def read_archive(path) -> tuple[dict, dict]:
+    """(meta, arrays) of the ``.npz`` at ``path``: its JSON ``meta`` object and its other arrays;
+    ValueError naming the file when it is not such an archive (missing, damaged, truncated)."""
+    try:
+        with np.load(path) as z:
+            meta = json.loads(str(z["meta"]))
+            arrays = {k: z[k].copy() for k in z.files if k != "meta"}
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, pickle.UnpicklingError) as err:
+        raise ValueError(f"{path}: not a readable archive ({type(err).__name__})") from None
+    if not isinstance(meta, dict):
+        raise ValueError(f"{path}: not a readable archive (its meta is no object)")
+    return meta, arrays

@@ -3,6 +3,7 @@ loading gives the bits settling gives; a broken file is settled again."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 import wooddecay as wd
 from wooddecay.sim import settled
@@ -53,10 +54,11 @@ def test_the_key_covers_the_wood_and_not_the_schedule():
     assert model(**{"scene.seed": 2}).info.settle_hash != base
 
 
-def test_a_broken_cache_file_is_settled_again(tmp_path):
+@pytest.mark.parametrize("damage", [b"not an npz", b"PK\x03\x04 truncated"])
+def test_a_broken_cache_file_is_settled_again(tmp_path, damage):
     m = model()
     path = tmp_path / f"{m.info.settle_hash}.npz"
-    path.write_bytes(b"not an npz")
+    path.write_bytes(damage)
     assert wd.Simulation(m, settle_cache=tmp_path).settled == "settled"
     assert wd.Simulation(m, settle_cache=tmp_path).settled == "cached"
 

@@ -34,13 +34,12 @@ from __future__ import annotations
 
 import json
 import os
-import pickle
-import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from ..atomic import read_archive
 from . import bark, biology, coupling, schedule, settled
 from . import mechanics as mech
 from .diagnostics import diagnostics
@@ -243,13 +242,10 @@ class Simulation:
         """A simulation continuing from the checkpoint ``path`` of the same scene; ValueError for a
         file that is not one (unreadable, of another scene or version)."""
         try:
-            with np.load(path) as z:
-                meta = json.loads(str(z["meta"]))
-                arrays = {k: z[k].copy() for k in z.files if k != "meta"}
-        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, pickle.UnpicklingError) as err:
-            raise ValueError(f"{path}: not a readable checkpoint ({type(err).__name__}); cannot resume") from None
-        if (not isinstance(meta, dict) or meta.get("version") != CHECKPOINT_VERSION
-                or meta.get("scene_hash") != model.info.hash):
+            meta, arrays = read_archive(path)
+        except ValueError as err:
+            raise ValueError(f"{err}; cannot resume") from None
+        if meta.get("version") != CHECKPOINT_VERSION or meta.get("scene_hash") != model.info.hash:
             raise ValueError(f"{path}: checkpoint of another scene or version; cannot resume")
         sim = cls(model, mechanics=meta["mechanics"], settle=False, crack_bark=False, **kwargs)
         s = sim.state

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import replace_with
+from ..atomic import read_archive, replace_with
 from ..errors import InputError
 from . import bark
 from . import mechanics as mech
@@ -62,9 +62,9 @@ def _bark_key(model) -> str | None:
     return None if model.bark is None else json.dumps(model.bark_setup, sort_keys=True, default=str)
 
 
-def _arrays(ms: mech.MechState, bark_state) -> dict:
-    """The file's arrays: the rods' and the bark's (``bark_*``, none without a sheet)."""
-    return {**ms.arrays(), **({} if bark_state is None else {f"bark_{k}": v for k, v in bark_state.arrays().items()})}
+def _bark_arrays(bark_state) -> dict:
+    """The bark's arrays as the file holds them (``bark_*``; none without a sheet)."""
+    return {} if bark_state is None else {f"bark_{k}": v for k, v in bark_state.arrays().items()}
 
 
 def _matches(arrays: dict, own: dict) -> bool:
@@ -74,25 +74,22 @@ def _matches(arrays: dict, own: dict) -> bool:
 def _load(path: Path, model, state) -> tuple[bool, bool]:
     """Restore the rods and the bark from ``path`` where they match; (rods loaded, bark loaded)."""
     try:
-        with np.load(path) as z:
-            meta = json.loads(str(z["meta"]))
-            arrays = {k: z[k] for k in z.files if k != "meta"}
-    except (OSError, ValueError, KeyError, EOFError):
+        meta, arrays = read_archive(path)
+    except ValueError:
         return False, False
-    if (not isinstance(meta, dict) or meta.get("version") != VERSION or meta.get("settle_hash") != model.info.settle_hash
+    if (meta.get("version") != VERSION or meta.get("settle_hash") != model.info.settle_hash
             or not isinstance(meta.get("t_seconds"), float) or not isinstance(meta.get("failures"), int)):
         return False, False
     rods = state.mech.arrays()
     if not _matches(arrays, rods):
         return False, False
-    state.mech.restore({k: arrays[k].copy() for k in rods}, meta["t_seconds"], meta["failures"])
+    state.mech.restore({k: arrays[k] for k in rods}, meta["t_seconds"], meta["failures"])
     bark_now = bark.uncracked(model, state)
     if bark_now is None:
         return True, True
-    own = {f"bark_{k}": v for k, v in bark_now.arrays().items()}
-    if meta.get("bark") != _bark_key(model) or not _matches(arrays, own):
+    if meta.get("bark") != _bark_key(model) or not _matches(arrays, _bark_arrays(bark_now)):
         return True, False
-    state.bark = bark.BarkState.from_arrays({k: arrays[f"bark_{k}"].copy() for k in bark_now.arrays()})
+    state.bark = bark.BarkState.from_arrays({k: arrays[f"bark_{k}"] for k in bark_now.arrays()})
     return True, True
 
 
@@ -103,7 +100,7 @@ def _save(path: Path, model, state) -> None:
 
     def write(tmp: Path) -> None:
         with open(tmp, "wb") as fh:
-            np.savez(fh, meta=np.array(json.dumps(meta)), **_arrays(ms, state.bark))
+            np.savez(fh, meta=np.array(json.dumps(meta)), **ms.arrays(), **_bark_arrays(state.bark))
 
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
