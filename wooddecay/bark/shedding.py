@@ -95,9 +95,8 @@ def falling(sheet, label: np.ndarray, bond: np.ndarray, plate_area: float):
 def partition(sheet, faces: np.ndarray, k: int) -> np.ndarray:
     """(len(faces),) piece in [0, k) of each face of one plate: the nearest of k sites spread by
     farthest-point sampling from its first face, distances along the grain counted 1 / ELONGATION
-    (plates longer along the grain, as bark's are). A numba kernel, one pass over the faces per
-    site (serial: the farthest face is the first of the largest distances, as np.argmax's); the
-    bits of :func:`partition_reference`."""
+    (plates longer along the grain, as bark's are). A numba kernel (:func:`_farthest_sites`), the
+    bits of :func:`partition_reference` for any thread count."""
     P = float(sheet.period[sheet.face_branch[faces[0]]])
     xy = np.ascontiguousarray(sheet.face_xy[faces])
     piece = np.zeros(len(faces), dtype=np.int64)
