@@ -197,6 +197,11 @@ def test_skinning_kernel_equals_reference_and_rest():
     P, Fv = skin.skin(model, mesh, link, xb, qb, comp, ok, eok, scale, F)
     P2, F2 = skin.skin_reference(model, mesh, link, xb, qb, comp, ok, eok, scale, F)
     assert np.abs(P - P2).max() < 1e-12 and np.abs(Fv - F2).max() < 1e-12
+    # brown rot shrinks elements across their axis (lateral)
+    lateral = rng.uniform(0.1, 1.0, model.n_elements)
+    P, Fv = skin.skin(model, mesh, link, xb, qb, comp, ok, eok, scale, F, lateral)
+    P2, F2 = skin.skin_reference(model, mesh, link, xb, qb, comp, ok, eok, scale, F, lateral)
+    assert np.abs(P - P2).max() < 1e-12 and np.abs(Fv - F2).max() < 1e-12
 
 
 def test_bent_intact_log_has_no_gap_and_a_broken_strand_separates_cleanly():

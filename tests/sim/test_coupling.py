@@ -47,6 +47,15 @@ def test_coupling_equations():
     M_k = coupling.knee(cs, np.full(model.n_elements, 1.0))
     assert np.allclose(M_k, 1.0)
     np.testing.assert_allclose(coupling.limit_factor(np.array(0.5), M_k[:1], 0.1, 4.0), (0.4 / 0.9) ** 4)
+    # brown-rot shrinkage: half the carbohydrates gone shrinks rest lengths, offsets and radii by S_c / 2
+    shrunk = replace(model, coupling=replace(model.coupling, S_c=np.full(model.n_elements, 0.3)))
+    coupling.step(shrunk, state)
+    np.testing.assert_allclose(ms.rest_length, setup.rest_length0 * (1 - 0.05 * scene.mechanics.s) * 0.85)
+    np.testing.assert_allclose(ms.rest_offset, setup.offset0 * (1 - 0.05 * g_edge) * 0.85)
+    np.testing.assert_allclose(ms.radius, setup.radius * 0.85)
+    for end in (setup.fp, setup.fp + 1):  # a particle's collider clearance is its largest element's
+        assert np.all(ms.radius_p[end] >= ms.radius)
+    assert ms.radius_p.max() == ms.radius.max() and len(ms.radius_p) == setup.n_particles
 
 
 def test_coupling_kernel_matches_its_numpy_twin():
@@ -60,7 +69,9 @@ def test_coupling_kernel_matches_its_numpy_twin():
     state.H_c[:] = rng.uniform(0.0, 1.0, n)
     state.H_l[:] = rng.uniform(0.0, 1.0, n)
     # the default knee (M_0) and a knee anywhere between M_0 and M_1 per element
-    for m in (model, replace(model, coupling=replace(model.coupling, L_knee=rng.uniform(0.0, 1.0, n)))):
+    # and brown-rot shrinkage S_c anywhere in its range per element
+    for m in (model, replace(model, coupling=replace(model.coupling, L_knee=rng.uniform(0.0, 1.0, n))),
+              replace(model, coupling=replace(model.coupling, S_c=rng.uniform(0.0, 0.9, n)))):
         coupling.step(m, state)
         for name, expect in coupling.step_reference(m, state).items():
             np.testing.assert_allclose(getattr(state.mech, name), expect, rtol=1e-15, atol=0.0, err_msg=name)

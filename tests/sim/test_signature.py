@@ -34,6 +34,8 @@ def test_signature_of_intact_brown_and_white_wood():
     assert (s["pieces"], s["largest_piece_fraction"], s["block_purity"], s["crumbled_elements"]) == (1, 1.0, 0.0, 0)
     assert s["crack_orientation"] == [0.0, 0.0, 0.0] and s["mass_loss"] == 0.0
     assert 0.1 < s["debris_height_m"] < 0.2 and s["debris_footprint_m2"] > 0.01
+    # an intact log lying as placed: its wood's mean height is about its radius (0.055-0.06 m)
+    assert 0.05 < s["debris_centre_height_m"] < 0.065
     brown = signature(*_decayed(lambda m: np.full(m.n_elements, 0.1), one))
     white = signature(*_decayed(one, lambda m: np.full(m.n_elements, 0.1)))
     assert brown["pieces"] >= 20 and brown["block_purity"] == 1.0 and brown["largest_piece_fraction"] < 0.2

@@ -11,6 +11,7 @@ import pytest
 
 import wooddecay as wd
 from wooddecay.sim import coupling, schedule
+from wooddecay.sim.mechanics import macro_step
 from wooddecay.sim.signature import signature
 
 from ..conftest import SAMPLES
@@ -40,6 +41,7 @@ def test_decayed_blocks_separate_fall_and_rest():
     assert np.mean(size < 5) < 0.1 and np.mean(~ms.edge_ok[same, 0]) < 0.1
     # blocks slid off the sides: the wood is lower and spread wider than the intact log
     assert after["debris_height_m"] < before["debris_height_m"] - 0.002
+    assert after["debris_centre_height_m"] < before["debris_centre_height_m"]
     assert after["debris_footprint_m2"] > before["debris_footprint_m2"]
     assert (z - z0).min() < -0.02
 
@@ -70,3 +72,31 @@ def test_drying_board_checks_along_the_fibre(tmp_path):
     assert dry_before_failure
     assert sig["crack_clusters"] >= 3 and sig["pieces"] == 1 and ms.element_ok.all()
     assert across[broken].mean() > 1.3 * across.mean()
+
+
+def test_brown_rotted_wood_shrinks_by_S_c():
+    """Wood that loses all its carbohydrates shrinks to 1 - S_c of its size in every direction
+    (coupling's brown-rot shrinkage), whole and without oscillating: the tiny log without gravity,
+    its integrity kept (k_c = 0) and limits no strain reaches, its H_c lowered over 20 couplings
+    as a bake lowers it."""
+    over = {"mechanics.S_c": 0.3, "mechanics.gravity": [0.0, 0.0, 0.0], "mechanics.I_fail": 0.0, "mechanics.k_c": 0.0,
+            **{f"mechanics.L_0_{k}": 10.0 for k in coupling.LIMIT_TYPES}}
+    model = wd.build_model(wd.load_scene(SAMPLES / "tiny.toml", over))
+    sim = wd.Simulation(model)
+    st, ms = sim.state, sim.state.mech
+    fp = model.mech.fp
+
+    def spread():
+        c = 0.5 * (ms.x[fp] + ms.x[fp + 1])
+        return np.sqrt(np.mean(((c - c.mean(axis=0)) ** 2), axis=0))
+
+    before = spread()
+    for k in range(1, 21):
+        st.H_c[:] = 1.0 - k / 20
+        coupling.step(model, st)
+        macro_step(model, st, 100)
+    ratio = spread() / before
+    print(f"{ms.t_seconds:.2f} s of mechanics: spread along x, y, z x {ratio}, speed {np.abs(ms.v).max():.3f} m/s")
+    np.testing.assert_allclose(ratio, 0.7, rtol=0.01)
+    np.testing.assert_allclose(ms.radius, 0.7 * model.mech.radius)
+    assert ms.element_ok.all() and ms.edge_ok.all() and np.abs(ms.v).max() < 0.1

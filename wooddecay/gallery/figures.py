@@ -99,7 +99,7 @@ def _fig12_decide(m):
     a, b = m["uniform"]["signature"], m["one_side"]["signature"]
     return bool(a["pieces"] >= 5 and b["pieces"] > a["pieces"]
                 and m["one_side"]["median_block_elements"] <= m["uniform"]["median_block_elements"]
-                and b["debris_height_m"] < a["debris_height_m"])
+                and b["debris_centre_height_m"] < a["debris_centre_height_m"])
 
 
 def _halves(model, frames):
@@ -242,7 +242,8 @@ FIGURES = {f.key: f for f in (
         "fungal activity on one side gives finer fragments and a lower, more compact pile.",
         "Brown rot takes the log apart into blocks that pile up; more activity on one side gives "
         "more, smaller blocks and a lower pile.",
-        "uniform: >= 5 pieces; one side: more pieces, a median block no larger, a lower pile",
+        "uniform: >= 5 pieces; one side: more pieces, a median block no larger, a lower pile (its wood's "
+        "mean height above the ground, debris_centre_height_m)",
         _fig12_decide, scene="fig12.toml",
         variants=(Variant("uniform", "activity 0.05 from the ground"),
                   Variant("one_side", "activity 0.2 from the ground", {"inoculation.1.activity": 0.2})),

@@ -134,7 +134,7 @@ def earlier(path: Path) -> dict:
 
 #: statistics shown per variant in gallery.md (the signature's, then the figure's own)
 SHOWN = ("mass_loss", "pieces", "largest_piece_fraction", "block_purity", "crack_clusters", "hollow_fraction",
-         "debris_height_m")
+         "debris_height_m", "debris_centre_height_m")
 
 
 def _fmt(v) -> str:
@@ -162,7 +162,7 @@ def markdown(result: dict, prefix: str = "") -> str:
                       if isinstance(x, (int, float)) and not isinstance(x, bool) and k != "seconds"} - set(SHOWN))
         nested = sorted({k for v in rows.values() for k, x in v.items() if isinstance(x, dict) and k != "overrides"
                          and k != "signature"})
-        cols = [c for c in SHOWN if any("signature" in v for v in rows.values())] + own
+        cols = [c for c in SHOWN if any(c in v.get("signature", {}) for v in rows.values())] + own
         lines += ["", "| variant | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
         for name, v in rows.items():
             sig = v.get("signature", {})

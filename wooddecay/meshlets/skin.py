@@ -11,8 +11,9 @@ over the candidates still connected to o: o itself, its neighbours along the str
 link between them holds (the lower of the two is intact, ``element_ok``), the elements joined to o
 by an intact REG connection (``edge_ok[:, 0]``), and, where no REG edge joins the two, those in o's
 connected component. c_c is the element's current midpoint, R_c its rotation (the quaternion q),
-S_c = diag(1, 1, l_c / l_c0) stretches along the element with its segment (drying shrinkage,
-Eq. 17). A failed element (stretch off) no longer spans its two particles, which may belong to
+S_c = diag(phi_c, phi_c, l_c / l_c0) stretches along the element with its segment (drying shrinkage,
+Eq. 17) and across it by its brown-rot shrinkage phi_c = 1 - S_c (1 - H_c)
+(:func:`wooddecay.sim.coupling.shrink_factor`, ``lateral``). A failed element (stretch off) no longer spans its two particles, which may belong to
 different pieces: it is placed rigidly (S_c = 1) from its first particle, c_c = p_a + R_c (0, 0,
 l_c0 / 2), and so stays with the strand part before it, as its component does. Consumed wood
 dwindles: the copies owned by o are finally drawn towards o's own centre, x <- c_o + s_o (x - c_o),
@@ -36,7 +37,7 @@ import numba as nb
 import numpy as np
 
 from ..quaternion import conj_np, rotate, rotate_np
-from ..sim.coupling import crumble_scale
+from ..sim.coupling import crumble_scale, shrink_factor
 from ..sim.state import FIELDS
 
 #: link kinds of a (vertex, candidate) pair, besides a REG edge index >= 0
@@ -89,7 +90,7 @@ def _centres(model, x, q, element_ok):
     return np.where(element_ok[:, None], 0.5 * (a + b), rigid)
 
 
-def skin_reference(model, mesh, link, x, q, component, edge_ok, element_ok, scale, fields):
+def skin_reference(model, mesh, link, x, q, component, edge_ok, element_ok, scale, fields, lateral=None):
     """Plain-numpy twin of :func:`skin` (same maths, vectorised over skinning pairs)."""
     V = len(mesh.points)
     cnt = np.diff(mesh.skin_indptr)
@@ -101,7 +102,8 @@ def skin_reference(model, mesh, link, x, q, component, edge_ok, element_ok, scal
     intact = element_ok[c]
     l0 = model.rest_length[c]
     stretch = np.where(intact, np.linalg.norm(b - a, axis=1) / l0, 1.0)
-    local = mesh.skin_local * np.stack([np.ones_like(stretch), np.ones_like(stretch), stretch], 1)
+    across = np.ones(len(c)) if lateral is None else lateral[c]
+    local = mesh.skin_local * np.stack([across, across, stretch], 1)
     local[:, 2] += np.where(intact, 0.0, 0.5 * l0)
     p = np.where(intact[:, None], 0.5 * (a + b), a) + rotate_np(q[c], local)
     w = np.where(ok, mesh.skin_weight, 0.0)
@@ -116,7 +118,7 @@ def skin_reference(model, mesh, link, x, q, component, edge_ok, element_ok, scal
 
 @nb.njit(parallel=True, cache=True)
 def _skin_kernel(indptr, owner, cand, weight, local, link, first_particle, rest_length, x, q,
-                 component, edge_ok, element_ok, scale, fields, out_p, out_f):
+                 component, edge_ok, element_ok, scale, lateral, fields, out_p, out_f):
     for v in nb.prange(len(owner)):
         o = owner[v]
         px = py = pz = 0.0
@@ -147,7 +149,7 @@ def _skin_kernel(indptr, owner, cand, weight, local, link, first_particle, rest_
             else:
                 lz = local[k, 2] + 0.5 * rest_length[c]
                 cx, cy, cz = ax, ay, az
-            rx, ry, rz = rotate(q[c, 0], q[c, 1], q[c, 2], q[c, 3], local[k, 0], local[k, 1], lz)
+            rx, ry, rz = rotate(q[c, 0], q[c, 1], q[c, 2], q[c, 3], local[k, 0] * lateral[c], local[k, 1] * lateral[c], lz)
             px += w * (cx + rx)
             py += w * (cy + ry)
             pz += w * (cz + rz)
@@ -168,22 +170,25 @@ def _skin_kernel(indptr, owner, cand, weight, local, link, first_particle, rest_
             out_f[v, j] = acc[j] / wsum
 
 
-def skin(model, mesh, link, x, q, component, edge_ok, element_ok, scale, fields):
+def skin(model, mesh, link, x, q, component, edge_ok, element_ok, scale, fields, lateral=None):
     """Skinned vertex positions (V, 3) and fields (V, k) of per-element ``fields`` (n, k) for the
-    rod state (particles ``x``, quaternions ``q``, ``component``, ``edge_ok``, ``element_ok``) and
-    the meshlet sizes ``scale`` (n,)."""
+    rod state (particles ``x``, quaternions ``q``, ``component``, ``edge_ok``, ``element_ok``),
+    the meshlet sizes ``scale`` (n,) and the elements' sizes across their axis ``lateral`` (n,;
+    none: 1)."""
+    lateral = np.ones(model.n_elements) if lateral is None else np.ascontiguousarray(lateral, dtype=np.float64)
     fields = np.ascontiguousarray(fields, dtype=np.float64).reshape(model.n_elements, -1)
     out_p = np.empty((len(mesh.points), 3))
     out_f = np.empty((len(mesh.points), fields.shape[1]))
     _skin_kernel(mesh.skin_indptr, mesh.vertex_element, mesh.skin_element, mesh.skin_weight,
                  mesh.skin_local, link, model.first_particle, model.rest_length, x, q, component,
-                 edge_ok, element_ok, np.ascontiguousarray(scale, dtype=np.float64), fields, out_p, out_f)
+                 edge_ok, element_ok, np.ascontiguousarray(scale, dtype=np.float64), lateral, fields, out_p, out_f)
     return out_p, out_f
 
 
 def frame_arrays(model, mesh, link, frame, offset=None):
     """Skinned points (V, 3) and fields (V, 6, in the order of ``FIELDS``) of one frame; without
-    mechanics (empty ``frame.mech``) the rest pose. Crumbled wood dwindles in both. ``offset``
+    mechanics (empty ``frame.mech``) the rest pose. Crumbled wood dwindles in both; brown-rotted
+    wood shrinks across its elements with the rods (``lateral``), so not in the rest pose. ``offset``
     (V, 3) moves the rest positions first (the bark's grooves, :mod:`wooddecay.bark.surface`)."""
     if offset is not None and offset.any():
         rows = np.repeat(np.arange(len(mesh.points)), np.diff(mesh.skin_indptr))
@@ -193,7 +198,8 @@ def frame_arrays(model, mesh, link, frame, offset=None):
     scale = crumble_scale(model.coupling, frame.fields["H_c"], frame.fields["H_l"])
     if frame.mech:
         m = frame.mech
-        return skin(model, mesh, link, m["x"], m["q"], m["component"], m["edge_ok"], m["element_ok"], scale, fields)
+        return skin(model, mesh, link, m["x"], m["q"], m["component"], m["edge_ok"], m["element_ok"], scale, fields,
+                    shrink_factor(model.coupling, frame.fields["H_c"]))
     n = model.n_elements
     return skin(model, mesh, link, model.particles, model.rest_quat, np.zeros(n, dtype=np.int64),
                 np.ones((model.n_edges, 3), dtype=bool), np.ones(n, dtype=bool), scale, fields)

@@ -182,6 +182,7 @@ _SCHEMA: dict[str, list[tuple]] = {
         ("M_0", 0.2, "kg/kg", "[0, 10]", f"Drying threshold M_0 below which shrinkage and limit reduction start (Eqs. 16-17; {_T3} typical 0.2)."),
         ("S", 0.5, "1/(kg/kg)", "[0, 10]", f"Shrinkage gain of REG rest offsets S (Eq. 16; {_T3} typical [0, 1])."),
         ("s", 0.02, "1/(kg/kg)", "[0, 1]", f"Shrinkage gain of rod rest length s (Eq. 17; {_T3} typical [0, 0.05])."),
+        ("S_c", 0.0, "", "[0, 0.9]", "Brown-rot shrinkage: the linear shrinkage of wood that has lost all its carbohydrates. Its rest length (Eq. 17), its REG rest offsets (Eq. 16, pair means), its contact radius and its meshlet scale by 1 - S_c (1 - H_c), so brown-rotted cubes shrink and their pile settles lower (woodstock §3: the removal of carbohydrates makes the wood shrink; Fig. 12; docs/decisions.md, \"Brown rot shrinks\"). 0: Eqs. 16-17 as printed."),
         ("S_R", 1.0, "", "[0, 10]", "Radial shrinkage weight: a REG offset shrinks by (M_0 - M)^+ (S (S_R n_r^2 + S_T n_t^2) + s n_l^2) (Eq. 16; woodstock Table 2, Fig. 6; along the grain the strands' s, docs/decisions.md)."),
         ("S_T", 1.0, "", "[0, 10]", "Tangential shrinkage weight in Eq. 16 (woodstock Table 2, Fig. 6)."),
         ("L_0_stretch", 0.01, "", "[0, 10]", f"Baseline stretch strain limit L_0 (Eq. 18; {_T3} L_0)."),

@@ -11,6 +11,12 @@ After each biology step, with (x)^+ = max(x, 0):
   strands, and a different gain there makes uniformly drying wood pull its strands apart
   lengthwise (docs/decisions.md);
 * Eq. 17: rest lengths l_r = l_r0 (1 - (M_0 - M)^+ s);
+* brown-rot shrinkage: wood that loses its carbohydrates shrinks (woodstock §3), by the linear
+  factor phi = 1 - S_c (1 - H_c) (:func:`shrink_factor`) on the rest length of Eqs. 16-17, the
+  contact radius and the meshlet; a REG offset takes the pair mean of S_c (1 - H_c). A loose
+  brown-rotted cube shrinks as a whole and its pile settles lower (Fig. 12); a half-rotted
+  section shrinks at its rotted side and checks there (docs/decisions.md, "Brown rot shrinks").
+  S_c = 0 (the default) leaves Eqs. 16-17 as printed;
 * Eqs. 18-19: strain limits L(M) = L_0 f(M - M_2), f(x) = clip(x / (M_k - M_2), 0, 1)^p_l, per
   constraint type (stretch, shear on elements; bundle, bend, twist on REG pairs), with M_1, M_2
   the tissue's bounds on the current day (seasonal schedule) and the knee
@@ -46,7 +52,7 @@ import numpy as np
 
 from .biology import moisture_bounds
 from .diagnostics import mass_remaining
-from .mechanics import set_masses
+from .mechanics import set_masses, set_radius
 
 #: constraint types of L_0 and p_l, in column order (elements: 0, 1; pairs: 2, 3, 4)
 LIMIT_TYPES = ("stretch", "shear", "bundle", "bend", "twist")
@@ -60,6 +66,7 @@ class CouplingSetup:
     M_0: np.ndarray  # (n,)
     L_knee: np.ndarray  # (n,) the knee M_k of Eq. 19 between M_0 (0) and M_1 (1)
     s: np.ndarray  # (n,) rest-length gain
+    S_c: np.ndarray  # (n,) brown-rot shrinkage
     g_pair: np.ndarray  # (m,) g_edge of Eq. 16 (pair means of the gains)
     M_0_pair: np.ndarray  # (m,)
     L_0: np.ndarray  # (n, 5) per LIMIT_TYPES
@@ -90,7 +97,7 @@ def prepare(model) -> CouplingSetup:
     dw = model.reg_dir_weights
     g_edge = pair("S") * (pair("S_R") * dw[:, 0] + pair("S_T") * dw[:, 1]) + pair("s") * dw[:, 2]
     return CouplingSetup(
-        M_0=per_element("M_0"), L_knee=per_element("L_knee"), s=per_element("s"),
+        M_0=per_element("M_0"), L_knee=per_element("L_knee"), s=per_element("s"), S_c=per_element("S_c"),
         g_pair=g_edge, M_0_pair=pair("M_0"),
         L_0=np.stack([per_element(f"L_0_{k}") for k in LIMIT_TYPES], axis=1),
         p_l=np.stack([per_element(f"p_l_{k}") for k in LIMIT_TYPES], axis=1),
@@ -119,6 +126,11 @@ def crumble_scale(cs: CouplingSetup, H_c: np.ndarray, H_l: np.ndarray) -> np.nda
     return np.where(m > 0.0, np.clip((mass_remaining(H_c, H_l, cs.k_H) - m) / np.where(m > 0.0, m, 1.0), 0.0, 1.0), 1.0)
 
 
+def shrink_factor(cs: CouplingSetup, H_c: np.ndarray) -> np.ndarray:
+    """phi = 1 - S_c (1 - H_c) per element: the linear size of brown-rotted wood (module docstring)."""
+    return 1.0 - cs.S_c * (1.0 - H_c)
+
+
 def integrity(k_c: np.ndarray, k_l: np.ndarray, H_c_pair: np.ndarray, H_l_pair: np.ndarray) -> np.ndarray:
     """I_ij of Eq. 21 with k_c already multiplied by theta_ij, clipped to [0, 1]."""
     I = (1.0 - k_c * (1.0 - H_c_pair)) * (1.0 - k_l * (1.0 - H_l_pair))
@@ -133,11 +145,13 @@ def step(model, state) -> None:
     cs, setup, ms = model.coupling, model.mech, state.mech
     n, m = len(state.M), len(setup.edges)
     out = (np.empty(n), np.empty(m), np.empty(m), np.empty(n), np.empty(n, dtype=np.bool_), np.empty((n, 2)),
-           np.empty((m, 3)))
+           np.empty((m, 3)), np.empty(n))
     _couple(state.M, state.H_c, state.H_l, model.bio.tissue, moisture_bounds(model.bio, state.t_days),
-            setup.edges, cs.link_next, cs.M_0, cs.L_knee, cs.s, setup.rest_length0, cs.g_pair, cs.M_0_pair, setup.offset0,
-            cs.L_0, cs.p_l, cs.k_c, cs.k_l, cs.k_c_link, cs.k_l_link, cs.k_H, cs.m_crumble, np.empty((n, 5)), *out)
-    ms.rest_length, ms.rest_offset, ms.integrity, ms.link_integrity, ms.crumbled, ms.limit_elem, ms.limit_edge = out
+            setup.edges, cs.link_next, cs.M_0, cs.L_knee, cs.s, cs.S_c, setup.rest_length0, setup.radius, cs.g_pair,
+            cs.M_0_pair, setup.offset0, cs.L_0, cs.p_l, cs.k_c, cs.k_l, cs.k_c_link, cs.k_l_link, cs.k_H, cs.m_crumble,
+            np.empty((n, 5)), *out)
+    ms.rest_length, ms.rest_offset, ms.integrity, ms.link_integrity, ms.crumbled, ms.limit_elem, ms.limit_edge = out[:7]
+    set_radius(setup, ms, out[7])
     set_masses(setup, ms, state.M)
 
 
@@ -152,20 +166,23 @@ def _integrity(k_c, k_l, H_c_pair, H_l_pair):
 
 
 @nb.njit(parallel=True, cache=True)
-def _couple(M, H_c, H_l, tissue, M12, edges, link_next, M_0, L_knee, s, rest_length0, g_pair, M_0_pair, offset0, L_0, p_l,
-            k_c, k_l, k_c_link, k_l_link, k_H, m_crumble, L, rest_length, rest_offset, integrity_out, link_out, crumbled,
-            limit_elem, limit_edge):
-    """:func:`step`'s arrays (module docstring): per element the rest length (Eq. 17), the limits
-    L(M) of Eq. 19 (into the scratch ``L``), the strand link's I and the stretch and shear limits it scales;
-    per REG pair the rest offset (Eq. 16), I_ij (Eq. 21) and the pair limits. Each entry is
-    written by its own element or pair only."""
+def _couple(M, H_c, H_l, tissue, M12, edges, link_next, M_0, L_knee, s, S_c, rest_length0, radius0, g_pair, M_0_pair,
+            offset0, L_0, p_l, k_c, k_l, k_c_link, k_l_link, k_H, m_crumble, L, rest_length, rest_offset, integrity_out,
+            link_out, crumbled, limit_elem, limit_edge, radius):
+    """:func:`step`'s arrays (module docstring): per element the rest length (Eq. 17 and the
+    brown-rot shrinkage), the contact radius, the limits L(M) of Eq. 19 (into the scratch ``L``),
+    the strand link's I and the stretch and shear limits it scales; per REG pair the rest offset
+    (Eq. 16), I_ij (Eq. 21) and the pair limits. Each entry is written by its own element or pair
+    only."""
     for e in nb.prange(len(M)):
         M_2 = M12[tissue[e], 1]
         M_k = M_0[e] + L_knee[e] * (M12[tissue[e], 0] - M_0[e])
         f = 1.0 if M[e] >= M_k else (0.0 if M[e] <= M_2 else (M[e] - M_2) / (M_k - M_2))
         for c in range(5):
             L[e, c] = L_0[e, c] * f ** p_l[e, c]
-        rest_length[e] = rest_length0[e] * (1.0 - max(M_0[e] - M[e], 0.0) * s[e])
+        phi = 1.0 - S_c[e] * (1.0 - H_c[e])
+        rest_length[e] = rest_length0[e] * (1.0 - max(M_0[e] - M[e], 0.0) * s[e]) * phi
+        radius[e] = radius0[e] * phi
         e1 = link_next[e]
         link = _integrity(k_c_link[e], k_l_link[e], 0.5 * (H_c[e] + H_c[e1]), 0.5 * (H_l[e] + H_l[e1]))
         crumbled[e] = _crumbled(e, H_c, H_l, k_H, m_crumble)
@@ -176,7 +193,8 @@ def _couple(M, H_c, H_l, tissue, M12, edges, link_next, M_0, L_knee, s, rest_len
         limit_elem[e, 1] = L[e, 1] * link
     for k in nb.prange(len(edges)):
         i, j = edges[k, 0], edges[k, 1]
-        rest_offset[k] = offset0[k] * (1.0 - max(M_0_pair[k] - 0.5 * (M[i] + M[j]), 0.0) * g_pair[k])
+        phi = 1.0 - 0.5 * (S_c[i] * (1.0 - H_c[i]) + S_c[j] * (1.0 - H_c[j]))
+        rest_offset[k] = offset0[k] * (1.0 - max(M_0_pair[k] - 0.5 * (M[i] + M[j]), 0.0) * g_pair[k]) * phi
         I = _integrity(k_c[k], k_l[k], 0.5 * (H_c[i] + H_c[j]), 0.5 * (H_l[i] + H_l[j]))
         if crumbled[i] or crumbled[j]:  # written by the element loop, which has ended
             I = 0.0
@@ -186,7 +204,7 @@ def _couple(M, H_c, H_l, tissue, M12, edges, link_next, M_0, L_knee, s, rest_len
 
 
 def step_reference(model, state) -> dict[str, np.ndarray]:
-    """Plain-numpy :func:`step`: the rest lengths, rest offsets, integrity and limits it sets."""
+    """Plain-numpy :func:`step`: the rest lengths, rest offsets, radii, integrity and limits it sets."""
     cs, setup = model.coupling, model.mech
     M12, tissue = moisture_bounds(model.bio, state.t_days), model.bio.tissue
     M = state.M
@@ -200,7 +218,10 @@ def step_reference(model, state) -> dict[str, np.ndarray]:
     e1 = cs.link_next
     link = integrity(cs.k_c_link, cs.k_l_link, 0.5 * (state.H_c + state.H_c[e1]), 0.5 * (state.H_l + state.H_l[e1]))
     link = np.where(crumbled | crumbled[e1], 0.0, link)
-    return {"rest_offset": setup.offset0 * (1.0 - np.maximum(cs.M_0_pair - M_pair, 0.0) * cs.g_pair),
-            "rest_length": setup.rest_length0 * (1.0 - np.maximum(cs.M_0 - M, 0.0) * cs.s),
+    phi = shrink_factor(cs, state.H_c)
+    return {"rest_offset": setup.offset0 * (1.0 - np.maximum(cs.M_0_pair - M_pair, 0.0) * cs.g_pair)
+            * (1.0 - 0.5 * ((1.0 - phi[i]) + (1.0 - phi[j]))),
+            "rest_length": setup.rest_length0 * (1.0 - np.maximum(cs.M_0 - M, 0.0) * cs.s) * phi,
+            "radius": setup.radius * phi,
             "integrity": I, "link_integrity": link, "crumbled": crumbled, "limit_elem": L[:, :2] * link[:, None],
             "limit_edge": 0.5 * (L[i, 2:] + L[j, 2:]) * I[:, None]}

@@ -47,7 +47,7 @@ from .signature import signature
 from .state import FIELDS, SimState, initial_state, inoculate
 from .threads import ThreadChoice
 
-CHECKPOINT_VERSION = 8
+CHECKPOINT_VERSION = 9
 
 
 @dataclass(frozen=True, eq=False)

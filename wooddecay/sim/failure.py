@@ -164,14 +164,14 @@ def record_separations(setup, ms, before: np.ndarray) -> int:
     an overlap out at most at v_depenetration (:func:`mechanics.refresh_pairs`, docs/decisions.md
     "Separation overlap"). Components only split, so a pair is recorded once. Returns the number
     of pairs added."""
-    pairs = contact.candidate_pairs(ms.x, setup.fp, setup.radius, ms.component, 0.0, active=ms.element_ok)
+    pairs = contact.candidate_pairs(ms.x, setup.fp, ms.radius, ms.component, 0.0, active=ms.element_ok)
     pairs = pairs[before[pairs[:, 0]] == before[pairs[:, 1]]]
     keys = pairs[:, 0] * setup.n_elements + pairs[:, 1]
     new = ~np.isin(keys, ms.sep_keys)
     if not new.any():
         return 0
     keys = np.concatenate([ms.sep_keys, keys[new]])
-    vals = np.concatenate([ms.sep_overlap, contact.pair_overlaps(ms.x, setup.fp, setup.radius, pairs[new])])
+    vals = np.concatenate([ms.sep_overlap, contact.pair_overlaps(ms.x, setup.fp, ms.radius, pairs[new])])
     order = np.argsort(keys, kind="stable")
     ms.sep_keys, ms.sep_overlap = keys[order], vals[order]
     return int(new.sum())

@@ -195,6 +195,8 @@ class MechState:
     mass_e: np.ndarray  # (n,) element masses
     rest_length: np.ndarray  # (n,) l_r (Eq. 17)
     rest_offset: np.ndarray  # (m,) dp (Eq. 16)
+    radius: np.ndarray  # (n,) contact radius: r_s shrunk by brown rot (:mod:`~wooddecay.sim.coupling`)
+    radius_p: np.ndarray  # (P,) particle radius (collider clearance)
     integrity: np.ndarray  # (m,) I_ij (Eq. 21)
     link_integrity: np.ndarray  # (n,) I of the strand link e, e + 1 (Eq. 21; 1 at a strand end)
     crumbled: np.ndarray  # (n,) bool: remaining mass below m_crumble (:mod:`~wooddecay.sim.coupling`)
@@ -371,7 +373,8 @@ def initial_state(model) -> MechState:
     ms = MechState(
         x=model.particles.astype(np.float64).copy(), v=np.zeros((P, 3)), q=model.rest_quat.copy(),
         omega=np.zeros((n, 3)), w_p=np.zeros(P), mass_p=np.zeros(P), w_q=np.zeros(n), mass_e=np.zeros(n),
-        rest_length=setup.rest_length0.copy(), rest_offset=setup.offset0.copy(), integrity=np.ones(m),
+        rest_length=setup.rest_length0.copy(), rest_offset=setup.offset0.copy(), radius=setup.radius.copy(),
+        radius_p=setup.radius_p.copy(), integrity=np.ones(m),
         link_integrity=np.ones(n), crumbled=np.zeros(n, dtype=bool), limit_elem=np.full((n, 2), np.inf), limit_edge=np.full((m, 3), np.inf),
         element_ok=np.ones(n, dtype=bool), edge_ok=np.ones((m, 3), dtype=bool),
         component=np.zeros(n, dtype=np.int64), strain_ref_elem=np.zeros((n, 2)),
@@ -384,6 +387,12 @@ def initial_state(model) -> MechState:
     sleep.wake_all(setup, ms)  # the first sleep window starts at rest
     ms.component = failure.components(setup, ms)
     return ms
+
+
+def set_radius(setup: MechSetup, ms: MechState, radius: np.ndarray) -> None:
+    """Contact radii ``radius`` per element, and per particle the larger of its elements'."""
+    ms.radius = radius
+    ms.radius_p = _per_particle_max(setup.fp, radius, setup.n_particles)
 
 
 def set_masses(setup: MechSetup, ms: MechState, M: np.ndarray) -> None:
@@ -609,16 +618,16 @@ def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: tuple | None = N
     for _ in range(setup.iterations):
         _project(setup, ms, kjoint, plan, kreg, lam, dt)
         x_start[:] = ms.x
-        contact.project_colliders(ms.x, ms.w_p, setup.radius_p, setup.colliders, setup.k_col, dt, normal_force,
+        contact.project_colliders(ms.x, ms.w_p, ms.radius_p, setup.colliders, setup.k_col, dt, normal_force,
                                   push, x_old, hit_c, checked=True)
-        contact.project_contacts(ms.x, ms.w_p, setup.fp, setup.radius, ms.pairs, setup.k_col, dt, normal_force,
+        contact.project_contacts(ms.x, ms.w_p, setup.fp, ms.radius, ms.pairs, setup.k_col, dt, normal_force,
                                  push, hit_p, phi_rest=ms.pairs_rest, protect=ms.pairs_protect)
         contact.particle_friction(ms.x, x_start, x_old, setup.mu_f, setup.epsilon * dt)
     keep = ms.pairs_sep >= 0  # the protected overlaps only shrink; they outlive the contact list
     ms.sep_overlap[ms.pairs_sep[keep]] = ms.pairs_rest[keep] + ms.pairs_protect[keep]
     _velocities(ms.x, ms.v, ms.q, ms.omega, x_old, q_old, ms.w_p, ms.w_q, dt)
     contact.collider_velocities(ms.v, ms.x, ms.w_p, setup.colliders, hit_c)
-    contact.contact_velocities(ms.v, ms.x, ms.w_p, setup.fp, setup.radius, ms.pairs, hit_p)
+    contact.contact_velocities(ms.v, ms.x, ms.w_p, setup.fp, ms.radius, ms.pairs, hit_p)
     ms.t_seconds += dt
     return failure.update(setup, ms) if check else 0
 
@@ -678,14 +687,16 @@ def refresh_pairs(setup: MechSetup, ms: MechState) -> None:
     no part: a broken element's segment joins the end of one piece to the start of the next
     (its second particle is the next element's first), so it is no longer wood and its capsule
     would drag through both pieces. ``pairs_rest`` holds each pair's overlap at the rest
-    positions, which contact does not push out (:mod:`~wooddecay.sim.contact`, "Rest overlap"), and
+    positions (shrunk as brown rot shrank the pair), which contact does not push out (:mod:`~wooddecay.sim.contact`, "Rest overlap"), and
     ``pairs_protect`` the overlap beyond it that the pair had when its elements separated
     (``sep_keys``, ``sep_overlap``), which contact pushes out at most at v_depenetration."""
     margin = CONTACT_MARGIN * float(setup.radius.max(initial=0.0))
     if ms.pairs_x is not None and np.max(np.abs(ms.x - ms.pairs_x), initial=0.0) < 0.5 * margin:
         return
-    ms.pairs = contact.candidate_pairs(ms.x, setup.fp, setup.radius, ms.component, margin, active=ms.element_ok)
-    ms.pairs_rest = contact.pair_overlaps(setup.x_rest, setup.fp, setup.radius, ms.pairs)
+    ms.pairs = contact.candidate_pairs(ms.x, setup.fp, ms.radius, ms.component, margin, active=ms.element_ok)
+    shrink = np.divide(ms.radius, setup.radius, out=np.ones_like(ms.radius), where=setup.radius > 0.0)  # brown rot
+    ms.pairs_rest = (contact.pair_overlaps(setup.x_rest, setup.fp, setup.radius, ms.pairs)
+                     * 0.5 * (shrink[ms.pairs[:, 0]] + shrink[ms.pairs[:, 1]]))
     ms.pairs_sep = np.full(len(ms.pairs), -1, dtype=np.int64)
     if len(ms.sep_keys) and len(ms.pairs):
         keys = ms.pairs[:, 0] * setup.n_elements + ms.pairs[:, 1]

@@ -26,7 +26,7 @@ from ..errors import InputError
 from . import bark
 from . import mechanics as mech
 
-VERSION = 4
+VERSION = 5
 #: environment variable naming the cache folder ("" or "off": no cache)
 ENV = "WOODDECAY_CACHE"
 

@@ -23,7 +23,9 @@ components):
   rot's hollow (Fig. 14);
 * ``debris_footprint_m2``: the area of the convex hull of the element centres seen from above;
   ``debris_height_m``: from the lowest to the highest point of the wood (centre -+ radius): a
-  log lying intact keeps its diameter, a pile is lower and wider.
+  log lying intact keeps its diameter, a pile is lower and wider; ``debris_centre_height_m``: the
+  volume-weighted mean height of the element centres above that lowest point, crumbled elements
+  left out: how low the wood lies, which one stick leaning up on a pile does not move.
 
 The driver adds the bark's ``bark_crack_count``, ``bark_crack_length_m``, ``bark_crack_along_grain``
 and ``bark_shed_fraction`` (:func:`wooddecay.sim.bark.statistics`).
@@ -67,7 +69,9 @@ def signature(model, state) -> dict:
     hollow = float(V[heart & ms.crumbled].sum() / V[heart].sum()) if heart.any() else 0.0
     fp = model.mech.fp
     c = 0.5 * (ms.x[fp] + ms.x[fp + 1])
-    r = model.mech.radius
+    r = ms.radius
+    bottom = np.min(c[:, 2] - r)
+    solid = V * ~ms.crumbled
     return {
         "mass_loss": mass_loss(model, state),
         "pieces": int(len(big)),
@@ -78,7 +82,8 @@ def signature(model, state) -> dict:
         "crumbled_elements": int(np.count_nonzero(ms.crumbled)),
         "hollow_fraction": hollow,
         "debris_footprint_m2": _hull_area(c[:, :2]),
-        "debris_height_m": float(np.max(c[:, 2] + r) - np.min(c[:, 2] - r)),
+        "debris_height_m": float(np.max(c[:, 2] + r) - bottom),
+        "debris_centre_height_m": float(np.sum(solid * c[:, 2]) / solid.sum() - bottom) if solid.any() else 0.0,
     }
 
 

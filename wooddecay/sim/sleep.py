@@ -101,7 +101,7 @@ def _touching(setup, ms) -> tuple[np.ndarray, np.ndarray]:
     pairs = ms.pairs
     if len(pairs) == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    on = pair_overlaps(ms.x, setup.fp, setup.radius, pairs) > ms.pairs_rest
+    on = pair_overlaps(ms.x, setup.fp, ms.radius, pairs) > ms.pairs_rest
     return ms.component[pairs[on, 0]], ms.component[pairs[on, 1]]
 
 

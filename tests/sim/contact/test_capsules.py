@@ -190,9 +190,9 @@ def test_record_separations_keeps_the_first_overlap_of_newly_separated_pairs():
     # three parallel capsules of radius 0.01, 0.015 apart along y: (0, 1) and (1, 2) overlap
     # by 0.005, (0, 2) are apart
     x = _rows([0, 0, 0], [1, 0, 0], [0, 0.015, 0], [1, 0.015, 0], [0, 0.03, 0], [1, 0.03, 0])
-    setup = SimpleNamespace(fp=np.array([0, 2, 4]), radius=np.full(3, 0.01), n_elements=3)
+    setup = SimpleNamespace(fp=np.array([0, 2, 4]), n_elements=3)
     ms = SimpleNamespace(x=x, component=np.array([0, 1, 1]), sep_keys=np.zeros(0, np.int64), sep_overlap=np.zeros(0),
-                         element_ok=np.array([True, False, True]))
+                         element_ok=np.array([True, False, True]), radius=np.full(3, 0.01))
     assert failure.record_separations(setup, ms, np.zeros(3, np.int64)) == 0  # a failed element is no contact
     ms.element_ok[:] = True
     assert failure.record_separations(setup, ms, np.zeros(3, np.int64)) == 1  # (0, 1) only: (1, 2) stay together
