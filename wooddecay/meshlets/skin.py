@@ -14,8 +14,8 @@ connected component. c_c is the element's current midpoint, R_c its rotation (th
 S_c = diag(phi_c, phi_c, l_c / l_c0) stretches along the element with its segment (drying shrinkage,
 Eq. 17) and across it by phi_c, the brown-rot shrinkage of its length and offsets
 (:func:`wooddecay.sim.coupling.shrink_factor`, ``lateral``). A failed element (stretch off) no
-longer spans its two particles, which may belong to different pieces: it is placed rigidly (S_c = 1) from its first particle, c_c = p_a + R_c (0, 0,
-l_c0 / 2), and so stays with the strand part before it, as its component does. Consumed wood
+longer spans its two particles, which may belong to different pieces: it is placed from its
+first particle without stretching along it (l_c = l_c0), c_c = p_a + R_c (0, 0, l_c0 / 2), and so stays with the strand part before it, as its component does. Consumed wood
 dwindles: the copies owned by o are finally drawn towards o's own centre, x <- c_o + s_o (x - c_o),
 with s_o = ``scale`` (:func:`wooddecay.sim.coupling.crumble_scale`: 0 once o crumbled), so a
 crumbled element's meshlet is gone and its neighbours' faces around it are the cavity's walls. Connected meshlets keep sharing their vertices (no gap); across a broken
