@@ -220,7 +220,7 @@ def step_reference(model, state) -> dict[str, np.ndarray]:
     link = np.where(crumbled | crumbled[e1], 0.0, link)
     phi = shrink_factor(cs, state.H_c)
     return {"rest_offset": setup.offset0 * (1.0 - np.maximum(cs.M_0_pair - M_pair, 0.0) * cs.g_pair)
-            * (1.0 - 0.5 * ((1.0 - phi[i]) + (1.0 - phi[j]))),
+            * 0.5 * (phi[i] + phi[j]),
             "rest_length": setup.rest_length0 * (1.0 - np.maximum(cs.M_0 - M, 0.0) * cs.s) * phi,
             "radius": setup.radius * phi,
             "integrity": I, "link_integrity": link, "crumbled": crumbled, "limit_elem": L[:, :2] * link[:, None],

@@ -169,7 +169,6 @@ class MechSetup:
     mu_f: float
     epsilon: float
     loads: tuple  # of (day0, day1, (P, 3) particle forces)
-    radius_p: np.ndarray = None  # (P,) particle radius (collider clearance)
     I_fail_elem: np.ndarray = None  # (n,) integrity below which the strand link e, e + 1 fails
     I_fail_edge: np.ndarray = None  # (m,) integrity below which a REG connection fails
     sleep_speed: float = 0.0  # :mod:`~wooddecay.sim.sleep` (0: never)
@@ -352,8 +351,7 @@ def prepare(model, config: MechConfig, colliders: np.ndarray, loads: tuple[Load,
                           k_pt0=Gm * np.pi * r_s**4 / 2.0),
         gravity=np.asarray(mech.gravity, dtype=np.float64), damping=float(mech.damping),
         dt=float(mech.dt_mech), iterations=int(mech.iterations), strand_solver=str(mech.strand_solver),
-        colliders=colliders,
-        radius_p=_per_particle_max(fp, r, P), k_col=float(mech.k_col),
+        colliders=colliders, k_col=float(mech.k_col),
         v_depenetration=float(mech.v_depenetration), mu_f=float(mech.mu_f), epsilon=float(mech.epsilon),
         loads=tuple(load_forces),
         sleep_speed=float(mech.sleep_speed), sleep_time=float(mech.sleep_time),
@@ -374,7 +372,7 @@ def initial_state(model) -> MechState:
         x=model.particles.astype(np.float64).copy(), v=np.zeros((P, 3)), q=model.rest_quat.copy(),
         omega=np.zeros((n, 3)), w_p=np.zeros(P), mass_p=np.zeros(P), w_q=np.zeros(n), mass_e=np.zeros(n),
         rest_length=setup.rest_length0.copy(), rest_offset=setup.offset0.copy(), radius=setup.radius.copy(),
-        radius_p=setup.radius_p.copy(), integrity=np.ones(m),
+        radius_p=_per_particle_max(setup.fp, setup.radius, P), integrity=np.ones(m),
         link_integrity=np.ones(n), crumbled=np.zeros(n, dtype=bool), limit_elem=np.full((n, 2), np.inf), limit_edge=np.full((m, 3), np.inf),
         element_ok=np.ones(n, dtype=bool), edge_ok=np.ones((m, 3), dtype=bool),
         component=np.zeros(n, dtype=np.int64), strain_ref_elem=np.zeros((n, 2)),
