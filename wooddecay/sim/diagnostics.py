@@ -41,8 +41,9 @@ def diagnostics(model, state: SimState) -> dict:
         "clamp_count": int(state.clamp_count),
         "tissue_means": {},
     }
-    for code, name in enumerate(TISSUES):
-        sel = setup.tissue == code
-        if sel.any():
-            out["tissue_means"][name] = {f: float(np.average(getattr(state, f)[sel], weights=V[sel])) for f in FIELDS}
+    n = len(TISSUES)
+    volume = np.bincount(setup.tissue, weights=V, minlength=n)
+    sums = {f: np.bincount(setup.tissue, weights=V * getattr(state, f), minlength=n) for f in FIELDS}
+    for code in np.flatnonzero(np.bincount(setup.tissue, minlength=n)):
+        out["tissue_means"][TISSUES[code]] = {f: float(sums[f][code] / volume[code]) for f in FIELDS}
     return out

@@ -85,6 +85,19 @@ def compare(path, factors=FACTORS, overrides: dict | None = None) -> tuple[Run, 
         return fixed, [run(path, "adaptive", f, overrides=overrides, settle_cache=cache) for f in factors]
 
 
+def pairs(path, n: int, overrides: dict | None = None) -> tuple[list[Run], list[Run]]:
+    """``n`` fixed and ``n`` adaptive runs (tolerances as the scene has them) of ``path``,
+    alternating, from one settled state: the wall-time ratio of each pair is measured under the
+    same load of a shared machine. The runs of one schedule give the same bits."""
+    warm_up(path)
+    fixed, adaptive = [], []
+    with tempfile.TemporaryDirectory(prefix="wooddecay-settled-") as cache:
+        for _ in range(n):
+            fixed.append(run(path, "fixed", overrides=overrides, settle_cache=cache))
+            adaptive.append(run(path, "adaptive", overrides=overrides, settle_cache=cache))
+    return fixed, adaptive
+
+
 def describe(run_: Run, fixed: Run) -> str:
     return (f"{run_.label:>14}: {run_.wall:7.1f} s wall, {run_.mechanics_seconds:6.3f} s of mechanics in "
             f"{run_.chunks} chunks ({run_.solves} solves), {run_.broken} broken, "
