@@ -1,9 +1,11 @@
 """Shared fixtures: sample scenes and their models, built once per session."""
 from __future__ import annotations
 
+import os
 from functools import cache
 from pathlib import Path
 
+import numba
 import pytest
 from hypothesis import settings
 
@@ -24,6 +26,16 @@ def settle_cache(tmp_path, monkeypatch) -> Path:
     folder = tmp_path / "settled-cache"
     monkeypatch.setenv("WOODDECAY_CACHE", str(folder))
     return folder
+
+
+@pytest.fixture(autouse=True)
+def one_thread_per_worker():
+    """Under pytest-xdist (``-n 2`` in pyproject.toml: two workers on CI's two cores) each test
+    starts on one numba thread: two workers of two threads each on two cores make every parallel
+    region wait for a descheduled thread (docs/decisions.md, "Threads"). Tests of thread-count
+    independence set their counts themselves."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        numba.set_num_threads(1)
 
 
 @cache
