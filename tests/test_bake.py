@@ -251,3 +251,24 @@ def test_gallery_resume_continues_its_own_checkpoint_and_starts_over_on_another_
     other = bake_scene("fig6.toml", {**short, "mechanics.S_R": 0.5}, tmp_path, resume=True)
     assert not other.reused and other.summary["scene_hash"] != first.summary["scene_hash"]
     assert len(other.frames) == 2
+
+
+def test_gallery_bake_reuses_a_finished_bake_of_the_same_scene_elsewhere(tmp_path):
+    """``reuse``: a finished bake of the same scene in another folder is read, not baked again, and
+    nothing is written where it would have baked; another scene bakes. Fig. 20's run at the
+    default step is the figure's own variant without overrides."""
+    from pathlib import Path
+
+    from wooddecay.gallery.bakes import bake_scene
+    from wooddecay.gallery.sensitivity import own_bakes
+
+    short = {"time.days": 1.0, "time.frames": 2}
+    first = bake_scene("fig6.toml", short, tmp_path / "a")
+    again = bake_scene("fig6.toml", short, tmp_path / "b", reuse=(tmp_path / "missing", tmp_path / "a"))
+    assert again.reused and again.summary == first.summary and again.usd == tmp_path / "a" / "fig6.usdc"
+    assert not (tmp_path / "b").exists()
+    other = bake_scene("fig6.toml", {**short, "mechanics.S_R": 0.5}, tmp_path / "c", reuse=(tmp_path / "a",))
+    assert not other.reused and (tmp_path / "c" / "fig6.usdc").is_file()
+    out = Path("DIR") / "fig20"
+    assert own_bakes("fig12", out) == (Path("DIR/fig12/uniform"),)
+    assert own_bakes("fig14", out) == (Path("DIR/fig14/trunk"),)

@@ -5,10 +5,9 @@ add-on, and the command's errors.
 CI bakes the seven figures whose quick scenes bake within about 1 min each on 2 cores (CI_FIGURES,
 about 3 min in all) and decides six of them; of Fig. 6 it asserts the part that holds, the first
 cracks' orientation per shrinkage ratio: its balanced section spreads the opening of its radial
-cracks all round instead of into a few (docs/gallery.md). The others are decided by the full
-gallery and their scenes are loaded here: Fig. 12's two quick logs take 3 min and their piles are
-too alike at that size to decide it (0.297 against 0.300 m high, 2026-11-26), the trees of Figs.
-16 and 19 take 10-45 min and the study of Fig. 20 7 min."""
+cracks all round instead of into a few (docs/gallery.md). Fig. 12's direction is asserted in
+tests/test_gallery_fig12.py. The others are decided by the full gallery and their scenes are
+loaded here: the trees of Figs. 16 and 19 take 10-45 min and the study of Fig. 20 7 min."""
 from __future__ import annotations
 
 import json

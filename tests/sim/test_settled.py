@@ -47,6 +47,16 @@ def test_another_bark_loads_the_rods_and_cracks_its_own_bark(tmp_path):
     assert a["bark_cracked"].sum() > first["bark_cracked"].sum()
 
 
+def test_another_inoculation_loads_the_rods_it_would_settle(tmp_path):
+    """[[inoculation]] is not in the key: the fungal activity it sets is not the rods' business."""
+    wd.Simulation(model(), settle_cache=tmp_path)
+    other = {"inoculation.0.activity": 0.5, "inoculation.0.fungus": "white"}
+    again = wd.Simulation(model(**other), settle_cache=tmp_path)
+    assert again.settled == "cached" and not np.array_equal(again.state.R_w, wd.Simulation(model()).state.R_w)
+    a, b = arrays(again), arrays(wd.Simulation(model(**other)))
+    assert all(np.array_equal(a[k], b[k]) for k in a)
+
+
 def test_the_key_covers_the_wood_and_not_the_schedule():
     base = model().info.settle_hash
     assert model(**{"time.days": 9.0, "time.schedule": "fixed", "export.gltf": False}).info.settle_hash == base

@@ -30,20 +30,20 @@ class Baked(NamedTuple):
     reused: bool
 
 
-def bake_scene(scene_file: str, overrides: dict, folder: Path, resume: bool = False) -> Baked:
-    """Bake ``samples/gallery/<scene_file>`` with ``overrides`` into ``folder``. With ``resume``, a
-    finished bake of the same scene in ``folder`` (:func:`wooddecay.bake.finished`, its frames and
-    USD file there) is reused, and an unfinished one continued from its checkpoint."""
+def bake_scene(scene_file: str, overrides: dict, folder: Path, resume: bool = False, reuse: tuple = ()) -> Baked:
+    """Bake ``samples/gallery/<scene_file>`` with ``overrides`` into ``folder``. A finished bake
+    of the same scene (:func:`wooddecay.bake.finished`, its frames and USD file there) in one of
+    the folders ``reuse``, or with ``resume`` in ``folder``, is reused; with ``resume`` an
+    unfinished one in ``folder`` is continued from its checkpoint."""
     scene = load_scene(SCENES / scene_file, overrides=overrides)
     t0 = time.perf_counter()
     model = build_model(scene)
-    usd = folder / f"{scene.name}.usdc"
-    summary = finished(scene, folder) if resume else None
-    frames = sorted((folder / ".bake").glob("frame_*.npz")) if summary is not None else []
-    if (summary is not None and summary.get("quality") == "final" and len(frames) == len(summary["frames"])
-            and usd.is_file()):
-        seconds = sum(v for v in summary.get("seconds", {}).values() if isinstance(v, (int, float)))
-        return Baked(model, summary, [load_frame(p) for p in frames], usd, float(seconds), True)
+    for earlier in (*reuse, *((folder,) if resume else ())):
+        done = _finished(scene, Path(earlier))
+        if done is not None:
+            summary, frames, usd = done
+            seconds = sum(v for v in summary.get("seconds", {}).values() if isinstance(v, (int, float)))
+            return Baked(model, summary, [load_frame(p) for p in frames], usd, float(seconds), True)
     try:
         summary = bake(scene, folder, resume=resume, model=model)
     except InputError:
@@ -51,7 +51,19 @@ def bake_scene(scene_file: str, overrides: dict, folder: Path, resume: bool = Fa
             raise
         summary = bake(scene, folder, model=model)  # its checkpoint is of another scene: start over
     frames = sorted((folder / ".bake").glob("frame_*.npz"))
-    return Baked(model, summary, [load_frame(p) for p in frames], usd, time.perf_counter() - t0, False)
+    return Baked(model, summary, [load_frame(p) for p in frames], folder / f"{scene.name}.usdc",
+                 time.perf_counter() - t0, False)
+
+
+def _finished(scene, folder: Path) -> tuple[dict, list, Path] | None:
+    """The summary, frame files and USD file of a finished final-quality bake of ``scene`` in
+    ``folder``, else None."""
+    summary = finished(scene, folder)
+    if summary is None or summary.get("quality") != "final":
+        return None
+    frames = sorted((folder / ".bake").glob("frame_*.npz"))
+    usd = folder / f"{scene.name}.usdc"
+    return (summary, frames, usd) if len(frames) == len(summary["frames"]) and usd.is_file() else None
 
 
 def frame_rows(summary: dict) -> list[dict]:

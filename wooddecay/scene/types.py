@@ -188,10 +188,11 @@ class Scene:
 
     @cached_property
     def settle_hash(self) -> str:
-        """:attr:`hash` without the keys the settled rods do not depend on: [time], [export], [climate], [bark] and
+        """:attr:`hash` without the keys the settled rods do not depend on: [time], [export], [climate], [bark],
+        the [[inoculation]]s (they set the fungal activity R_w, R_b, which the rods never see) and
         the scene's name and description (the key of the settled-state cache,
         :mod:`wooddecay.sim.settled`)."""
-        return _digest(self._identity_free(("time", "export", "climate", "bark")))
+        return _digest(self._identity_free(("time", "export", "climate", "bark", "inoculation")))
 
     @cached_property
     def model_hash(self) -> str:
