@@ -19,6 +19,15 @@ settings.register_profile("deterministic", derandomize=True)
 settings.load_profile("deterministic")
 
 
+@pytest.fixture(scope="session", autouse=True)
+def user_cache(tmp_path_factory):
+    """The session's own ``$XDG_CACHE_HOME`` (the Blender add-on renders install, wooddecay.addon),
+    never the user's."""
+    with pytest.MonkeyPatch.context() as m:
+        m.setenv("XDG_CACHE_HOME", str(tmp_path_factory.mktemp("xdg-cache")))
+        yield
+
+
 @pytest.fixture(autouse=True)
 def settle_cache(tmp_path, monkeypatch) -> Path:
     """Each test bakes with its own empty settled-state cache (wooddecay.sim.settled), never the

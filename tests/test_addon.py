@@ -728,6 +728,26 @@ def test_render_source_mesh_through_the_same_cameras(bake, tmp_path):
     assert np.mean(np.abs(pictures[0] - pictures[1])) > 2.0
 
 
+def test_installed_extension_is_built_once_per_add_on_source(tmp_path, monkeypatch):
+    """wooddecay.addon.installed: the user folder renders use, built and installed once per
+    content of the add-on's source (a second call builds nothing), again when a file changes;
+    no half-built folder is left."""
+    import shutil
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    source = tmp_path / "blender_addon"
+    shutil.copytree(ADDON_DIR, source, ignore=shutil.ignore_patterns("__pycache__"))
+    first = addon.installed(source)
+    assert (first / "extensions" / "user_default" / "wooddecay" / "blender_manifest.toml").is_file()
+    with monkeypatch.context() as m:
+        m.setattr(addon, "build", lambda *a, **k: pytest.fail("built again"))
+        assert addon.installed(source) == first
+    (source / "material.py").write_text((source / "material.py").read_text() + "\n# changed\n")
+    other = addon.installed(source)
+    assert other != first and "# changed" in (other / "extensions" / "user_default" / "wooddecay" / "material.py").read_text()
+    assert sorted(p.name.startswith(".build-") for p in (tmp_path / "cache" / "wooddecay" / "addon").iterdir()) == [False, False]
+
+
 @pytest.mark.blender
 def test_render_of_a_file_that_is_no_bake_is_one_line_exit_2(tmp_path):
     """render_bake over a file the add-on cannot read: exit 2, its last line names the file and

@@ -8,6 +8,7 @@ this Python. ``bpy`` is the ``render`` extra (``pip install "wooddecay[render]"`
 from __future__ import annotations
 
 import importlib.util
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -25,10 +26,13 @@ def render_bake(usd, png, frame: int | None = None, options=()) -> str:
     """Render the bake ``usd`` at ``frame`` (default: its last) into ``png`` with the add-on's
     material; ``options``: more of ``blender_bake.py``'s arguments. Returns what the script
     printed; raises RuntimeError with its last lines if it fails."""
+    from ..addon import installed
+
     cmd = [sys.executable, str(BLENDER_BAKE), str(usd), str(png), *map(str, options)]
     if frame is not None:
         cmd += ["--frame", str(frame)]
-    proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    env = dict(os.environ, WOODDECAY_ADDON_USER=str(installed()))  # built once, not per render
+    proc = subprocess.run(cmd, capture_output=True, text=True, check=False, env=env)
     if proc.returncode != 0:
         tail = (proc.stdout + proc.stderr).strip().splitlines()[-3:]
         raise RuntimeError(f"rendering {usd} failed: {' / '.join(tail)}")

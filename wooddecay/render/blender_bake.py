@@ -10,8 +10,9 @@ so usd-core's ``pxr`` must never be imported in this process)::
 
 The add-on is used as Blender users get it: its extension zip is built from ``blender_addon/``
 (``wooddecay.addon.build``, Blender's extension builder) and installed with Blender's
-``extension install-file`` into a throw-away user folder (``BLENDER_USER_RESOURCES``), both in
-a subprocess of this Python (which imports wooddecay, hence usd-core's ``pxr``); this process
+``extension install-file`` into a user folder of wooddecay's cache (``BLENDER_USER_RESOURCES``,
+:func:`wooddecay.addon.installed`: built once per add-on source), both in a subprocess of this
+Python (which imports wooddecay, hence usd-core's ``pxr``); this process
 then enables it and imports the bake through its operator, ``bpy.ops.import_scene.wooddecay``,
 which gives the meshes the "Wood Decay" material (driven by the H_c, H_l, M, wood, ring and
 faceKind attributes). Run inside a Blender binary (``blender -b -P wooddecay/render/blender_bake.py --
@@ -32,10 +33,8 @@ from __future__ import annotations
 
 import importlib
 import os
-import shutil
 import subprocess
 import sys
-import tempfile
 import time
 import traceback
 
@@ -47,11 +46,10 @@ MODULE = "bl_ext.user_default.wooddecay"
 GROUND_COLOR = (0.42, 0.42, 0.40)
 SKY_COLOR = (0.70, 0.72, 0.75)
 
-#: run in a subprocess: build the extension zip into argv[1], install it into the user folder argv[2]
+#: run in a subprocess: print the user folder with the extension installed (built once, cached)
 INSTALL = """\
-import sys
 from wooddecay import addon
-addon.install(addon.build(sys.argv[1]), user_resources=sys.argv[2])
+print(addon.installed())
 """
 
 
@@ -118,14 +116,16 @@ def import_source(bpy, path):
     return obs, np.concatenate(pts) if pts else np.zeros((0, 3))
 
 
-def install_addon(folder):
-    """Build and install the extension into ``folder``/user (a subprocess); returns that user folder."""
-    user = os.path.join(folder, "user")
-    proc = subprocess.run([sys.executable, "-c", INSTALL, os.path.join(folder, "dist"), user],
-                          check=False, capture_output=True, text=True)
+def addon_user_folder():
+    """Blender user resources with the extension installed: ``$WOODDECAY_ADDON_USER`` where the
+    caller passes it (:func:`wooddecay.render.render_bake`), else :func:`wooddecay.addon.installed`
+    in a subprocess (it imports usd-core's ``pxr``)."""
+    if os.environ.get("WOODDECAY_ADDON_USER"):
+        return os.environ["WOODDECAY_ADDON_USER"]
+    proc = subprocess.run([sys.executable, "-c", INSTALL], check=False, capture_output=True, text=True)
     if proc.returncode != 0:
         raise SystemExit(f"render_bake: could not build and install the add-on:\n{(proc.stdout + proc.stderr)[-4000:]}")
-    return user
+    return proc.stdout.strip().splitlines()[-1]
 
 
 def add_ground(bpy, z, size):
@@ -291,14 +291,8 @@ def main(argv=None) -> int:
     args = parse_args(argv)
     t0 = time.perf_counter()
     in_blender = "bpy" in sys.modules  # blender -b -P: Blender is already up, with its own add-ons
-    folder = None
     if not in_blender:
-        folder = tempfile.mkdtemp(prefix="render_bake-")
-        try:
-            os.environ["BLENDER_USER_RESOURCES"] = install_addon(folder)  # read when bpy starts
-        except BaseException:
-            shutil.rmtree(folder, ignore_errors=True)
-            raise
+        os.environ["BLENDER_USER_RESOURCES"] = addon_user_folder()  # read when bpy starts
     enabled = False
     try:
         import bpy
@@ -328,8 +322,6 @@ def main(argv=None) -> int:
     finally:
         if enabled:
             addon_utils.disable(MODULE)
-        if folder:
-            shutil.rmtree(folder, ignore_errors=True)
 
 
 if __name__ == "__main__":
