@@ -131,4 +131,3 @@ def installed(source: Path = SOURCE) -> Path:
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
     return folder / "user"
-
