@@ -23,6 +23,8 @@ import tempfile
 import tomllib
 from pathlib import Path
 
+from .atomic import cache_home
+
 #: the add-on's source folder in a source checkout
 SOURCE = Path(__file__).resolve().parent.parent / "blender_addon"
 MANIFEST = "blender_manifest.toml"
@@ -116,7 +118,7 @@ def installed(source: Path = SOURCE) -> Path:
     digest = hashlib.sha256(importlib.metadata.version("bpy").encode())
     for path in sorted(p for p in source.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
         digest.update(str(path.relative_to(source)).encode() + b"\0" + path.read_bytes() + b"\0")
-    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "wooddecay" / "addon"
+    base = cache_home() / "addon"
     folder = base / digest.hexdigest()[:32]
     if not folder.is_dir():
         base.mkdir(parents=True, exist_ok=True)

@@ -7,6 +7,7 @@ suffix last (USD picks its format from it), flushes it to disk and renames it ov
 :class:`~wooddecay.errors.InputError` naming the file, and removes the temporary file.
 :func:`check_output` validates an output path before any work is done. :func:`read_archive` reads
 back an ``.npz`` of arrays and a JSON ``meta`` (checkpoints, the settled-state cache).
+:func:`cache_home` is wooddecay's folder in the user's cache (the settled states, the add-on).
 """
 from __future__ import annotations
 
@@ -70,3 +71,8 @@ def read_archive(path) -> tuple[dict, dict]:
     if not isinstance(meta, dict):
         raise ValueError(f"{path}: not a readable archive (its meta is no object)")
     return meta, arrays
+
+
+def cache_home() -> Path:
+    """``$XDG_CACHE_HOME/wooddecay`` (``~/.cache/wooddecay`` without the variable)."""
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "wooddecay"

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import read_archive, replace_with
+from ..atomic import cache_home, read_archive, replace_with
 from ..errors import InputError
 from . import bark
 from . import mechanics as mech
@@ -37,8 +37,7 @@ def default_folder() -> Path | None:
     value = os.environ.get(ENV)
     if value is not None:
         return None if value.strip() in ("", "off") else Path(value)
-    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(base) / "wooddecay" / "settled"
+    return cache_home() / "settled"
 
 
 def settle(model, state, folder: Path | None, run=None) -> str:
