@@ -64,6 +64,21 @@ def test_quick_fig6_first_cracks_follow_the_shrinkage(quick):
 
 
 @pytest.mark.slow
+def test_bakes_made_ahead_on_two_processes_are_measured_alike(quick, tmp_path):
+    """Fig. 6's quick sections baked ahead on two one-thread processes (wooddecay.gallery.pool)
+    give the signatures and frame rows of the bakes made in this process, as fresh bakes."""
+    lines = []
+    entry = run_gallery(("fig6",), tmp_path, quick=True, renders=False, log=lines.append, workers=2)["fig6"]
+    assert lines[0] == "baking 3 scenes ahead on 2 processes"
+    same = quick[1]["fig6"]["variants"]
+    for name, v in entry["variants"].items():
+        assert v["signature"] == same[name]["signature"] and v["frames"] == same[name]["frames"]
+        assert not v["reused"] and v["seconds"] > 0.0
+        assert (tmp_path / "fig6" / name / "summary.json").is_file()
+    assert entry["holds"] == quick[1]["fig6"]["holds"]
+
+
+@pytest.mark.slow
 def test_signatures_json_and_page(quick):
     out, result = quick
     on_disk = json.loads((out / "signatures.json").read_text())

@@ -398,15 +398,20 @@ def batch(batch_path: str, out: str | None, scheduler: str | None, workers: int 
 @click.option("--resume", is_flag=True,
               help="Reuse the finished bakes in DIR of variants whose scene is unchanged (same scene hash); "
                    "studies (figs. 17, 18, 20) run again.")
-def gallery(figures: tuple[str, ...], out: str, quick: bool, render: bool, resume: bool) -> None:
+@click.option("--jobs", default="auto", show_default=True, metavar="N|auto",
+              help="Processes that bake the figures' scenes ahead, each on cores // N threads (auto: one per "
+                   "core, as memory allows); 1 bakes each scene when its figure is read.")
+def gallery(figures: tuple[str, ...], out: str, quick: bool, render: bool, resume: bool, jobs: str) -> None:
     """Bake, render and measure the paper's figures (FIG: fig6, fig11, ..., fig19, or 6, 11, ...;
     default all) and write DIR/signatures.json with, per figure, whether its claim holds."""
     from .gallery.run import run_gallery, select
+    from .sim.threads import parse_threads
 
     select(figures)  # a bad name fails before anything is written
+    workers = parse_threads(jobs, "--jobs")
     t0 = time.perf_counter()
     result = run_gallery(figures, out, quick=quick, renders=render, log=lambda m: click.echo(m, err=True),
-                         resume=resume)
+                         resume=resume, workers=workers)
     for key, e in result.items():
         click.echo(f"{key:6s} holds {str(e['holds']).lower():5s} {e['seconds']:7.0f} s  {e['title']}")
     click.echo(f"wrote {Path(out) / 'signatures.json'} in {time.perf_counter() - t0:.0f} s")

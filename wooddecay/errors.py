@@ -32,6 +32,9 @@ class InputError(ValueError):
         self.message = str(message)
         super().__init__(str(self))
 
+    def __reduce__(self):  # pickled with its three parts (a bake in another process raises it)
+        return type(self), (self.file, self.key, self.message)
+
     def __str__(self) -> str:  # one line, always
         text = f"{self.file}: {self.key}: {self.message}" if self.key else f"{self.file}: {self.message}"
         return " ".join(text.split())

@@ -11,6 +11,7 @@ from ..bake import bake, finished, load_frame
 from ..errors import InputError
 from ..model import build_model
 from ..scene import load_scene
+from . import pool
 
 #: the gallery's scenes
 SCENES = Path(__file__).resolve().parent.parent / "samples" / "gallery"
@@ -30,32 +31,42 @@ class Baked(NamedTuple):
     reused: bool
 
 
-def bake_scene(scene_file: str, overrides: dict, folder: Path, resume: bool = False, reuse: tuple = ()) -> Baked:
-    """Bake ``samples/gallery/<scene_file>`` with ``overrides`` into ``folder``. A finished bake
-    of the same scene (:func:`wooddecay.bake.finished`, its frames and USD file there) in one of
-    the folders ``reuse``, or with ``resume`` in ``folder``, is reused; with ``resume`` an
-    unfinished one in ``folder`` is continued from its checkpoint."""
+def bake_scene(scene_file: str, overrides: dict, folder: Path, resume: bool = False, reuse: tuple = (),
+               threads: int | None = None) -> Baked:
+    """Bake ``samples/gallery/<scene_file>`` with ``overrides`` into ``folder`` on ``threads``
+    (:func:`wooddecay.bake.bake`), or take the bake made ahead into ``folder``
+    (:func:`.pool.take`). A finished bake of the same scene (:func:`wooddecay.bake.finished`,
+    its frames and USD file there) in one of the folders ``reuse``, or with ``resume`` in
+    ``folder``, is reused; with ``resume`` an unfinished one in ``folder`` is continued from its
+    checkpoint."""
     scene = load_scene(SCENES / scene_file, overrides=overrides)
+    ahead = pool.take(folder)
     t0 = time.perf_counter()
     model = build_model(scene)
+    if ahead is not None:
+        done = finished_bake(scene, folder)
+        if done is None:
+            raise RuntimeError(f"the bake made ahead into {folder} is not a finished bake of its scene")
+        summary, frames, usd = done
+        return Baked(model, summary, [load_frame(p) for p in frames], usd, ahead, False)
     for earlier in (*reuse, *((folder,) if resume else ())):
-        done = _finished(scene, Path(earlier))
+        done = finished_bake(scene, Path(earlier))
         if done is not None:
             summary, frames, usd = done
             seconds = sum(v for v in summary.get("seconds", {}).values() if isinstance(v, (int, float)))
             return Baked(model, summary, [load_frame(p) for p in frames], usd, float(seconds), True)
     try:
-        summary = bake(scene, folder, resume=resume, model=model)
+        summary = bake(scene, folder, resume=resume, model=model, threads=threads)
     except InputError:
         if not resume:
             raise
-        summary = bake(scene, folder, model=model)  # its checkpoint is of another scene: start over
+        summary = bake(scene, folder, model=model, threads=threads)  # its checkpoint is of another scene: start over
     frames = sorted((folder / ".bake").glob("frame_*.npz"))
     return Baked(model, summary, [load_frame(p) for p in frames], folder / f"{scene.name}.usdc",
                  time.perf_counter() - t0, False)
 
 
-def _finished(scene, folder: Path) -> tuple[dict, list, Path] | None:
+def finished_bake(scene, folder: Path) -> tuple[dict, list, Path] | None:
     """The summary, frame files and USD file of a finished final-quality bake of ``scene`` in
     ``folder``, else None."""
     summary = finished(scene, folder)

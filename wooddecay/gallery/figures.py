@@ -46,6 +46,8 @@ class Figure:
     panels: tuple = (-1,)
     render_options: tuple = ()
     study: Callable | None = None  # (out_dir, quick, renders, log) -> (measured by variant, [chart paths])
+    #: (out_dir, quick) -> the study's bakes that can be made ahead (:mod:`.pool`)
+    study_bakes: Callable | None = None
 
 
 #: Fig. 6's crack orientation is read on the first frame with this many broken connections: later
@@ -187,6 +189,12 @@ def _fig20_study(out, quick, renders, log):
     return sensitivity.run(out, quick, renders, log)
 
 
+def _fig20_bakes(out, quick):
+    from . import sensitivity
+
+    return sensitivity.jobs(out, quick)
+
+
 def _fig20_decide(m):
     from . import sensitivity
 
@@ -326,5 +334,5 @@ FIGURES = {f.key: f for f in (
         ">= 0.985 (last frame); with 2x and 4x sparser strands the last frame's mass loss within "
         "0.05, hollow fraction within 0.1, largest piece within 0.25 and, where the default has "
         "come apart, block purity within 0.2 of the default's",
-        _fig20_decide, study=_fig20_study),
+        _fig20_decide, study=_fig20_study, study_bakes=_fig20_bakes),
 )}

@@ -21,7 +21,9 @@ from pathlib import Path
 from .. import render
 from ..atomic import write_bytes
 from ..errors import InputError
-from .bakes import bake_scene, frame_rows, render_panel
+from ..scene import load_scene
+from . import pool
+from .bakes import SCENES, bake_scene, finished_bake, frame_rows, render_panel
 from .figures import FIGURES, Figure
 
 def select(names) -> list[Figure]:
@@ -40,7 +42,7 @@ def select(names) -> list[Figure]:
 def _bake_variant(fig: Figure, variant, folder: Path, quick: bool, resume: bool, log) -> tuple[dict, list, Path]:
     """Bake one variant into ``folder`` (with ``resume`` reusing a finished bake of the same
     scene there); its measurement, its frames and its USD file."""
-    overrides = {**variant.overrides, **(fig.quick if quick else {})}
+    overrides = _overrides(fig, variant, quick)
     b = bake_scene(variant.scene or fig.scene, overrides, folder, resume)
     measured = {"label": variant.label, "overrides": overrides, "signature": b.summary["frames"][-1]["signature"],
                 "frames": frame_rows(b.summary), "seconds": round(b.seconds, 1), "reused": b.reused}
@@ -49,6 +51,24 @@ def _bake_variant(fig: Figure, variant, folder: Path, quick: bool, resume: bool,
     log(f"  {fig.key}/{variant.name}: {measured['seconds']:.0f} s{' (bake reused)' if b.reused else ''}, "
         f"{_brief(measured['signature'])}")
     return measured, b.frames, b.usd
+
+
+def _overrides(fig: Figure, variant, quick: bool) -> dict:
+    return {**variant.overrides, **(fig.quick if quick else {})}
+
+
+def plan(figures: list[Figure], out: Path, quick: bool, resume: bool) -> list[pool.Job]:
+    """The bakes of ``figures`` into ``out`` in the order they are read: each variant's (those
+    that ``resume`` reuses left out) and the studies' (:attr:`Figure.study_bakes`)."""
+    jobs = []
+    for fig in figures:
+        for v in fig.variants:
+            job = pool.Job(v.scene or fig.scene, _overrides(fig, v, quick), out / fig.key / v.name, resume)
+            if not (resume and finished_bake(load_scene(SCENES / job.scene_file, overrides=job.overrides), job.folder)):
+                jobs.append(job)
+        if fig.study_bakes is not None:
+            jobs += fig.study_bakes(out / fig.key, quick)
+    return jobs
 
 
 def _brief(sig: dict) -> str:
@@ -87,10 +107,12 @@ def run_figure(fig: Figure, out: Path, quick: bool, renders: bool, log=print, re
     return entry
 
 
-def run_gallery(names, out, quick: bool = False, renders: bool = True, log=print, resume: bool = False) -> dict:
+def run_gallery(names, out, quick: bool = False, renders: bool = True, log=print, resume: bool = False,
+                workers: int | None = 1) -> dict:
     """Run the figures ``names`` (all when empty) into ``out``; returns signatures.json's object.
     Figures already in an existing signatures.json are kept unless run again; ``resume``: see
-    :func:`run_figure`."""
+    :func:`run_figure`. ``workers``: processes that make the bakes ahead (:mod:`.pool`; None: one
+    per core), 1: every bake in this process when its figure reads it."""
     figures = select(names)
     out = Path(out)
     if renders and not render.available():
@@ -102,10 +124,15 @@ def run_gallery(names, out, quick: bool = False, renders: bool = True, log=print
         raise InputError(str(out), "", f"cannot create the output folder: {err}") from None
     path = out / "signatures.json"
     result = earlier(path)
-    for fig in figures:
-        result[fig.key] = run_figure(fig, out, quick, renders, log, resume)
-        write_bytes(path, json.dumps(result, indent=1).encode())
-        write_bytes(out / "gallery.md", markdown(result).encode())
+    jobs = plan(figures, out, quick, resume)
+    n = pool.workers_for(jobs, workers)
+    if n > 1:
+        log(f"baking {len(jobs)} scenes ahead on {n} processes")
+    with pool.baking_ahead(jobs, n):
+        for fig in figures:
+            result[fig.key] = run_figure(fig, out, quick, renders, log, resume)
+            write_bytes(path, json.dumps(result, indent=1).encode())
+            write_bytes(out / "gallery.md", markdown(result).encode())
     return result
 
 

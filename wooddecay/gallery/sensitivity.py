@@ -18,6 +18,7 @@ import numpy as np
 from ..scene import load_scene
 from .bakes import SCENES, bake_scene, frame_rows, render_panel
 from .figures import FIGURES, first_cracks
+from .pool import Job
 from .ssim import ssim_png
 
 #: Fig. 12's log and Fig. 14's trunk (their --quick overrides are the figures')
@@ -35,16 +36,12 @@ def run(out: Path, quick: bool, renders: bool, log) -> tuple[dict, list]:
     measured = {}
     for name in STUDIED:
         scene_file = FIGURES[name].scene
-        base = FIGURES[name].quick if quick else {}
         runs, frames, usds, summaries = {}, {}, {}, {}
-        scene = load_scene(SCENES / scene_file, overrides=base)
-        variants = {"dt": {}, "dt_half": {"time.dt_bio": scene.time.dt_bio / 2},
-                    "sparse2": {"strands.r_s": scene.strands.r_s * math.sqrt(2.0)},
-                    "sparse4": {"strands.r_s": scene.strands.r_s * 2.0}}
-        for v, overrides in variants.items():
+        scene = load_scene(SCENES / scene_file, overrides=FIGURES[name].quick if quick else {})
+        for v, overrides in variants(name, quick).items():
             reuse = own_bakes(name, out) if v == "dt" else ()
-            b = bake_scene(scene_file, {**base, **overrides}, out / name / v, reuse=reuse)
-            runs[v] = {"overrides": {**base, **overrides}, "signature": b.summary["frames"][-1]["signature"],
+            b = bake_scene(scene_file, overrides, out / name / v, reuse=reuse)
+            runs[v] = {"overrides": overrides, "signature": b.summary["frames"][-1]["signature"],
                        "seconds": round(b.seconds, 1), "elements": b.summary["counts"]["elements"], "reused": b.reused}
             frames[v], usds[v], summaries[v] = b.frames, b.usd, b.summary
             log(f"  fig20/{name}/{v}: {b.seconds:.0f} s" + (f" ({name}'s own bake)" if b.reused else ""))
@@ -64,6 +61,23 @@ def run(out: Path, quick: bool, renders: bool, log) -> tuple[dict, list]:
     chart = out / "fig20.png"
     plot(measured, chart)
     return measured, [chart]
+
+
+def variants(name: str, quick: bool) -> dict[str, dict]:
+    """The overrides of figure ``name``'s scene for each run of the study: ``dt`` (the default
+    step), ``dt_half``, ``sparse2`` and ``sparse4`` (the figure's --quick ones under ``quick``)."""
+    base = FIGURES[name].quick if quick else {}
+    scene = load_scene(SCENES / FIGURES[name].scene, overrides=base)
+    return {"dt": dict(base), "dt_half": {**base, "time.dt_bio": scene.time.dt_bio / 2},
+            "sparse2": {**base, "strands.r_s": scene.strands.r_s * math.sqrt(2.0)},
+            "sparse4": {**base, "strands.r_s": scene.strands.r_s * 2.0}}
+
+
+def jobs(out: Path, quick: bool) -> list[Job]:
+    """The study's bakes that :mod:`.pool` can make ahead into ``out``: all but the runs at the
+    default step, which are the figures' own bakes (:func:`own_bakes`)."""
+    return [Job(FIGURES[name].scene, overrides, out / name / v)
+            for name in STUDIED for v, overrides in variants(name, quick).items() if v != "dt"]
 
 
 def own_bakes(name: str, out: Path) -> tuple[Path, ...]:
