@@ -10,7 +10,8 @@ interrupted gallery keeps the figures it finished, and so is ``DIR/gallery.md``
 (:func:`markdown`), the page a user reads: per figure the caption, the panels, the statistic and
 whether the claim holds. With ``resume`` a variant whose finished bake of the same scene is in its
 folder is measured and rendered from it, not baked again (``reused``): a gallery stopped
-mid-figure, or re-run to render, bakes only what is missing.
+mid-figure, or re-run to render, bakes only what is missing. The bakes (:func:`plan`) are made
+ahead on a pool of processes (:mod:`.pool`) while the figures are read in order.
 """
 from __future__ import annotations
 
