@@ -8,10 +8,10 @@ biology, bark and coupling between mechanics run on one), so two one-thread bake
 more in the same time (docs/decisions.md, "The gallery's bakes on processes"). A bake is the same
 bits on any thread count (SPEC §4), so the gallery measures what it would measure in one process.
 
-Workers are spawned, not forked (numba's thread pool does not survive a fork). A failed bake
-raises in the figure that reads it; the pool is then terminated and the bakes still running are
-lost, as in a bake that is killed: each writes atomically, and ``--resume`` continues from what
-finished.
+Workers are spawned, not forked: the gallery's process may have started numba's thread pool, and
+a fork copies only the thread that calls it. A failed bake raises in the figure that reads it; the
+pool is then terminated and the bakes still running are lost, as in a bake that is killed: each
+writes atomically, and ``--resume`` continues from what finished.
 """
 from __future__ import annotations
 
