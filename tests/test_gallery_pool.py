@@ -44,3 +44,16 @@ def test_a_bad_bake_ahead_raises_its_one_line_error_where_it_is_read(tmp_path):
             pool.take(bad.folder)
     assert err.value.key == "strands.r_s" and "\n" not in str(err.value)
     assert pool.take(bad.folder) is None and not (tmp_path / "bad").exists()
+
+
+@pytest.mark.parametrize("jobs", ["0", "two", "-1"])
+def test_a_bad_jobs_count_is_one_line_before_anything_is_written(tmp_path, jobs):
+    from click.testing import CliRunner
+
+    from wooddecay.cli import main
+
+    res = CliRunner().invoke(main, ["gallery", "6", "--quick", "--no-render", "--jobs", jobs, "-o", str(tmp_path / "g")])
+    assert res.exit_code == 2
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and "--jobs" in lines[0] and repr(jobs) in lines[0], res.output
+    assert not (tmp_path / "g").exists()
