@@ -316,3 +316,18 @@ def test_tapering_branch_bark_cuts_no_chords():
     radius = np.interp(s, scene.skeleton.positions[:, 0], [p.equivalent_radius for p in scene.skeleton.profiles])
     print(f"cone: bark up to {1e3 * (radius - r).max():.1f} mm inside its circle, {1e3 * (r - radius).max():.1f} mm outside")
     assert (radius - r).max() < scene.strands.r_s
+
+
+def test_twigs_thinner_than_a_strand_get_no_meshlets_and_stop_nothing():
+    """The sample tree at r_s 20 mm: its twigs (radius 18 mm) hold no element (a strand started
+    there ends within its first rod length); the meshlets of the rest build, one per element,
+    each closed, and no NaN comes of the twigs' empty strand packing."""
+    scene = wd.load_scene(SAMPLES / "tree.toml", overrides={"strands.r_s": 0.02, "strands.rod_length": 0.1,
+                                                            "bsp.cells": 100})
+    with np.errstate(all="raise"):
+        model = wd.build_model(scene)
+    per_branch = np.bincount(model.branch, minlength=model.n_branches)
+    assert (per_branch == 0).sum() >= 3 and per_branch.sum() == model.n_elements
+    mesh = build_meshlets(model)
+    assert mesh.count == model.n_elements
+    assert checks.closed_oriented(mesh).all() and (checks.volumes(mesh) > 0).all()

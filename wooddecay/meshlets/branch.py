@@ -265,7 +265,8 @@ def _branch_chain(topo, skel, b: int) -> np.ndarray:
 
 def setup_branch(model, b: int) -> Branch | None:
     """Sections, sites (real, ghosts, far ring) and element bounds of branch ``b`` of ``model``
-    (see the module docstring); None when no strand runs through the branch."""
+    (see the module docstring); None when no element lies in the branch (a twig thinner than
+    a strand holds none: its strands end before it or pass it by as the parent's)."""
     skel, topo, r_s = model.skeleton, model.topology, model.r_s
     chain = _branch_chain(topo, skel, b)
     s_chain = topo.s[chain].astype(float)
@@ -290,6 +291,8 @@ def setup_branch(model, b: int) -> Branch | None:
             rows.append(k)
             e0s.append(mine[0])
             ns.append(len(mine))
+    if not rows:
+        return None
     rows = np.array(rows, dtype=np.int64)
     strands, c0, c1 = strands[rows], c0[rows], c1[rows]
     s0, s1 = model.cp_s[c0], model.cp_s[c1]

@@ -138,8 +138,10 @@ def build_strands(
                 goal = star_map(skel.profiles[p].polygon, prof.polygon, src)
             elif hull is not None:
                 goal = star_map(hull, prof.polygon, src, pad=r_s)
-            else:
+            elif len(src):
                 goal = src - src.mean(axis=0) + prof.centroid
+            else:
+                goal = src
             pts, kept, n_new = pack_profile(prof, goal, cap, r_s, iterations, lattice, rng)
             gone = np.setdiff1d(np.arange(len(ids)), kept)
             if len(gone):
