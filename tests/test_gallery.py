@@ -6,8 +6,8 @@ CI bakes the seven figures whose quick scenes bake within about 1 min each on 2 
 about 3 min in all) and decides six of them; of Fig. 6 it asserts the part that holds, the first
 cracks' orientation per shrinkage ratio: its balanced section spreads the opening of its radial
 cracks all round instead of into a few (docs/gallery.md). Fig. 12's direction is asserted in
-tests/test_gallery_fig12.py. The others are decided by the full gallery and their scenes are
-loaded here: the trees of Figs. 16 and 19 take 10-45 min and the study of Fig. 20 7 min."""
+tests/test_gallery_fig12.py and Figs. 16 and 19 are decided in tests/test_gallery_trees.py. Fig. 20
+is decided by the full gallery (its quick study takes 7 min) and its scenes are loaded here."""
 from __future__ import annotations
 
 import json
