@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import NamedTuple
+from dataclasses import dataclass
+from functools import cached_property
 
 from .. import render
 from ..bake import bake, finished, load_frame
@@ -19,16 +20,24 @@ SCENES = Path(__file__).resolve().parent.parent / "samples" / "gallery"
 PANEL_OPTIONS = ("--width", "480", "--height", "270", "--samples", "12", "--max-kb", "90")
 
 
-class Baked(NamedTuple):
-    """A gallery bake: the model, ``summary.json``, the frames (:func:`wooddecay.bake.load_frame`),
-    the USD path, the seconds it took (of the earlier bake where reused) and whether it was reused."""
+@dataclass
+class Baked:
+    """A gallery bake: its scene, ``summary.json``, the frames (:func:`wooddecay.bake.load_frame`),
+    the USD path, the seconds it took (of the earlier bake where reused) and whether it was reused.
+    Its model is built on first use: a bake made ahead or reused needs one only for a figure's
+    own statistic (the tree figures and the sensitivity study read none; a tree's build is ~11 s)."""
 
-    model: object
+    scene: object
     summary: dict
     frames: list
     usd: Path
     seconds: float
     reused: bool
+    built: object = None  # the model, where the bake built it here
+
+    @cached_property
+    def model(self):
+        return self.built if self.built is not None else build_model(self.scene)
 
 
 def bake_scene(scene_file: str, overrides: dict, folder: Path, resume: bool = False, reuse: tuple = (),
@@ -42,19 +51,19 @@ def bake_scene(scene_file: str, overrides: dict, folder: Path, resume: bool = Fa
     scene = load_scene(SCENES / scene_file, overrides=overrides)
     ahead = pool.take(folder)
     t0 = time.perf_counter()
-    model = build_model(scene)
     if ahead is not None:
         done = finished_bake(scene, folder)
         if done is None:
             raise RuntimeError(f"the bake made ahead into {folder} is not a finished bake of its scene")
         summary, frames, usd = done
-        return Baked(model, summary, [load_frame(p) for p in frames], usd, ahead, False)
+        return Baked(scene, summary, [load_frame(p) for p in frames], usd, ahead, False)
     for earlier in (*reuse, *((folder,) if resume else ())):
         done = finished_bake(scene, Path(earlier))
         if done is not None:
             summary, frames, usd = done
             seconds = sum(v for v in summary.get("seconds", {}).values() if isinstance(v, (int, float)))
-            return Baked(model, summary, [load_frame(p) for p in frames], usd, float(seconds), True)
+            return Baked(scene, summary, [load_frame(p) for p in frames], usd, float(seconds), True)
+    model = build_model(scene)
     try:
         summary = bake(scene, folder, resume=resume, model=model, threads=threads)
     except InputError:
@@ -62,8 +71,8 @@ def bake_scene(scene_file: str, overrides: dict, folder: Path, resume: bool = Fa
             raise
         summary = bake(scene, folder, model=model, threads=threads)  # its checkpoint is of another scene: start over
     frames = sorted((folder / ".bake").glob("frame_*.npz"))
-    return Baked(model, summary, [load_frame(p) for p in frames], folder / f"{scene.name}.usdc",
-                 time.perf_counter() - t0, False)
+    return Baked(scene, summary, [load_frame(p) for p in frames], folder / f"{scene.name}.usdc",
+                 time.perf_counter() - t0, False, model)
 
 
 def finished_bake(scene, folder: Path) -> tuple[dict, list, Path] | None:
