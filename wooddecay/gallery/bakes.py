@@ -3,9 +3,9 @@ study (:mod:`.sensitivity`) share."""
 from __future__ import annotations
 
 import time
-from pathlib import Path
 from dataclasses import dataclass
 from functools import cached_property
+from pathlib import Path
 
 from .. import render
 from ..bake import bake, finished, load_frame
