@@ -249,6 +249,20 @@ def narrow_notes(skel: Skeleton, r_s: float) -> tuple[str, ...]:
     return tuple(notes)
 
 
+def empty_branch_notes(skel: Skeleton, topo, branch: np.ndarray, r_s: float, rod_length: float) -> tuple[str, ...]:
+    """One note naming the branches that hold no rod element (``branch``: each element's), by
+    their first node: twigs thinner than a strand, or whose strands end within a rod length,
+    are left out of the wood (and of the meshlets)."""
+    empty = np.flatnonzero(np.bincount(branch, minlength=topo.n_branches) == 0)
+    if len(empty) == 0:
+        return ()
+    first = [skel.ids[np.flatnonzero(topo.branch == b)[0]] for b in empty]
+    named = ", ".join(first[:5]) + (f" and {len(first) - 5} more" if len(first) > 5 else "")
+    return (f"skeleton: {len(empty)} branch(es) hold no rod element at strands.r_s = {1e3 * r_s:g} mm and "
+            f"rod_length = {1e3 * rod_length:g} mm (from node {named}); they are left out of the wood; a smaller "
+            "strands.r_s or rod_length keeps them",)
+
+
 def _scene_info(scene) -> SceneInfo:
     return SceneInfo(name=str(scene.name), seed=int(scene.seed), hash=scene.hash, settle_hash=scene.settle_hash)
 
@@ -325,6 +339,7 @@ def build_model(scene) -> WoodModel:
         mass = (materials.per_element("rho_dry") * (1.0 + materials.per_element("M_init")) * np.pi * st.r_s**2
                 * geo.rest_length)
         branch = topo.branch[node_b]
+        notes += empty_branch_notes(skel, topo, branch, float(st.r_s), float(st.rod_length))
         root_of = np.arange(len(skel.ids))
         for i in range(len(skel.ids)):  # parents precede children
             if skel.parent[i] >= 0:

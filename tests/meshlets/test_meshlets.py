@@ -321,13 +321,15 @@ def test_tapering_branch_bark_cuts_no_chords():
 def test_twigs_thinner_than_a_strand_get_no_meshlets_and_stop_nothing():
     """The sample tree at r_s 20 mm: its twigs (radius 18 mm) hold no element (a strand started
     there ends within its first rod length); the meshlets of the rest build, one per element,
-    each closed, and no NaN comes of the twigs' empty strand packing."""
+    each closed, no NaN comes of the twigs' empty strand packing, and the model notes the twigs."""
     scene = wd.load_scene(SAMPLES / "tree.toml", overrides={"strands.r_s": 0.02, "strands.rod_length": 0.1,
                                                             "bsp.cells": 100})
     with np.errstate(all="raise"):
         model = wd.build_model(scene)
     per_branch = np.bincount(model.branch, minlength=model.n_branches)
     assert (per_branch == 0).sum() >= 3 and per_branch.sum() == model.n_elements
+    note = next(n for n in model.notes if n.startswith("skeleton:"))
+    assert f"{(per_branch == 0).sum()} branch(es) hold no rod element at strands.r_s = 20 mm" in note
     mesh = build_meshlets(model)
     assert mesh.count == model.n_elements
     assert checks.closed_oriented(mesh).all() and (checks.volumes(mesh) > 0).all()
