@@ -208,12 +208,10 @@ def _fig18_decide(m):
 
 END_VIEW = ("--azimuth", "-150")  # one view onto the x = 0 end face
 #: --quick: the log of Figs. 12-13 and the trees of Figs. 16, 19 with wider strands (log 1.3x,
-#: trees 2.5x, their rods twice as long, their twigs then too thin to hold one) and fewer cells;
-#: Fig. 13 runs 3 of its 5 years (its brown end has 10 loose blocks by then, 1 after 2 years); the
-#: trees take a 4-day biology step (within the 7.6-day bound at that size) so that both tree
-#: figures bake in CI in under 3 min on one thread: at 1.5x wider strands and a 2-day step they
-#: took 10-45 min, at 2.5x and 2 days 106 + 178 s on two threads with Fig. 16's dry tree in bits
-#: of fewer than MIN_PIECE elements (pieces 1 against the wet tree's 1, largest 0.26 against 0.80)
+#: trees 2.5x with rods twice as long: their twigs then hold no wood) and fewer cells, the trees
+#: at a 4-day biology step (within the 7.6-day bound there), so that both tree figures bake in CI
+#: (docs/decisions.md, "Figures as scenes, claims as tests"); Fig. 13 runs 3 of its 5 years (its
+#: brown end has 10 loose blocks by then, 1 after 2 years)
 LOG_QUICK = {"strands.r_s": 0.012, "bsp.cells": 200, "time.frames": 4}
 TREE_QUICK = {"strands.r_s": 0.02, "strands.rod_length": 0.1, "bsp.cells": 100, "time.dt_bio": 4.0}
 
