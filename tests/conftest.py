@@ -19,6 +19,17 @@ settings.register_profile("deterministic", derandomize=True)
 settings.load_profile("deterministic")
 
 
+#: test files whose module fixtures bake for minutes, longest first: they go to the two workers
+#: before everything else (``--no-loadscope-reorder`` keeps pytest-xdist to this order), so that
+#: the short files fill in behind them and both workers finish together
+LONGEST_FIRST = ("test_gallery_fig12.py", "test_gallery.py", "test_gallery_trees.py")
+
+
+def pytest_collection_modifyitems(config, items):
+    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(LONGEST_FIRST)))  # stable: the rest keep their order
+
+
 @pytest.fixture(scope="session", autouse=True)
 def user_cache(tmp_path_factory):
     """The session's own ``$XDG_CACHE_HOME`` (the Blender add-on renders install, wooddecay.addon),
