@@ -10,6 +10,7 @@ import pytest
 from hypothesis import settings
 
 import wooddecay as wd
+from wooddecay.sim import threads
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLES = ROOT / "samples"
@@ -48,12 +49,21 @@ def settle_cache(tmp_path, monkeypatch) -> Path:
     return folder
 
 
+def pytest_configure(config):
+    """Under pytest-xdist (``-n 2`` in pyproject.toml: two workers on CI's two cores) a worker
+    runs on one numba thread and bakes on one (``$WOODDECAY_THREADS``), the gallery's module
+    fixtures included: two workers of two threads each on two cores make every parallel region
+    wait for a descheduled thread, and ``auto`` would time two threads against one every 50 macro
+    steps (docs/decisions.md, "Threads"). Tests of thread-count independence set their counts
+    themselves."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        os.environ[threads.ENV] = "1"
+        numba.set_num_threads(1)
+
+
 @pytest.fixture(autouse=True)
 def one_thread_per_worker():
-    """Under pytest-xdist (``-n 2`` in pyproject.toml: two workers on CI's two cores) each test
-    starts on one numba thread: two workers of two threads each on two cores make every parallel
-    region wait for a descheduled thread (docs/decisions.md, "Threads"). Tests of thread-count
-    independence set their counts themselves."""
+    """Each test starts on the worker's one thread, whatever the test before it set."""
     if os.environ.get("PYTEST_XDIST_WORKER"):
         numba.set_num_threads(1)
 

@@ -209,8 +209,7 @@ def test_identical_arrays_for_1_and_2_threads():
 
 @pytest.mark.slow
 def test_tree_builds_about_50k_elements():
-    scene = wd.load_scene(SAMPLES / "tree.toml")
-    m = wd.build_model(scene)
+    scene, m = sample("tree")
     assert 40_000 <= m.n_elements <= 60_000
     assert m.n_branches >= 10
     assert m.bsp_cells == scene.bsp.cells
@@ -219,15 +218,14 @@ def test_tree_builds_about_50k_elements():
 
 
 def test_bsp_disabled_on_the_tree_has_no_theta():
-    scene = wd.load_scene(SAMPLES / "tree.toml", overrides={"bsp.cells": 0})
+    scene = wd.load_scene(SAMPLES / "tree.toml", overrides={"bsp.cells": 0, "strands.r_s": 0.02, "strands.rod_length": 0.1})
     m = wd.build_model(scene)
     assert m.bsp_cells == 1 and not m.reg_theta.any()
 
 
 @pytest.mark.slow
 def test_weak_points_raised_near_junctions_and_stretched_along_grain():
-    scene = wd.load_scene(SAMPLES / "tree.toml")
-    m = wd.build_model(scene)
+    scene, m = sample("tree")
     skel = scene.skeleton
     forks = np.array([i for i in range(len(skel.ids)) if np.sum(skel.parent == i) > 1])
     d = np.min(np.linalg.norm(m.centers[:, None] - skel.positions[forks][None], axis=-1), axis=1)

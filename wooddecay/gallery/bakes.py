@@ -12,6 +12,7 @@ from ..bake import bake, finished, load_frame
 from ..errors import InputError
 from ..model import build_model
 from ..scene import load_scene
+from ..sim.threads import requested_threads
 from . import pool
 
 #: the gallery's scenes
@@ -43,8 +44,8 @@ class Baked:
 def bake_scene(scene_file: str, overrides: dict, folder: Path, resume: bool = False, reuse: tuple = (),
                threads: int | None = None) -> Baked:
     """Bake ``samples/gallery/<scene_file>`` with ``overrides`` into ``folder`` on ``threads``
-    (:func:`wooddecay.bake.bake`), or take the bake made ahead into ``folder``
-    (:func:`.pool.take`). A finished bake of the same scene (:func:`wooddecay.bake.finished`,
+    (:func:`wooddecay.bake.bake`; None: ``$WOODDECAY_THREADS``, else auto), or take the bake made
+    ahead into ``folder`` (:func:`.pool.take`). A finished bake of the same scene (:func:`wooddecay.bake.finished`,
     its frames and USD file there) in one of the folders ``reuse``, or with ``resume`` in
     ``folder``, is reused; with ``resume`` an unfinished one in ``folder`` is continued from its
     checkpoint."""
@@ -64,6 +65,7 @@ def bake_scene(scene_file: str, overrides: dict, folder: Path, resume: bool = Fa
             seconds = sum(v for v in summary.get("seconds", {}).values() if isinstance(v, (int, float)))
             return Baked(scene, summary, [load_frame(p) for p in frames], usd, float(seconds), True)
     model = build_model(scene)
+    threads = requested_threads(None) if threads is None else threads
     try:
         summary = bake(scene, folder, resume=resume, model=model, threads=threads)
     except InputError:

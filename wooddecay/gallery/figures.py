@@ -163,9 +163,12 @@ def _fig17_study(out, quick, renders, log):
     rel = 0.25 if quick else 0.1
     measured = {}
     for name, decay, guess in (("severe", 0.5, (0.2, 0.4)), ("intermediate", 0.8, (1.0, 3.0))):
-        st = pull.study(scene, model, healthy=(4.0, 8.0), decayed=guess, rel=rel, decay=decay)
-        measured.setdefault("healthy", {"threshold_N": st.healthy.force, "bracket_N": [st.healthy.lo, st.healthy.hi]})
-        measured[name] = {"H": decay, "threshold_N": st.decayed.force, "bracket_N": [st.decayed.lo, st.decayed.hi]}
+        healthy, decayed = pull.pull_cases(scene, model, decay=decay)
+        if not measured:
+            th = pull.threshold(healthy, 4.0, 8.0, rel=rel)
+            measured["healthy"] = {"threshold_N": th.force, "bracket_N": [th.lo, th.hi]}
+        td = pull.threshold(decayed, *guess, rel=rel)
+        measured[name] = {"H": decay, "threshold_N": td.force, "bracket_N": [td.lo, td.hi]}
     return measured, []
 
 
