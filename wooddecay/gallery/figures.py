@@ -210,9 +210,9 @@ def _fig18_decide(m):
 
 
 END_VIEW = ("--azimuth", "-150")  # one view onto the x = 0 end face
-#: --quick: the log of Figs. 11-13 and the trees of Figs. 16, 19 with wider strands (log 1.3x,
-#: trees 2.5x with rods twice as long: their twigs then hold no wood) and fewer cells; the logs
-#: and trees that rot for years at a 4-day biology step (the trees within their 7.6-day bound),
+#: --quick: the log of Figs. 12-13 and the trees of Figs. 16, 19 with wider strands (log 1.3x,
+#: trees 2.5x with rods twice as long: their twigs then hold no wood) and fewer cells; they and
+#: Fig. 14's trunk rot for years at a 4-day biology step (the trees within their 7.6-day bound),
 #: so that they bake in CI (docs/decisions.md, "Figures as scenes, claims as tests"); Fig. 13 runs
 #: 3 of its 5 years (its brown end has 10 loose blocks by then, 1 after 2 years)
 LOG_QUICK = {"strands.r_s": 0.012, "bsp.cells": 200, "time.frames": 4}
