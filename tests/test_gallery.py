@@ -2,13 +2,13 @@
 in CI, the direction of each claim asserted through its ``holds``, one figure rendered through the
 add-on, and the command's errors.
 
-CI bakes the seven figures whose quick scenes bake within about 1 min each on 2 cores (CI_FIGURES,
-about 3 min in all) and decides six of them; of Fig. 6 it asserts the part that holds, the first
+CI bakes the seven figures whose quick scenes bake within about 2 min each (CI_FIGURES, about
+5 min in all on one thread beside the other worker, 2026-11-27) and decides six of them; of Fig. 6 it asserts the part that holds, the first
 cracks' orientation per shrinkage ratio: its balanced section spreads the opening of its radial
 cracks all round instead of into a few (docs/gallery.md). Fig. 12 is decided in
 tests/test_gallery_fig12.py and Figs. 16 and 19 in tests/test_gallery_trees.py. Fig. 20
-is decided by the full gallery and its scenes are loaded here: its quick study bakes for about 19 min
-(the quick log at half the step alone 627 s, 2026-11-27)."""
+is decided by the full gallery and its scenes are loaded here: its quick study bakes for about 11 min
+beside Figs. 12 and 14 (the quick log at half the step alone 358 s, 2026-11-27)."""
 from __future__ import annotations
 
 import json
