@@ -51,11 +51,11 @@ def settle_cache(tmp_path, monkeypatch) -> Path:
 
 def pytest_configure(config):
     """Under pytest-xdist (``-n 2`` in pyproject.toml: two workers on CI's two cores) a worker
-    runs on one numba thread and bakes on one (``$WOODDECAY_THREADS``), the gallery's module
-    fixtures included: two workers of two threads each on two cores make every parallel region
-    wait for a descheduled thread, and ``auto`` would time two threads against one every 50 macro
-    steps (docs/decisions.md, "Threads"). Tests of thread-count independence set their counts
-    themselves."""
+    runs on one numba thread and every bake given no thread count on one (``$WOODDECAY_THREADS``;
+    ``auto`` sizes itself from the threads numba has, not from a test's count): two workers of two
+    threads each on two cores make every parallel region wait for a descheduled thread, and
+    ``auto`` would time two threads against one every 50 macro steps (docs/decisions.md,
+    "Threads"). Tests of thread-count independence set their counts themselves."""
     if os.environ.get("PYTEST_XDIST_WORKER"):
         os.environ[threads.ENV] = "1"
         numba.set_num_threads(1)

@@ -120,6 +120,18 @@ def test_unknown_figure_is_one_line(tmp_path):
     assert not (tmp_path / "g").exists()
 
 
+def test_a_bad_threads_variable_is_one_line_before_anything_is_written(tmp_path, monkeypatch):
+    from click.testing import CliRunner
+
+    from wooddecay.cli import main
+
+    monkeypatch.setenv("WOODDECAY_THREADS", "two")
+    res = CliRunner().invoke(main, ["gallery", "18", "--quick", "--no-render", "--jobs", "1", "-o", str(tmp_path / "g")])
+    assert res.exit_code == 2
+    assert res.output.strip().count("\n") == 0 and "$WOODDECAY_THREADS: must be" in res.output
+    assert not (tmp_path / "g").exists()
+
+
 @pytest.mark.parametrize("earlier", ["[1,", '{"fig6": {"title": "Shrinkage"}}', "[]"])
 def test_a_damaged_signatures_json_is_one_line_before_any_bake(tmp_path, earlier):
     """An -o folder whose signatures.json is not the gallery's: one line naming it, exit 2, the

@@ -2,7 +2,7 @@
 so that it runs beside tests/test_gallery.py): its claim decided on its quick logs. More fungal
 activity from the ground breaks the log into more pieces, with a median block no larger, and
 leaves a lower pile (the mean height of its wood). At quick size the blocks are one BSP cell in
-both logs and their medians all but equal (9.5 and 9 elements, 34 against 31 pieces, 2026-11-27):
+both logs and their medians all but equal (9 against 9.5 elements, 34 against 31 pieces, 2026-11-27):
 that part holds with little margin, as at full size (8 against 8)."""
 from __future__ import annotations
 

@@ -46,7 +46,10 @@ COARSE = {"tree": {"strands.r_s": 0.02, "strands.rod_length": 0.1}}
 
 
 @pytest.mark.parametrize("name", ["tiny", "log", "board", "tree"])
-def test_numba_step_equals_numpy_reference(name):
+def test_numba_step_equals_numpy_reference(name, monkeypatch):
+    """The tree through the parallel kernel (the samples are below its size threshold)."""
+    if name == "tree":
+        monkeypatch.setattr(B, "PARALLEL_MIN_ELEMENTS", 0)
     scene = wd.load_scene(SAMPLES / f"{name}.toml", overrides={**ACTIVE, **COARSE.get(name, {})})
     model = wd.build_model(scene)
     a = _random_state(model, scene, np.random.default_rng(0))

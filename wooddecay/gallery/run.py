@@ -23,6 +23,7 @@ from .. import render
 from ..atomic import write_bytes
 from ..errors import InputError
 from ..scene import load_scene
+from ..sim.threads import requested_threads
 from . import pool
 from .bakes import SCENES, bake_scene, finished_bake, frame_rows, render_panel
 from .figures import FIGURES, Figure
@@ -115,6 +116,7 @@ def run_gallery(names, out, quick: bool = False, renders: bool = True, log=print
     :func:`run_figure`. ``workers``: processes that make the bakes ahead (:mod:`.pool`; None: one
     per core), 1: every bake in this process when its figure reads it."""
     figures = select(names)
+    requested_threads(None)  # a bad $WOODDECAY_THREADS is one line before anything is written
     out = Path(out)
     if renders and not render.available():
         raise InputError("--render", "bpy", 'rendering needs the bpy wheel: pip install "wooddecay[render]" '
