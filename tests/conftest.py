@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 from functools import cache
 from pathlib import Path
 
@@ -103,3 +105,23 @@ def log_model():
 @pytest.fixture(scope="session")
 def board_model():
     return sample("board")[1]
+
+
+def refused_in_one_line(args: list[str], target: Path, process: bool = False) -> str:
+    """``wooddecay ARGS`` exits 2 with one ``error:`` line and writes no ``target``: run through
+    the command in this process, or with ``process`` as a process of its own (what a user runs:
+    no traceback reaches the terminal). Returns the line."""
+    if process:
+        proc = subprocess.run([sys.executable, "-m", "wooddecay.cli", *args], capture_output=True, text=True)
+        code, line = proc.returncode, proc.stderr
+    else:
+        from click.testing import CliRunner
+
+        from wooddecay.cli import main
+
+        res = CliRunner().invoke(main, args)
+        code, line = res.exit_code, res.output
+    assert code == 2, (args, line)
+    assert line.strip().count("\n") == 0 and line.startswith("error:"), (args, line)
+    assert not target.exists(), args
+    return line

@@ -19,6 +19,8 @@ from wooddecay.scene import load_scene
 from wooddecay.strands.mesh_input import load_mesh, surface_distance
 from wooddecay.strands.mesh_skeleton import mesh_skeleton
 
+from .conftest import refused_in_one_line
+
 SAMPLES = Path(__file__).resolve().parent.parent / "wooddecay" / "samples" / "meshes"
 R, LENGTH, PLACE = 0.12, 0.8, np.array([3.0, 2.0, 0.12])
 
@@ -209,16 +211,14 @@ def _bad_corpus(folder: Path) -> dict[str, list[str]]:
 
 
 def test_bad_meshes_are_one_line_and_write_nothing(tmp_path):
+    """Each case through the command in this process, the last also as its own process."""
     corpus = _bad_corpus(tmp_path)
+    target = tmp_path / "out" / "scene.toml"
+    target.parent.mkdir()
     for name, extra in corpus.items():
-        target = tmp_path / "out" / "scene.toml"
-        target.parent.mkdir(exist_ok=True)
-        proc = subprocess.run([sys.executable, "-m", "wooddecay.cli", "init", str(target), "--from-mesh",
-                               str(tmp_path / name.strip()), *extra], capture_output=True, text=True)
-        assert proc.returncode == 2, (name, proc.stdout, proc.stderr)
-        assert proc.stderr.strip().count("\n") == 0 and proc.stderr.startswith("error:"), (name, proc.stderr)
-        assert "Traceback" not in proc.stderr
-        assert not target.exists(), name
+        args = ["init", str(target), "--from-mesh", str(tmp_path / name.strip()), *extra]
+        refused_in_one_line(args, target)
+    refused_in_one_line(args, target, process=True)
     print(f"bad-mesh corpus: {len(corpus)} cases, all exit 2 with one line, nothing written")
 
 
