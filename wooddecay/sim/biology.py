@@ -201,14 +201,16 @@ def _substep_py(h, indptr, indices, weight, volume, tissue, P, wfac, bd, kappa, 
         r = R_w[i]
         f = a * r * (1.0 - r) * sub - p[BETA_W] * C[i] * r
         buf[i] = _clamp(r + h * (f + _lap(i, R_w, kw, indptr, indices, weight, volume)), 0.0, 1.0, clamp, i)
-    R_w[:] = buf
+    for i in nb.prange(n):
+        R_w[i] = buf[i]
     for i in nb.prange(n):  # Eq. 9
         p = P[tissue[i]]
         a = _alpha(p[ALPHA_B], M[i], p[M_MIN], p[M_MAX], p[S_T]) * wfac[i]
         r = R_b[i]
         f = a * r * (1.0 - r) * H_c[i] - p[BETA_B] * C[i] * r
         buf[i] = _clamp(r + h * (f + _lap(i, R_b, kb, indptr, indices, weight, volume)), 0.0, 1.0, clamp, i)
-    R_b[:] = buf
+    for i in nb.prange(n):
+        R_b[i] = buf[i]
     for i in nb.prange(n):  # Eqs. 12, 13 (no transport: pointwise)
         p = P[tissue[i]]
         hc = H_c[i]
@@ -222,7 +224,8 @@ def _substep_py(h, indptr, indices, weight, volume, tissue, P, wfac, bd, kappa, 
         c = C[i]
         f = p[KAPPA] * (R_w[i] + R_b[i]) * H_c[i] * H_l[i] * (1.0 - c) - p[DELTA] * c
         buf[i] = _clamp(c + h * (f + _lap(i, C, kc, indptr, indices, weight, volume)), 0.0, 1.0, clamp, i)
-    C[:] = buf
+    for i in nb.prange(n):
+        C[i] = buf[i]
     for i in nb.prange(n):  # Eq. 20 with the newest health
         p = P[tissue[i]]
         H = (H_l[i] + p[K_H] * H_c[i]) / (1.0 + p[K_H])
@@ -236,7 +239,8 @@ def _substep_py(h, indptr, indices, weight, volume, tissue, P, wfac, bd, kappa, 
         f = (M12[t, 0] - m) * k_in - (m - M12[t, 1]) * k_out
         buf[i] = _clamp(m + h * (f + _lap(i, M, kappa_M, indptr, indices, weight, volume)),
                         box_M[t, 0], box_M[t, 1], clamp, i)
-    M[:] = buf
+    for i in nb.prange(n):
+        M[i] = buf[i]
 
 
 def _build(parallel: bool):

@@ -121,7 +121,7 @@ def transport_frames_numba(offsets, tangent, d1_start):
         o0, o1 = offsets[k], offsets[k + 1]
         if o1 == o0:
             continue
-        d1[o0] = d1_start[k]
+        d1[o0, 0], d1[o0, 1], d1[o0, 2] = d1_start[k, 0], d1_start[k, 1], d1_start[k, 2]
         for e in range(o0 + 1, o1):
             x, y, z = _transport_one(d1[e - 1], tangent[e - 1], tangent[e])
             # re-orthonormalise against round-off drift
