@@ -73,8 +73,10 @@ def warm_numba_cache() -> None:
     """Before the workers start, two processes fill numba's cache with the kernels of a bake,
     half each (tests/numba_warm.py): in a fresh environment both workers compiled all of them at
     once, about 90 s each."""
+    package_root = str(Path(wd.__file__).resolve().parents[1])  # the workers' wooddecay: the checkout's under pytest
     with tempfile.TemporaryDirectory() as cache:
-        env = {**os.environ, threads.ENV: "1", "NUMBA_NUM_THREADS": "1", "WOODDECAY_CACHE": cache}
+        env = {**os.environ, threads.ENV: "1", "NUMBA_NUM_THREADS": "1", "WOODDECAY_CACHE": cache,
+               "PYTHONPATH": os.pathsep.join(filter(None, (package_root, os.environ.get("PYTHONPATH"))))}
         procs = [subprocess.Popen([sys.executable, str(Path(__file__).with_name("numba_warm.py")), part], env=env)
                  for part in numba_warm.PARTS]
         for proc, part in zip(procs, numba_warm.PARTS):

@@ -45,10 +45,10 @@ def bake_scene(scene_file: str, overrides: dict, folder: Path, resume: bool = Fa
                threads: int | None = None) -> Baked:
     """Bake ``samples/gallery/<scene_file>`` with ``overrides`` into ``folder`` on ``threads``
     (:func:`wooddecay.bake.bake`; None: ``$WOODDECAY_THREADS``, else auto), or take the bake made
-    ahead into ``folder`` (:func:`.pool.take`). A finished bake of the same scene (:func:`wooddecay.bake.finished`,
-    its frames and USD file there) in one of the folders ``reuse``, or with ``resume`` in
-    ``folder``, is reused; with ``resume`` an unfinished one in ``folder`` is continued from its
-    checkpoint."""
+    ahead into ``folder`` (:func:`.pool.take`). A finished bake of the same scene
+    (:func:`wooddecay.bake.finished`, its frames and USD file there) in one of the folders
+    ``reuse``, or with ``resume`` in ``folder``, is reused; with ``resume`` an unfinished one in
+    ``folder`` is continued from its checkpoint."""
     scene = load_scene(SCENES / scene_file, overrides=overrides)
     ahead = pool.take(folder)
     t0 = time.perf_counter()
