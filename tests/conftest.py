@@ -4,7 +4,6 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import tempfile
 from functools import cache
 from pathlib import Path
 
@@ -14,8 +13,6 @@ from hypothesis import settings
 
 import wooddecay as wd
 from wooddecay.sim import threads
-
-from . import numba_warm
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLES = ROOT / "samples"
@@ -60,28 +57,10 @@ def pytest_configure(config):
     ``auto`` sizes itself from the threads numba has, not from a test's count): two workers of two
     threads each on two cores make every parallel region wait for a descheduled thread, and
     ``auto`` would time two threads against one every 50 macro steps (docs/decisions.md,
-    "Threads"). Tests of thread-count independence set their counts themselves. The controller
-    first fills numba's cache (:func:`warm_numba_cache`)."""
+    "Threads"). Tests of thread-count independence set their counts themselves."""
     if os.environ.get("PYTEST_XDIST_WORKER"):
         os.environ[threads.ENV] = "1"
         numba.set_num_threads(1)
-    elif getattr(config.option, "numprocesses", None) and not config.option.collectonly:
-        warm_numba_cache()
-
-
-def warm_numba_cache() -> None:
-    """Before the workers start, two processes fill numba's cache with the kernels of a bake,
-    half each (tests/numba_warm.py): in a fresh environment both workers compiled all of them at
-    once, about 90 s each."""
-    package_root = str(Path(wd.__file__).resolve().parents[1])  # the workers' wooddecay: the checkout's under pytest
-    with tempfile.TemporaryDirectory() as cache:
-        env = {**os.environ, threads.ENV: "1", "NUMBA_NUM_THREADS": "1", "WOODDECAY_CACHE": cache,
-               "PYTHONPATH": os.pathsep.join(filter(None, (package_root, os.environ.get("PYTHONPATH"))))}
-        procs = [subprocess.Popen([sys.executable, str(Path(__file__).with_name("numba_warm.py")), part], env=env)
-                 for part in numba_warm.PARTS]
-        for proc, part in zip(procs, numba_warm.PARTS):
-            if proc.wait() != 0:
-                raise pytest.UsageError(f"tests/numba_warm.py {part} failed (exit {proc.returncode})")
 
 
 @pytest.fixture(autouse=True)
