@@ -189,7 +189,9 @@ def _clamp(v, lo, hi, clamp, i):
 def _substep_py(h, indptr, indices, weight, volume, tissue, P, wfac, bd, kappa, M12, box_M, w, k_g,
              R_w, R_b, H_c, H_l, C, M, buf, kappa_M, clamp):
     """One forward-Euler substep of all six fields in the paper's order (module docstring);
-    ``w``: the climate's (w_in, w_out), ``k_g``: w_ground k_ground g per element."""
+    ``w``: the climate's (w_in, w_out), ``k_g``: w_ground k_ground g per element. ``buf`` is
+    copied back element by element: a slice assignment compiles numba's shape-error formatting
+    (docs/decisions.md, "Tests on two workers")."""
     n = len(R_w)
     kw = kappa[:, 0]
     kb = kappa[:, 1]
