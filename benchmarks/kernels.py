@@ -3,6 +3,8 @@
 Prints ``name value unit`` lines for samples/tree.toml (or the scene given):
     reg_pairs_numba_seconds / reg_pairs_reference_seconds / reg_pairs_speedup
     transport_frames_numba_seconds / transport_frames_reference_seconds / transport_frames_speedup
+    components_numba_seconds / components_reference_seconds / components_speedup (medians of 9
+    with their spread, a third of the elements and REG connections failed at random)
     reg_pairs_numba_seconds_threads_<k>  for k = 1 .. numba.config.NUMBA_NUM_THREADS
 Each timing is the best of 3 after a warm-up call.
 """
@@ -13,9 +15,11 @@ from pathlib import Path
 
 import numba
 import numpy as np
-from timing import SAMPLES, best
+from timing import SAMPLES, best, spread, times
 
 import wooddecay as wd
+from wooddecay.sim import failure
+from wooddecay.sim.state import initial_state
 from wooddecay.strands.elements import transport_frames_numba, transport_frames_reference
 from wooddecay.strands.reg import segment_pairs, segment_pairs_reference
 
@@ -45,6 +49,18 @@ def main() -> None:
     print(f"transport_frames_speedup {t_ref / t_nb:.1f} x")
     ok = np.array_equal(segment_pairs(pa, pb, m.strand, radius), segment_pairs_reference(pa, pb, m.strand, radius))
     print(f"reg_pairs_equal_reference {int(ok)} -")
+    ms = initial_state(m, rods=True).mech
+    rng = np.random.default_rng(0)
+    ms.element_ok[rng.random(len(ms.element_ok)) < 1 / 3] = False
+    ms.edge_ok[rng.random(len(ms.edge_ok)) < 1 / 3, 0] = False
+    t_nb = times(lambda: failure.components(m.mech, ms), 9)
+    t_ref = times(lambda: failure.components_reference(m.mech, ms), 9)
+    print(f"components_numba_seconds {np.median(t_nb):.5f} s {spread(t_nb)}")
+    print(f"components_reference_seconds {np.median(t_ref):.5f} s {spread(t_ref)}")
+    ratio = [r / n for r, n in zip(t_ref, t_nb)]
+    print(f"components_speedup {np.median(ratio):.1f} x {spread(ratio)}")
+    ok = np.array_equal(failure.components(m.mech, ms), failure.components_reference(m.mech, ms))
+    print(f"components_equal_reference {int(ok)} -")
 
 
 if __name__ == "__main__":

@@ -29,6 +29,22 @@ def test_failure_flags_are_permanent_and_components_split():
     assert np.all(~ms.edge_ok[broken])
 
 
+@pytest.mark.parametrize("fraction", [0.0, 0.3, 0.7, 1.0])
+def test_components_equal_scipy_reference(fraction):
+    """The union-find labels equal scipy's connected components, label for label, with a
+    fraction of the elements and REG connections failed at random (0: one piece; 1: every
+    element alone but for its strand links)."""
+    setup, ms = perturbed(seed=3)
+    rng = np.random.default_rng(int(10 * fraction))
+    ms.element_ok[rng.random(len(ms.element_ok)) < fraction] = False
+    ms.edge_ok[rng.random(len(ms.edge_ok)) < fraction, 0] = False
+    label = failure.components(setup, ms)
+    np.testing.assert_array_equal(label, failure.components_reference(setup, ms))
+    assert label.dtype == np.int64
+    if fraction in (0.0, 1.0):
+        assert (label.max() > 0) == (fraction == 1.0)
+
+
 def test_pair_strains_and_flags_equal_numpy_reference():
     """failure.pair_strains against its numpy twin; the fused flagging (which skips the atan2
     where a bound keeps an edge below its limit) flags exactly the edges whose strain beyond the
