@@ -192,27 +192,27 @@ def _root(parent, i):
 
 
 @nb.njit(cache=True)
+def _union(parent, a, b):
+    """Join the trees of ``a`` and ``b`` under the smaller root, so a root is its component's
+    smallest element."""
+    ra, rb = _root(parent, a), _root(parent, b)
+    parent[max(ra, rb)] = min(ra, rb)
+
+
+@nb.njit(cache=True)
 def _components(n, joints, element_ok, edges, edge_ok):
     """:func:`components` by union-find over the strand links (joints whose first element is
     intact) and the intact REG connections, then labels in order of each component's smallest
-    element (serial: one pass, no allocation per edge). Not scipy's search
+    element (serial, no allocation per link). Not scipy's search
     (:func:`components_reference`): its sparse matrix cost 2 ms a call on the Fig. 12 log, 4% of
     its bake (docs/decisions.md, "Components by union-find")."""
     parent = np.arange(n)
-    for k in range(len(joints) + len(edges)):
-        if k < len(joints):
-            if not element_ok[joints[k, 0]]:
-                continue
-            a, b = joints[k, 0], joints[k, 1]
-        else:
-            if not edge_ok[k - len(joints), 0]:
-                continue
-            a, b = edges[k - len(joints), 0], edges[k - len(joints), 1]
-        ra, rb = _root(parent, a), _root(parent, b)
-        if ra < rb:
-            parent[rb] = ra
-        elif rb < ra:
-            parent[ra] = rb
+    for k in range(len(joints)):
+        if element_ok[joints[k, 0]]:
+            _union(parent, joints[k, 0], joints[k, 1])
+    for k in range(len(edges)):
+        if edge_ok[k, 0]:
+            _union(parent, edges[k, 0], edges[k, 1])
     label = np.full(n, -1, dtype=np.int64)
     count = 0
     for i in range(n):
