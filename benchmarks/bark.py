@@ -2,8 +2,9 @@
 the growth cracks at day 0, one biology step of a drying log (dt_bio days) with and without the
 bark step after it (its cracks growing), the export's crack fields and grooves of one frame, and
 the crack kernels against their numpy references in the same run: the shadows of 600 crack edges
-(face grid against KD-tree), the separation tensors of every vertex and the split of the first
-branch's bark into 16 plates (farthest-point sites), with the ratio per pair.
+(face grid against KD-tree), the separation tensors of every vertex, the eigenpairs of every
+face's tensor and the split of the first branch's bark into 16 plates (farthest-point sites), with
+the ratio per pair.
 
     python benchmarks/bark.py [REPEAT] [SCENE]      (default 5, samples/log.toml)
 
@@ -67,6 +68,7 @@ def main() -> None:
                              lambda: cracks.cast_shadows_reference(sheet, st, new, 0.02)),
                             ("separation", lambda: cracks.separation(sheet, plus),
                              lambda: cracks.separation_reference(sheet, plus)),
+                            ("eig2", lambda: cracks.eig2(plus), lambda: cracks.eig2_reference(plus)),
                             ("partition", lambda: shedding.partition(sheet, faces, 16),
                              lambda: shedding.partition_reference(sheet, faces, 16))):
         fast()

@@ -75,6 +75,25 @@ def test_shadows_from_the_grid_equal_the_kd_tree_reference(scene):
     assert len(cracks.cast_shadows(sheet, a, np.zeros(0, dtype=np.int64), 0.02)) == 0
 
 
+def test_eig2_equals_its_numpy_reference():
+    """The numba eigenpairs are numpy's: the eigenvalues to the bit, the eigenvectors within
+    rounding (both take libm's atan2, cos and sin here; numpy may vectorise them elsewhere), on
+    random tensors, isotropic ones, zeros of either sign and a wide range of magnitudes."""
+    rng = np.random.default_rng(5)
+    T = rng.normal(size=(6000, 3)) * 10.0 ** rng.integers(-8, 4, size=(6000, 1))
+    T[::5, 2] = 0.0
+    T[1::5, 1] = T[1::5, 0]
+    T[2::5] = 0.0
+    T[3::5] = -0.0
+    T[4::10, 2] = -0.0
+    l1, l2, e = cracks.eig2(T)
+    r1, r2, re = cracks.eig2_reference(T)
+    np.testing.assert_array_equal(l1, r1)
+    np.testing.assert_array_equal(l2, r2)
+    np.testing.assert_allclose(e, re, rtol=0.0, atol=4e-16)
+    np.testing.assert_allclose(np.hypot(e[:, 0], e[:, 1]), 1.0, rtol=0.0, atol=4e-16)
+
+
 def test_relieved_and_tensile_equal_their_numpy_references():
     """The numba products give numpy's bits, signed zeros included."""
     rng = np.random.default_rng(4)

@@ -68,12 +68,33 @@ def loading(sheet, eps: np.ndarray) -> np.ndarray:
 
 def eig2(T: np.ndarray):
     """Eigenvalues (larger, smaller) and the unit eigenvector of the larger of symmetric 2x2
-    tensors given as (N, 3) rows (tt, ll, tl)."""
+    tensors given as (N, 3) rows (tt, ll, tl): mean +- hypot((tt - ll) / 2, tl) and the angle
+    atan2(2 tl, tt - ll) / 2, one tensor per iteration (:func:`eig2_reference` is its numpy
+    twin: numpy's three transcendental passes and their temporaries were 16 ms a call on the tree's
+    sheet, 8% of its bake, docs/decisions.md "Bark eigenpairs in numba")."""
+    T = np.ascontiguousarray(T, dtype=np.float64)
+    l1, l2, e = np.empty(len(T)), np.empty(len(T)), np.empty((len(T), 2))
+    _eig2(T, l1, l2, e)
+    return l1, l2, e
+
+
+@nb.njit(parallel=True, cache=True)
+def _eig2(T, l1, l2, e):
+    """:func:`eig2` into ``l1``, ``l2``, ``e``."""
+    for i in nb.prange(len(T)):
+        a, d, b = T[i, 0], T[i, 1], T[i, 2]
+        mean, half = 0.5 * (a + d), math.hypot(0.5 * (a - d), b)
+        l1[i], l2[i] = mean + half, mean - half
+        theta = 0.5 * math.atan2(2.0 * b, a - d)
+        e[i, 0], e[i, 1] = math.cos(theta), math.sin(theta)
+
+
+def eig2_reference(T: np.ndarray):
+    """Plain-numpy :func:`eig2`."""
     a, d, b = T[:, 0], T[:, 1], T[:, 2]
     mean, half = 0.5 * (a + d), np.hypot(0.5 * (a - d), b)
-    l1, l2 = mean + half, mean - half
     theta = 0.5 * np.arctan2(2.0 * b, a - d)
-    return l1, l2, np.stack([np.cos(theta), np.sin(theta)], 1)
+    return mean + half, mean - half, np.stack([np.cos(theta), np.sin(theta)], 1)
 
 
 def _from_eig(l1, l2, e):
@@ -90,8 +111,8 @@ def _mul(A, B):
 
 def relieved(sigma_inf: np.ndarray, shadow: np.ndarray) -> np.ndarray:
     """sigma = Pi sigma_inf Pi, Pi = I - clip(S, 0, 1) (module docstring). The eigenpairs come
-    from :func:`eig2` (numpy's transcendentals), the products from a numba kernel in
-    :func:`relieved_reference`'s order: the same bits without its (N, 4) temporaries."""
+    from :func:`eig2`, the products from a numba kernel in :func:`relieved_reference`'s order:
+    the same bits without its (N, 4) temporaries."""
     l1, l2, e = eig2(shadow)
     out = np.empty((len(l1), 3))
     _relieved(l1, l2, e, sigma_inf, out)
