@@ -51,11 +51,7 @@ def run(out: Path, quick: bool, renders: bool, log) -> tuple[dict, list]:
         if renders:
             last = len(frames["dt"]) - 1
             for state, k in (("cracking", first_cracks(frame_rows(summaries["dt"]))), ("degraded", last)):
-                pngs = [out / name / f"{v}_{state}.png" for v in ("dt", "dt_half")]
-                box = fit_box([frames[v][k] for v in ("dt", "dt_half")], 2.0 * scene.strands.r_s)
-                for v, png in zip(("dt", "dt_half"), pngs):
-                    render_panel(usds[v], png, frames[v][k].index, (*SSIM_OPTIONS, "--fit-box", *box))
-                entry[f"ssim_{state}"] = ssim_png(*pngs)
+                entry[f"ssim_{state}"] = ssim_at(frames, usds, k, out / name, state, 2.0 * scene.strands.r_s)
                 entry[f"{state}_frame"] = int(frames["dt"][k].index)
         measured[name] = entry
     chart = out / "fig20.png"
@@ -86,6 +82,17 @@ def own_bakes(name: str, out: Path) -> tuple[Path, ...]:
     is that bake, so a gallery that made it does not bake it again."""
     fig = FIGURES[name]
     return tuple(out.parent / name / v.name for v in fig.variants if not v.overrides and v.scene in (None, fig.scene))
+
+
+def ssim_at(frames: dict, usds: dict, k: int, folder: Path, state: str, pad: float) -> float:
+    """SSIM of frame ``k`` of the ``dt`` and ``dt_half`` runs (their frames and USD files, keyed
+    so), rendered alike into ``folder/<run>_<state>.png`` through one camera fitted to both
+    (:func:`fit_box`, ``pad`` m wider)."""
+    pngs = [folder / f"{v}_{state}.png" for v in ("dt", "dt_half")]
+    box = fit_box([frames[v][k] for v in ("dt", "dt_half")], pad)
+    for v, png in zip(("dt", "dt_half"), pngs):
+        render_panel(usds[v], png, frames[v][k].index, (*SSIM_OPTIONS, "--fit-box", *box))
+    return ssim_png(*pngs)
 
 
 def fit_box(frames, pad: float) -> list[str]:
