@@ -5,7 +5,7 @@ on the same thread count (wooddecay.studies.schedule).
 
 Runs each scene N times with the fixed and N times with the adaptive schedule, alternating, from
 one settled state, and prints every run (wall time of the simulation after settling, seconds of
-mechanics after settling, chunks of substeps, solves, broken REG connections) and the lines
+mechanics after settling, chunks of N_mech substeps, solves, broken REG connections) and the lines
     adaptive_speedup <v> x                      fixed wall / adaptive wall, median over the pairs
     adaptive_max_position_error <v> m           largest particle position difference at the end
     adaptive_broken_ratio <v> -                 adaptive / fixed broken connections (1 when both 0)

@@ -156,7 +156,7 @@ class Simulation:
 
     def schedule_summary(self) -> dict:
         """The schedule and, over the macro steps run so far (``history``), how many ran
-        mechanics, the chunks of substeps, the seconds of mechanics and the solves by
+        mechanics, the chunks of N_mech substeps, the seconds of mechanics and the solves by
         reason (:func:`schedule.due`), and whether the rods settled or came from the cache."""
         steps = [h["mechanics"] for h in self.history[1:] if "chunks" in h.get("mechanics", {})]
         reasons: dict[str, int] = {}

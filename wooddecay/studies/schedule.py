@@ -5,7 +5,7 @@ settings scaled by :data:`FACTORS`, in one process on the same thread count.
 Every run starts from one settled state (settled once, then read from a settled-state cache:
 :mod:`wooddecay.sim.settled`, the same bits), so the runs differ by their schedule alone. Per run:
 the wall time of the simulation after settling (the model built beforehand and the kernels
-compiled by a warm-up), the seconds of mechanics simulated, the solves and chunks of
+compiled by a warm-up), the seconds of mechanics simulated, the solves and chunks of N_mech
 substeps the schedule ran, the broken REG connections at the end, and against the fixed run the
 largest particle position difference at the end (the meshlet vertices are skinned to the
 particles). Used by ``benchmarks/schedule.py`` and ``wooddecay chart schedule``.
