@@ -2,8 +2,9 @@
 its own so that it runs beside the other gallery files): both claims decided on the quick trees,
 the sample tree's skeleton and Fig. 19's two others with strands 2.5x wider and twice as long and
 a biology step of 4 days (figures.TREE_QUICK). Their twigs, thinner than a strand, hold no wood
-there. The drier tree breaks into more pieces with a smaller largest one, both trees hollow, and
-each of the three trees loses mass, hollows and falls apart over its years."""
+there. The drier tree breaks over twice as many connections and keeps a smaller largest piece,
+both trees hollow, and each of the three trees loses mass, hollows and falls apart over its
+years."""
 from __future__ import annotations
 
 import json

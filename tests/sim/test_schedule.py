@@ -117,12 +117,39 @@ def test_drying_cracks_as_many_connections_as_the_fixed_schedule():
         sim = tiny(**{**DRYING, "time.days": 24.0, "time.schedule": kind, "mechanics.S_R": 1.0,
                       "mechanics.S_T": 1.0})
         list(sim.run())
-        out[kind] = np.count_nonzero(~sim.state.mech.edge_ok[:, 0]), sim.schedule_summary()["chunks"]
+        summary = sim.schedule_summary()
+        out[kind] = np.count_nonzero(~sim.state.mech.edge_ok[:, 0]), summary["mechanics_seconds"]
     print(out)
-    (fixed, fixed_chunks), (adaptive, chunks) = out["fixed"], out["adaptive"]
+    (fixed, fixed_seconds), (adaptive, seconds) = out["fixed"], out["adaptive"]
     assert fixed > 50
     assert abs(adaptive - fixed) <= 0.15 * fixed
-    assert chunks < 0.25 * fixed_chunks * 20  # 20 chunks: max_mechanics
+    assert seconds < 0.25 * fixed_seconds * 20  # 20 fixed macro steps: max_mechanics
+
+
+def test_a_relaxing_chunk_is_the_shortest_that_sees_a_released_piece_fall():
+    """12 substeps at the defaults, and a solve of wood at rest for changed rest data runs one
+    such chunk; for any gravity, step and rest_speed a piece released from rest ends one faster
+    than rest_speed (g T > rest_speed) and one substep less would not see it, unless N_mech caps
+    the chunk; N_mech without gravity."""
+    sim = tiny()
+    model, ms = sim.model, sim.state.mech
+    assert schedule.relax_substeps(model) == 12
+    t0 = ms.t_seconds
+    assert schedule.solve(model, sim.state, model.time.tolerances, "strain") == 1 and ms.quiet[0]
+    assert ms.t_seconds - t0 == pytest.approx(12 * model.mech.dt)
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        g, dt, v = rng.uniform(0.1, 30.0), 10 ** rng.uniform(-6, -2), 10 ** rng.uniform(-4, 0)
+        m = replace(model, mech=replace(model.mech, gravity=np.array([0.0, 0.0, -g]), dt=dt),
+                    time=replace(model.time, tolerances=replace(model.time.tolerances, rest_speed=v)))
+        n = schedule.relax_substeps(m)
+        assert 1 <= n <= model.time.N_mech
+        if n < model.time.N_mech:
+            assert g * n * dt > v
+        if n > 1:
+            assert g * (n - 1) * dt < schedule.CHUNK_MARGIN * v
+    still = replace(model, mech=replace(model.mech, gravity=np.zeros(3)))
+    assert schedule.relax_substeps(still) == model.time.N_mech
 
 
 def test_resumed_adaptive_run_is_bit_identical(tmp_path):

@@ -230,7 +230,7 @@ _SCHEMA: dict[str, list[tuple]] = {
         ("schedule", "adaptive", "", "", "'adaptive': mechanics runs only when the rest data, integrity, masses or loads changed past the tolerances below or something fails, and then until the wood is quiet (sim/schedule.py); 'fixed': N_mech substeps every macro step (Algorithm 1).", "enum:adaptive|fixed"),
         ("strain_tolerance", 1e-4, "", "(0, 1]", "Adaptive schedule: a rest length or REG offset strain change since the last mechanics solve that triggers one."),
         ("tolerance", 0.02, "", "(0, 1]", "Adaptive schedule: an integrity I_ij change, or a relative element mass change, since the last mechanics solve that triggers one."),
-        ("rest_speed", 0.01, "m/s", "(0, 10]", "Adaptive schedule: mechanics goes on in chunks of N_mech substeps until a chunk splits no piece and no piece's centre of mass moved faster than this, on average or at its end (a piece falling from rest is at g N_mech dt_mech = 2.5 cm/s after one chunk)."),
+        ("rest_speed", 0.01, "m/s", "(0, 10]", "Adaptive schedule: mechanics goes on in chunks of N_mech substeps until a chunk splits no piece and no piece's centre of mass moved faster than this, on average or at its end; the first chunk of a solve that relaxes changed rest data is the fewest substeps that bring a piece falling from rest to 1.15x this speed (12 at the defaults, sim/schedule.py)."),
         ("max_mechanics", 0.05, "s", "(0, 1000]", "Adaptive schedule: most seconds of mechanics in one macro step; a piece still moving goes on in the next (0.05 s: 1.5 s of mechanics between the frames of a year of 24 frames at dt_bio 0.5 day)."),
     ],
     "bark": [

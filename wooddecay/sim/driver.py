@@ -152,7 +152,7 @@ class Simulation:
             schedule.mark(model, state.mech, state.t_days, quiet=True)
             return {"chunks": 1, "due": "fixed"}
         due = schedule.due(model, state, time.tolerances)
-        return {"chunks": 0 if due is None else schedule.solve(model, state, time.tolerances), "due": due}
+        return {"chunks": 0 if due is None else schedule.solve(model, state, time.tolerances, due), "due": due}
 
     def schedule_summary(self) -> dict:
         """The schedule and, over the macro steps run so far (``history``), how many ran

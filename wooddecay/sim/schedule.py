@@ -24,13 +24,14 @@ Rule, at the start of every macro step (:func:`due`), mechanics runs when, since
   it; decay separates BSP cells (``mechanics.I_fail``). A failure inside a piece is kept but
   starts no solve: the piece moves only once it splits or its rest data moved past the
   tolerances (a decaying log fails some connections on most macro steps, and solving each
-  cost a chunk of N_mech substeps per step).
+  cost a chunk per step).
 
 A solve (:func:`solve`) runs chunks of N_mech substeps (:func:`mechanics.macro_step`, sleeping
-included) until a chunk ends that split no piece and in which no piece is moving
+included), the first only :func:`relax_substeps` long when it relaxes rest data of wood at rest
+(reasons ``RELAX``), until a chunk ends that split no piece and in which no piece is moving
 (:func:`moving`): none whose centre of mass, faster than ``time.rest_speed`` on average or at its
-end, is gaining speed (a piece released from rest falls g T^2 / 2 in a chunk of T = 2.5 ms, a mean
-of 1.2 cm/s, but ends it at 2.5 cm/s) or carries a kinetic energy share m_piece / m_wood v^2 above
+end, is gaining speed (a piece released from rest falls g T^2 / 2 in a chunk of T, a mean speed of
+g T / 2, and ends it at g T, which the chunk's length T puts above rest_speed) or carries a kinetic energy share m_piece / m_wood v^2 above
 rest_speed^2 (a block that landed and rolls on at a few cm/s does not keep the solve going: it
 held the collapsing log's solves at their cap), or ``time.max_mechanics`` seconds have run. Pieces, not particles: single elements next to a
 crack swing in place at ~8e-2 m/s (docs/decisions.md, "Open points") and kept every solve of a
@@ -46,6 +47,7 @@ The reference rest data and the quiet flag live in the :class:`~wooddecay.sim.me
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,6 +55,11 @@ import numpy as np
 from . import failure, sleep
 from . import mechanics as mech
 from .signature import MIN_PIECE
+
+#: a relaxing chunk brings a piece released from rest to this many times rest_speed (:func:`relax_substeps`)
+CHUNK_MARGIN = 1.15
+#: the reasons of :func:`due` that ask wood at rest to relax changed rest data
+RELAX = ("strain", "integrity_mass")
 
 
 @dataclass(frozen=True)
@@ -159,17 +166,36 @@ def moving(setup: mech.MechSetup, ms: mech.MechState, x0: np.ndarray, seconds: f
     return bool(np.any((v > rest_speed) & ((v_now > v_mean) | (share * v * v > rest_speed * rest_speed))))
 
 
-def solve(model, state, tol: Tolerances) -> int:
-    """Chunks of N_mech substeps until the wood is quiet or ``tol.max_seconds`` have run (module
+def relax_substeps(model) -> int:
+    """Substeps of ``mechanics.dt_mech`` in the first chunk of a solve that relaxes rest data
+    (``RELAX``): the fewest in which a piece released from rest reaches ``CHUNK_MARGIN``
+    rest_speed (g T), so that :func:`moving` sees it fall, and at most N_mech (N_mech without
+    gravity). 12 at the defaults (1.2 ms, 1.18 cm/s). Why: on the quiet steps of a drying year a
+    solve is one chunk, and a shorter one relaxes the same rest data; a solve that goes on, or
+    one for a failure, a load or wood still moving, runs chunks of N_mech, since shorter ones
+    end a collapse's solves sooner with its pieces moving less (docs/decisions.md, "Adaptive
+    schedule")."""
+    g = float(np.linalg.norm(model.mech.gravity))
+    n = int(model.time.N_mech)
+    if g <= 0.0:
+        return n
+    return min(n, max(1, math.ceil(CHUNK_MARGIN * model.time.tolerances.rest_speed / (g * model.mech.dt))))
+
+
+def solve(model, state, tol: Tolerances, reason: str | None = None) -> int:
+    """Chunks of N_mech substeps, the first :func:`relax_substeps` long when ``reason`` (from
+    :func:`due`) is in ``RELAX``, until the wood is quiet or ``tol.max_seconds`` have run (module
     docstring); marks the result as solved. Returns the number of chunks."""
-    ms, n_sub = state.mech, model.time.N_mech
-    chunk_seconds = n_sub * model.mech.dt
-    chunks, quiet = 0, False
-    while not quiet and chunks * chunk_seconds < tol.max_seconds - 1e-12:
+    ms, dt = state.mech, model.mech.dt
+    n_sub = relax_substeps(model) if reason in RELAX else model.time.N_mech
+    chunks, substeps, quiet = 0, 0, False
+    while not quiet and substeps * dt < tol.max_seconds - 1e-12:
         x0 = ms.x.copy()
         pieces = big_pieces(ms)
         mech.macro_step(model, state, n_sub)
         chunks += 1
-        quiet = big_pieces(ms) == pieces and not moving(model.mech, ms, x0, chunk_seconds, tol.rest_speed)
+        substeps += n_sub
+        quiet = big_pieces(ms) == pieces and not moving(model.mech, ms, x0, n_sub * dt, tol.rest_speed)
+        n_sub = model.time.N_mech
     mark(model, ms, state.t_days, quiet)
     return chunks
