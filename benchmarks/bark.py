@@ -3,8 +3,8 @@ the growth cracks at day 0, one biology step of a drying log (dt_bio days) with 
 bark step after it (its cracks growing), the export's crack fields and grooves of one frame, and
 the crack kernels against their numpy references in the same run: the shadows of 600 crack edges
 (face grid against KD-tree), the separation tensors of every vertex, the eigenpairs of every
-face's tensor and the split of the first branch's bark into 16 plates (farthest-point sites), with
-the ratio per pair.
+face's tensor, the split of the first branch's bark into 16 plates (farthest-point sites) and the
+plates of the dried bark's cracks (union-find against scipy's components), with the ratio per pair.
 
     python benchmarks/bark.py [REPEAT] [SCENE]      (default 5, samples/log.toml)
 
@@ -64,13 +64,16 @@ def main() -> None:
     st = cracks.CrackState.empty(sheet)
     plus = rng.normal(size=(sheet.n_faces, 3))
     faces = np.flatnonzero(sheet.face_branch == 0)  # one plate over the first branch, in 16 pieces
+    cut = rng.random(sheet.n_faces) < 0.01  # plates of the dried bark's cracks with 1% of the faces shed
     for name, fast, ref in (("shadows", lambda: cracks.cast_shadows(sheet, st, new, 0.02),
                              lambda: cracks.cast_shadows_reference(sheet, st, new, 0.02)),
                             ("separation", lambda: cracks.separation(sheet, plus),
                              lambda: cracks.separation_reference(sheet, plus)),
                             ("eig2", lambda: cracks.eig2(plus), lambda: cracks.eig2_reference(plus)),
                             ("partition", lambda: shedding.partition(sheet, faces, 16),
-                             lambda: shedding.partition_reference(sheet, faces, 16))):
+                             lambda: shedding.partition_reference(sheet, faces, 16)),
+                            ("plates", lambda: shedding.plates(sheet, state.bark.crack.cracked, cut),
+                             lambda: shedding.plates_reference(sheet, state.bark.crack.cracked, cut))):
         fast()
         pairs = [(times(fast, 1)[0], times(ref, 1)[0]) for _ in range(repeat)]
         a, b = [p[0] for p in pairs], [p[1] for p in pairs]

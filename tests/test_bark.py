@@ -252,6 +252,21 @@ def test_plates_shed_and_come_loose(tiny_bark):
     assert not (link_cut & link_cut[e0] & (e0 != e)).any()
 
 
+def test_plates_are_scipys_components(tiny_bark):
+    """The union-find kernel labels the plates as scipy's components on the face graph, for the
+    grown cracks and for random cracks and shed faces (shed faces numbered as isolated ones)."""
+    sheet = tiny_bark.bark
+    st = cracks.CrackState.empty(sheet)
+    _load(sheet, st, np.full(sheet.n_faces, 0.1))
+    rng = np.random.default_rng(5)
+    cases = [(st.cracked, np.zeros(sheet.n_faces, dtype=bool))]
+    cases += [(rng.random(len(sheet.edges)) < p, rng.random(sheet.n_faces) < p) for p in (0.02, 0.1, 0.3)]
+    for cracked, shed in cases:
+        label = shedding.plates(sheet, cracked, shed)
+        np.testing.assert_array_equal(label, shedding.plates_reference(sheet, cracked, shed))
+        assert (label[shed] == -1).all() and len(np.unique(label[~shed])) > 1
+
+
 def test_partition_spreads_plates_along_the_grain(tiny_bark):
     sheet = tiny_bark.bark
     faces = np.arange(sheet.n_faces)

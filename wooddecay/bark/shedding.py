@@ -22,6 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from ..unionfind import labels, union
 from .cracks import crack_degree
 
 DAYS_PER_YEAR = 365.25
@@ -47,7 +48,35 @@ def weaken(bond: np.ndarray, rate: float, dt_days: float, H_c: np.ndarray, H_l: 
 def plates(sheet, cracked: np.ndarray, shed: np.ndarray) -> np.ndarray:
     """(F,) plate label of every face still on, -1 shed: faces connected across edges that no crack
     cuts and that do not bridge two crack vertices (a gap of one edge between cracks holds no
-    plate together)."""
+    plate together). A numba union-find (:func:`_plate_labels`), the labels of
+    :func:`plates_reference` (scipy's components: a shed face takes a label of its own there, so
+    it does here): 0.13 s a call on the sample tree's 830,660 faces, 11 s of its year."""
+    return _plate_labels(sheet.n_faces, len(sheet.phi), sheet.edges, sheet.edge_faces, cracked, shed)
+
+
+@nb.njit(cache=True)
+def _plate_labels(n_faces, n_vertices, edges, edge_faces, cracked, shed):
+    """:func:`plates` (serial: one pass over the edges, one over the faces)."""
+    on_crack = np.zeros(n_vertices, dtype=np.bool_)
+    for k in range(len(edges)):
+        if cracked[k]:
+            on_crack[edges[k, 0]] = True
+            on_crack[edges[k, 1]] = True
+    parent = np.arange(n_faces)
+    for k in range(len(edges)):
+        a, b = edge_faces[k, 0], edge_faces[k, 1]
+        if (b >= 0 and not cracked[k] and not (on_crack[edges[k, 0]] and on_crack[edges[k, 1]])
+                and not shed[a] and not shed[b]):
+            union(parent, a, b)
+    label = labels(parent)
+    for f in range(n_faces):
+        if shed[f]:
+            label[f] = -1
+    return label
+
+
+def plates_reference(sheet, cracked: np.ndarray, shed: np.ndarray) -> np.ndarray:
+    """:func:`plates` by scipy's connected components on the face graph."""
     ef = sheet.edge_faces
     on_crack = crack_degree(sheet, cracked) > 0
     bridge = on_crack[sheet.edges[:, 0]] & on_crack[sheet.edges[:, 1]]

@@ -43,6 +43,7 @@ from scipy.sparse.csgraph import connected_components
 
 from . import contact
 from ..quaternion import conj_np, mul, mul_np, rotate
+from ..unionfind import labels, union
 
 
 @nb.njit(parallel=True, cache=True)
@@ -183,23 +184,6 @@ def components(setup, ms) -> np.ndarray:
 
 
 @nb.njit(cache=True)
-def _root(parent, i):
-    """Root of ``i`` in the union-find forest, halving the path on the way."""
-    while parent[i] != i:
-        parent[i] = parent[parent[i]]
-        i = parent[i]
-    return i
-
-
-@nb.njit(cache=True)
-def _union(parent, a, b):
-    """Join the trees of ``a`` and ``b`` under the smaller root, so a root is its component's
-    smallest element."""
-    ra, rb = _root(parent, a), _root(parent, b)
-    parent[max(ra, rb)] = min(ra, rb)
-
-
-@nb.njit(cache=True)
 def _components(n, joints, element_ok, edges, edge_ok):
     """:func:`components` by union-find over the strand links (joints whose first element is
     intact) and the intact REG connections, then labels in order of each component's smallest
@@ -209,19 +193,11 @@ def _components(n, joints, element_ok, edges, edge_ok):
     parent = np.arange(n)
     for k in range(len(joints)):
         if element_ok[joints[k, 0]]:
-            _union(parent, joints[k, 0], joints[k, 1])
+            union(parent, joints[k, 0], joints[k, 1])
     for k in range(len(edges)):
         if edge_ok[k, 0]:
-            _union(parent, edges[k, 0], edges[k, 1])
-    label = np.full(n, -1, dtype=np.int64)
-    count = 0
-    for i in range(n):
-        r = _root(parent, i)
-        if label[r] < 0:
-            label[r] = count
-            count += 1
-        label[i] = label[r]
-    return label
+            union(parent, edges[k, 0], edges[k, 1])
+    return labels(parent)
 
 
 def components_reference(setup, ms) -> np.ndarray:
