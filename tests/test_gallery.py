@@ -7,9 +7,10 @@ CI bakes the seven figures whose quick scenes bake within about 2 min each (CI_F
 Fig. 6 it asserts the part that holds, the first cracks' orientation per shrinkage ratio: its
 balanced section spreads the opening of its radial cracks all round instead of into a few
 (docs/gallery.md). Fig. 12 is decided in tests/test_gallery_fig12.py and Figs. 16 and 19 in
-tests/test_gallery_trees.py. Fig. 20 is decided by the full gallery and its scenes are loaded
-here: its quick study bakes for about 11 min beside Figs. 12 and 14 (the quick log at half the
-step alone 358 s, 2026-11-27)."""
+tests/test_gallery_trees.py. Fig. 20's study is decided by the full gallery (at quick size it
+bakes for about 11 min beside Figs. 12 and 14, the quick log at half the step alone 358 s,
+2026-11-27); its scenes are loaded here, and the part of it that holds at quick size is asserted
+in tests/test_gallery_fig20.py."""
 from __future__ import annotations
 
 import json
