@@ -3,8 +3,9 @@ the growth cracks at day 0, one biology step of a drying log (dt_bio days) with 
 bark step after it (its cracks growing), the export's crack fields and grooves of one frame, and
 the crack kernels against their numpy references in the same run: the shadows of 600 crack edges
 (face grid against KD-tree), the separation tensors of every vertex, the eigenpairs of every
-face's tensor, the split of the first branch's bark into 16 plates (farthest-point sites) and the
-plates of the dried bark's cracks (union-find against scipy's components), with the ratio per pair.
+face's tensor, the split of the first branch's bark into 16 plates (farthest-point sites), the
+plates of the dried bark's cracks (union-find against scipy's components) and the step's pass over
+the faces (loading, bonds; one kernel against the numpy twins), with the ratio per pair.
 
     python benchmarks/bark.py [REPEAT] [SCENE]      (default 5, samples/log.toml)
 
@@ -65,6 +66,10 @@ def main() -> None:
     plus = rng.normal(size=(sheet.n_faces, 3))
     faces = np.flatnonzero(sheet.face_branch == 0)  # one plate over the first branch, in 16 pieces
     cut = rng.random(sheet.n_faces) < 0.01  # plates of the dried bark's cracks with 1% of the faces shed
+    b = model.bark_setup
+    face_args = (sheet.face_element, state.M, state.H_c, state.H_l, sheet.growth, float(b["drying"]), sheet.shrinkage,
+                 sheet.M_0, float(b["shedding"]), model.time.dt_bio, state.bark.eps_seen, state.bark.bond.copy(),
+                 state.bark.M_last.copy(), state.bark.shed, np.empty(sheet.n_faces))
     for name, fast, ref in (("shadows", lambda: cracks.cast_shadows(sheet, st, new, 0.02),
                              lambda: cracks.cast_shadows_reference(sheet, st, new, 0.02)),
                             ("separation", lambda: cracks.separation(sheet, plus),
@@ -73,7 +78,8 @@ def main() -> None:
                             ("partition", lambda: shedding.partition(sheet, faces, 16),
                              lambda: shedding.partition_reference(sheet, faces, 16)),
                             ("plates", lambda: shedding.plates(sheet, state.bark.crack.cracked, cut),
-                             lambda: shedding.plates_reference(sheet, state.bark.crack.cracked, cut))):
+                             lambda: shedding.plates_reference(sheet, state.bark.crack.cracked, cut)),
+                            ("faces", lambda: bark._faces(*face_args), lambda: bark.faces_reference(*face_args))):
         fast()
         pairs = [(times(fast, 1)[0], times(ref, 1)[0]) for _ in range(repeat)]
         a, b = [p[0] for p in pairs], [p[1] for p in pairs]

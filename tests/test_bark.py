@@ -301,6 +301,31 @@ def test_bonds_weaken_with_decay_and_cycles():
     assert (shedding.weaken(b, 0.0, 10.0, 0 * one, 0 * one, one, one) == 1.0).all()
 
 
+def test_face_pass_equals_numpy_reference(tiny_bark):
+    """The step's one pass over the faces gives the loading, bonds, moisture and counts of its
+    numpy twin bit for bit, on one thread and two, with faces shed, rising and falling loads and
+    bonds going past 0."""
+    sheet = tiny_bark.bark
+    n, F = tiny_bark.n_elements, sheet.n_faces
+    rng = np.random.default_rng(3)
+    M, H_c, H_l = rng.uniform(0.0, 0.6, n), rng.uniform(0.0, 1.0, n), rng.uniform(0.0, 1.0, n)
+    bond, M_last, shed = rng.uniform(-0.1, 0.3, F), rng.uniform(0.0, 0.6, F), rng.random(F) < 0.2
+    eps_seen = sheet.growth + 0.7 * bark.drying_strain(sheet, M[sheet.face_element]) * rng.uniform(0.5, 1.5, F)
+    args = (sheet.face_element, M, H_c, H_l, sheet.growth, 0.7, sheet.shrinkage, sheet.M_0, 2.0, 4.0, eps_seen)
+    ref = bond.copy(), M_last.copy(), np.empty(F)
+    counts = bark.faces_reference(*args, ref[0], ref[1], shed, ref[2])
+    assert 0 < counts[0] < F and 0 < counts[1] < F
+    try:
+        for t in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
+            numba.set_num_threads(t)
+            out = bond.copy(), M_last.copy(), np.empty(F)
+            assert bark._faces(*args, out[0], out[1], shed, out[2]) == counts
+            for a, b in zip(out, ref):
+                assert np.array_equal(a, b)
+    finally:
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+
+
 def test_bake_exports_crack_primvars_and_signature(tmp_path):
     scene = wd.load_scene(SAMPLES / "tiny.toml", overrides={"bark.growth": 2.0, "time.frames": 2})
     summary = bake(scene, tmp_path)
