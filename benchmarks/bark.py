@@ -5,7 +5,8 @@ the crack kernels against their numpy references in the same run: the shadows of
 (face grid against KD-tree), the separation tensors of every vertex, the eigenpairs of every
 face's tensor, the split of the first branch's bark into 16 plates (farthest-point sites), the
 plates of the dried bark's cracks (union-find against scipy's components) and the step's pass over
-the faces (loading, bonds; one kernel against the numpy twins), with the ratio per pair.
+the faces (loading, bonds; one kernel against the numpy twins) and the faces of each plate (a
+counting sort against a stable argsort), with the ratio per pair.
 
     python benchmarks/bark.py [REPEAT] [SCENE]      (default 5, samples/log.toml)
 
@@ -66,6 +67,8 @@ def main() -> None:
     plus = rng.normal(size=(sheet.n_faces, 3))
     faces = np.flatnonzero(sheet.face_branch == 0)  # one plate over the first branch, in 16 pieces
     cut = rng.random(sheet.n_faces) < 0.01  # plates of the dried bark's cracks with 1% of the faces shed
+    label = shedding.plates(sheet, state.bark.crack.cracked, cut)
+    n_plates = int(label.max()) + 1
     b = model.bark_setup
     face_args = (sheet.face_element, state.M, state.H_c, state.H_l, sheet.growth, float(b["drying"]), sheet.shrinkage,
                  sheet.M_0, float(b["shedding"]), model.time.dt_bio, state.bark.eps_seen, state.bark.bond.copy(),
@@ -79,7 +82,9 @@ def main() -> None:
                              lambda: shedding.partition_reference(sheet, faces, 16)),
                             ("plates", lambda: shedding.plates(sheet, state.bark.crack.cracked, cut),
                              lambda: shedding.plates_reference(sheet, state.bark.crack.cracked, cut)),
-                            ("faces", lambda: bark._faces(*face_args), lambda: bark.faces_reference(*face_args))):
+                            ("faces", lambda: bark._faces(*face_args), lambda: bark.faces_reference(*face_args)),
+                            ("members", lambda: shedding._members(label, n_plates),
+                             lambda: shedding.members_reference(label, n_plates))):
         fast()
         pairs = [(times(fast, 1)[0], times(ref, 1)[0]) for _ in range(repeat)]
         a, b = [p[0] for p in pairs], [p[1] for p in pairs]

@@ -267,6 +267,14 @@ def test_plates_are_scipys_components(tiny_bark):
         assert (label[shed] == -1).all() and len(np.unique(label[~shed])) > 1
 
 
+def test_members_equal_a_stable_argsort():
+    """The faces of each plate, as falling() takes them, are a stable argsort's, shed faces left out."""
+    label = np.random.default_rng(5).integers(-1, 40, 5000)
+    label[label == 7] = -1  # a label with no face
+    for a, b in zip(shedding._members(label, 40), shedding.members_reference(label, 40)):
+        assert np.array_equal(a, b)
+
+
 def test_partition_spreads_plates_along_the_grain(tiny_bark):
     sheet = tiny_bark.bark
     faces = np.arange(sheet.n_faces)

@@ -102,11 +102,15 @@ def falling(sheet, label: np.ndarray, bond: np.ndarray, plate_area: float):
     n = int(label.max()) + 1
     area = np.bincount(label[on], weights=sheet.face_area[on], minlength=n)
     out = label.copy()
+    top = n - 1  # the largest label in out
+    ptr, members = _members(label, n)
     for p in np.flatnonzero(area > plate_area):
-        faces = np.flatnonzero(label == p)
+        faces = members[ptr[p]:ptr[p + 1]]
         if bond[faces].min() > 0.0:  # no part of it can come off yet
             continue
-        out[faces] = int(out.max()) + 1 + partition(sheet, faces, int(np.ceil(area[p] / plate_area)))
+        piece = partition(sheet, faces, int(np.ceil(area[p] / plate_area)))
+        out[faces] = top + 1 + piece
+        top += 1 + int(piece.max())
     # the labels made dense in their order: np.unique's inverse without its sort (3 ms a step on the log)
     present = np.zeros(int(out.max()) + 1, dtype=bool)
     present[out[on]] = True
@@ -120,6 +124,34 @@ def falling(sheet, label: np.ndarray, bond: np.ndarray, plate_area: float):
     joined = (sheet.edge_faces[:, 1] >= 0) & on[a] & on[b] & (label[a] == label[b])
     breaks = np.flatnonzero(joined & (off[a] | off[b]) & (out[a] != out[b]))
     return out, off, breaks
+
+
+@nb.njit(cache=True)
+def _members(label, n):
+    """The faces of each label 0..n-1 (``label`` -1: none), in increasing order, as (ptr (n + 1,),
+    faces): a counting sort, one serial pass to count and one to place. :func:`falling` took the
+    faces of each plate it splits by a pass over all labels, on the tree one pass per plate
+    (docs/decisions.md, "The bark's step in one pass"). :func:`members_reference` is its twin."""
+    ptr = np.zeros(n + 1, dtype=np.int64)
+    for f in range(len(label)):
+        if label[f] >= 0:
+            ptr[label[f] + 1] += 1
+    for p in range(n):
+        ptr[p + 1] += ptr[p]
+    at = ptr[:-1].copy()
+    faces = np.empty(ptr[n], dtype=np.int64)
+    for f in range(len(label)):
+        if label[f] >= 0:
+            faces[at[label[f]]] = f
+            at[label[f]] += 1
+    return ptr, faces
+
+
+def members_reference(label: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Plain-numpy :func:`_members` (a stable argsort)."""
+    on = np.flatnonzero(label >= 0)
+    faces = on[np.argsort(label[on], kind="stable")]
+    return np.concatenate([[0], np.cumsum(np.bincount(label[on], minlength=n))]), faces
 
 
 def partition(sheet, faces: np.ndarray, k: int) -> np.ndarray:
