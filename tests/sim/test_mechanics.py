@@ -183,3 +183,21 @@ def test_settle_with_tol_stops_at_the_first_quiet_chunk():
     strains = [failure.strains(st, m) for m in (earlier, before, last)]
     assert failure.drift(st, ms, strains[1], strains[2], *limits) <= tol
     assert failure.drift(st, ms, strains[0], strains[1], *limits) > tol
+
+
+def test_contact_list_helpers_equal_numpy():
+    """The Verlet list's reach test is numpy's max |x - x0| < reach, empty and NaN rows included,
+    and the protected overlaps go back to their rows as numpy's masked assignment puts them."""
+    rng = np.random.default_rng(2)
+    x0 = rng.normal(size=(50, 3))
+    for x, reach in ((x0 + 0.01, 0.02), (x0 + 0.01, 0.005), (x0[:0], 0.1), (x0[:0], 0.0), (x0, 0.0),
+                     (np.where(np.arange(150).reshape(50, 3) == 7, np.nan, x0), 1.0)):
+        expect = np.max(np.abs(x - x0[:len(x)]), initial=0.0) < reach
+        assert mechanics._within(x, x0[:len(x)], reach) == expect
+    sep = np.array([3, -1, 0, -1, 5])
+    rest, protect = rng.random(5), rng.random(5)
+    a, b = np.zeros(6), np.zeros(6)
+    mechanics._keep_overlaps(sep, rest, protect, a)
+    keep = sep >= 0
+    b[sep[keep]] = rest[keep] + protect[keep]
+    assert np.array_equal(a, b)

@@ -253,8 +253,9 @@ def update(setup, ms) -> int:
                            ms.crumbled, setup.inner, ms.element_ok)
     new_k = _flag_edges(setup.edges, setup.fp, ms.x, ms.q, ms.rest_offset, setup.edge_length, setup.edge_rest,
                         ms.strain_ref_edge, ms.limit_edge, ms.integrity, setup.I_fail_edge, ms.edge_ok)
-    count = int(new_e.sum()) + int(np.count_nonzero(new_k))
-    if new_e.any() or (new_k == 2).any():
+    count_e, count_k = np.count_nonzero(new_e), np.count_nonzero(new_k)
+    count = int(count_e + count_k)
+    if count_e or (count_k and (new_k == 2).any()):
         before = ms.component
         ms.component = components(setup, ms)
         record_separations(setup, ms, before)

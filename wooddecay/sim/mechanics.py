@@ -621,8 +621,8 @@ def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: tuple | None = N
         contact.project_contacts(ms.x, ms.w_p, setup.fp, ms.radius, ms.pairs, setup.k_col, dt, normal_force,
                                  push, hit_p, phi_rest=ms.pairs_rest, protect=ms.pairs_protect)
         contact.particle_friction(ms.x, x_start, x_old, setup.mu_f, setup.epsilon * dt)
-    keep = ms.pairs_sep >= 0  # the protected overlaps only shrink; they outlive the contact list
-    ms.sep_overlap[ms.pairs_sep[keep]] = ms.pairs_rest[keep] + ms.pairs_protect[keep]
+    # the protected overlaps only shrink; they outlive the contact list
+    _keep_overlaps(ms.pairs_sep, ms.pairs_rest, ms.pairs_protect, ms.sep_overlap)
     _velocities(ms.x, ms.v, ms.q, ms.omega, x_old, q_old, ms.w_p, ms.w_q, dt)
     contact.collider_velocities(ms.v, ms.x, ms.w_p, setup.colliders, hit_c)
     contact.contact_velocities(ms.v, ms.x, ms.w_p, setup.fp, ms.radius, ms.pairs, hit_p)
@@ -689,7 +689,7 @@ def refresh_pairs(setup: MechSetup, ms: MechState) -> None:
     ``pairs_protect`` the overlap beyond it that the pair had when its elements separated
     (``sep_keys``, ``sep_overlap``), which contact pushes out at most at v_depenetration."""
     margin = CONTACT_MARGIN * float(setup.radius.max(initial=0.0))
-    if ms.pairs_x is not None and np.max(np.abs(ms.x - ms.pairs_x), initial=0.0) < 0.5 * margin:
+    if ms.pairs_x is not None and _within(ms.x, ms.pairs_x, 0.5 * margin):
         return
     ms.pairs = contact.candidate_pairs(ms.x, setup.fp, ms.radius, ms.component, margin, active=ms.element_ok)
     shrink = np.divide(ms.radius, setup.radius, out=np.ones_like(ms.radius), where=setup.radius > 0.0)  # brown rot
@@ -705,6 +705,25 @@ def refresh_pairs(setup: MechSetup, ms: MechState) -> None:
     ms.pairs_protect = np.zeros(len(ms.pairs))
     ms.pairs_protect[found] = np.maximum(ms.sep_overlap[ms.pairs_sep[found]] - ms.pairs_rest[found], 0.0)
     ms.pairs_x = ms.x.copy()
+
+
+@nb.njit(cache=True)
+def _within(x, x0, reach):
+    """np.max(np.abs(x - x0), initial=0) < reach, exactly, without the temporaries: every
+    coordinate within ``reach`` of ``x0``'s, stopping at the first that is not."""
+    for p in range(len(x)):
+        for c in range(3):
+            if not abs(x[p, c] - x0[p, c]) < reach:
+                return False
+    return 0.0 < reach
+
+
+@nb.njit(cache=True)
+def _keep_overlaps(pairs_sep, pairs_rest, pairs_protect, sep_overlap):
+    """Each contact pair's protected overlap (rest plus protect) back to its row of ``sep_overlap``."""
+    for q in range(len(pairs_sep)):
+        if pairs_sep[q] >= 0:
+            sep_overlap[pairs_sep[q]] = pairs_rest[q] + pairs_protect[q]
 
 
 def settle(model, state, seconds: float, damping: float, tol: float | None = None,
