@@ -5,8 +5,9 @@ the crack kernels against their numpy references in the same run: the shadows of
 (face grid against KD-tree), the separation tensors of every vertex, the eigenpairs of every
 face's tensor, the split of the first branch's bark into 16 plates (farthest-point sites), the
 plates of the dried bark's cracks (union-find against scipy's components) and the step's pass over
-the faces (loading, bonds; one kernel against the numpy twins) and the faces of each plate (a
-counting sort against a stable argsort), with the ratio per pair.
+the faces (loading, bonds; one kernel against the numpy twins), the faces of each plate (a
+counting sort against a stable argsort) and the edges along which plates part (one pass against
+numpy's gathers), with the ratio per pair.
 
     python benchmarks/bark.py [REPEAT] [SCENE]      (default 5, samples/log.toml)
 
@@ -69,6 +70,8 @@ def main() -> None:
     cut = rng.random(sheet.n_faces) < 0.01  # plates of the dried bark's cracks with 1% of the faces shed
     label = shedding.plates(sheet, state.bark.crack.cracked, cut)
     n_plates = int(label.max()) + 1
+    split = label * 4 + rng.integers(0, 4, sheet.n_faces)  # each plate in four, half its faces off
+    off, broke = (label >= 0) & (rng.random(sheet.n_faces) < 0.5), np.empty(len(sheet.edge_faces), dtype=bool)
     b = model.bark_setup
     face_args = (sheet.face_element, state.M, state.H_c, state.H_l, sheet.growth, float(b["drying"]), sheet.shrinkage,
                  sheet.M_0, float(b["shedding"]), model.time.dt_bio, state.bark.eps_seen, state.bark.bond.copy(),
@@ -84,7 +87,9 @@ def main() -> None:
                              lambda: shedding.plates_reference(sheet, state.bark.crack.cracked, cut)),
                             ("faces", lambda: bark._faces(*face_args), lambda: bark.faces_reference(*face_args)),
                             ("members", lambda: shedding._members(label, n_plates),
-                             lambda: shedding.members_reference(label, n_plates))):
+                             lambda: shedding.members_reference(label, n_plates)),
+                            ("broke", lambda: shedding._broke(sheet.edge_faces, label, split, off, broke),
+                             lambda: shedding.broke_reference(sheet.edge_faces, label, split, off))):
         fast()
         pairs = [(times(fast, 1)[0], times(ref, 1)[0]) for _ in range(repeat)]
         a, b = [p[0] for p in pairs], [p[1] for p in pairs]

@@ -275,6 +275,20 @@ def test_members_equal_a_stable_argsort():
         assert np.array_equal(a, b)
 
 
+def test_broken_plate_edges_equal_numpy(tiny_bark):
+    """The edges along which falling() parts a plate are its numpy twin's, with shed faces and
+    the sheet's border edges (no second face)."""
+    sheet = tiny_bark.bark
+    rng = np.random.default_rng(4)
+    label = rng.integers(-1, 5, sheet.n_faces)
+    out = label * 3 + rng.integers(0, 3, sheet.n_faces)
+    off = (label >= 0) & (rng.random(sheet.n_faces) < 0.5)
+    broke = np.empty(len(sheet.edge_faces), dtype=bool)
+    shedding._broke(sheet.edge_faces, label, out, off, broke)
+    assert (sheet.edge_faces[:, 1] < 0).any() and broke.any()
+    assert np.array_equal(broke, shedding.broke_reference(sheet.edge_faces, label, out, off))
+
+
 def test_partition_spreads_plates_along_the_grain(tiny_bark):
     sheet = tiny_bark.bark
     faces = np.arange(sheet.n_faces)

@@ -120,10 +120,28 @@ def falling(sheet, label: np.ndarray, bond: np.ndarray, plate_area: float):
     mean_bond = np.bincount(out[on], weights=(bond * sheet.face_area)[on], minlength=n) / np.maximum(area, 1e-300)
     loose = (mean_bond <= 0.0) & (area >= plate_area / MIN_PLATE_SHARE)
     off = on & loose[np.maximum(out, 0)]
-    a, b = sheet.edge_faces[:, 0], np.maximum(sheet.edge_faces[:, 1], 0)
-    joined = (sheet.edge_faces[:, 1] >= 0) & on[a] & on[b] & (label[a] == label[b])
-    breaks = np.flatnonzero(joined & (off[a] | off[b]) & (out[a] != out[b]))
-    return out, off, breaks
+    broke = np.empty(len(sheet.edge_faces), dtype=np.bool_)
+    _broke(sheet.edge_faces, label, out, off, broke)
+    return out, off, np.flatnonzero(broke)
+
+
+@nb.njit(parallel=True, cache=True)
+def _broke(edge_faces, label, out, off, broke):
+    """Per sheet edge: whether it joined two faces of one plate (``label``, -1 shed) that
+    :func:`falling` parted (different ``out``, one of them coming ``off``). :func:`broke_reference`
+    is its numpy twin; one pass instead of a dozen gathers over the tree's edges."""
+    for k in nb.prange(len(edge_faces)):
+        a, b = edge_faces[k, 0], edge_faces[k, 1]
+        broke[k] = (b >= 0 and label[a] >= 0 and label[a] == label[b] and (off[a] or off[b])
+                    and out[a] != out[b])
+
+
+def broke_reference(edge_faces: np.ndarray, label: np.ndarray, out: np.ndarray, off: np.ndarray) -> np.ndarray:
+    """Plain-numpy :func:`_broke`."""
+    on = label >= 0
+    a, b = edge_faces[:, 0], np.maximum(edge_faces[:, 1], 0)
+    joined = (edge_faces[:, 1] >= 0) & on[a] & on[b] & (label[a] == label[b])
+    return joined & (off[a] | off[b]) & (out[a] != out[b])
 
 
 @nb.njit(cache=True)
