@@ -31,10 +31,11 @@ included), the first only :func:`relax_substeps` long when it relaxes rest data 
 (reasons ``RELAX``), until a chunk ends that split no piece and in which no piece is moving
 (:func:`moving`): none whose centre of mass, faster than ``time.rest_speed`` on average or at its
 end, is gaining speed (a piece released from rest falls g T^2 / 2 in a chunk of T, a mean speed of
-g T / 2, and ends it at g T, which the chunk's length T puts above rest_speed) or carries a kinetic energy share m_piece / m_wood v^2 above
-rest_speed^2 (a block that landed and rolls on at a few cm/s does not keep the solve going: it
-held the collapsing log's solves at their cap), or ``time.max_mechanics`` seconds have run. Pieces, not particles: single elements next to a
-crack swing in place at ~8e-2 m/s (docs/decisions.md, "Open points") and kept every solve of a
+g T / 2, and ends it at g T, which the chunk's length T puts above rest_speed) or carries a
+kinetic energy share m_piece / m_wood v^2 above rest_speed^2 (a block that landed and rolls on at
+a few cm/s does not keep the solve going: it held the collapsing log's solves at their cap), or
+``time.max_mechanics`` seconds have run. Pieces, not particles: single elements next to a crack
+swing in place at ~8e-2 m/s (docs/decisions.md, "Open points") and kept every solve of a
 drying log running to its cap (4.4x the fixed schedule's substeps), while a piece that falls,
 rolls or rocks moves its centre of mass. A
 failure that splits no piece does not extend a solve: a crack that opens moves its piece.
