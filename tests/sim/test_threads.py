@@ -8,14 +8,14 @@ from wooddecay.errors import InputError
 from wooddecay.sim import threads as T
 
 
-def run(choice, seconds_of, steps):
-    """Drive ``choice`` for ``steps`` macro steps whose time is ``seconds_of(count, step)``;
-    returns the counts used, in order."""
+def run(choice, seconds_of, steps, work_of=lambda k: None):
+    """Drive ``choice`` for ``steps`` macro steps whose time is ``seconds_of(count, step)`` and
+    work ``work_of(step)``; returns the counts used, in order."""
     used = []
     for k in range(steps):
         n = choice.next()
         used.append(n)
-        choice.record(n, seconds_of(n, k))
+        choice.record(n, seconds_of(n, k), work_of(k))
     return used
 
 
@@ -47,13 +47,55 @@ def test_auto_drops_to_one_thread_when_threads_wait_and_comes_back_when_idle():
     assert sum(1 for n in used[:busy_until] if n == 2) <= T.WARM_UP + T.PROBES * 3
 
 
-def test_all_threads_must_win_by_the_margin():
+def test_a_count_changes_only_past_the_margin():
+    # loaded in the first round (two threads 3x slower): one thread; in the next, two threads 5%
+    # faster is within the noise and one thread stays, 15% faster takes both
+    steps = T.REPROBE_EVERY + T.WARM_UP + T.MAX_PROBE_STEPS
+    for later, expected in ((0.95, 1), (0.85, 2)):
+        c = T.ThreadChoice(None, available=2)
+        run(c, lambda n, k: (3.0 if n == 2 else 1.0) if k < T.REPROBE_EVERY else (1.0 if n == 1 else later), steps)
+        assert c.current == expected
+    # and all threads stay while they are not slower than one
     c = T.ThreadChoice(None, available=2)
-    run(c, lambda n, k: 1.0 if n == 1 else 0.95, T.WARM_UP + T.PROBES * 2)
-    assert c.current == 1                 # 5% faster is within the noise: one thread
-    c = T.ThreadChoice(None, available=2)
-    run(c, lambda n, k: 1.0 if n == 1 else 0.85, T.WARM_UP + T.PROBES * 2)
+    run(c, lambda n, k: 1.0 if n == 1 else 0.95, T.WARM_UP + T.MAX_PROBE_STEPS)
     assert c.current == 2
+    c = T.ThreadChoice(None, available=2)
+    run(c, lambda n, k: 1.0 if n == 1 else 1.05, T.WARM_UP + T.MAX_PROBE_STEPS)
+    assert c.current == 1
+
+
+def test_auto_compares_steps_of_the_same_work():
+    # every 4th step solves and costs 10x; the second thread makes every step 1.5x faster. The
+    # round's two-thread probes meet its solves: the medians of any two steps per count (1.0
+    # against 3.7) would keep one thread, those of the quiet steps keep both
+    heavy = lambda k: k % 4 == 2  # noqa: E731
+    c = T.ThreadChoice(None, available=2)
+    used = run(c, lambda n, k: (10.0 if heavy(k) else 1.0) / (1.5 if n == 2 else 1.0), T.REPROBE_EVERY, heavy)
+    assert c.current == 2
+    assert used[T.WARM_UP:T.WARM_UP + 8] == [1, 2] * 4 and set(used[T.WARM_UP + 8:]) == {2}
+
+
+def test_auto_weighs_each_work_by_its_time():
+    # quiet steps gain 5% from the second thread, solves 40%; the round's first four steps are
+    # quiet, its next two solve: the solves' time decides (24 against 15.8)
+    heavy = lambda k: k % 8 in (5, 6)  # noqa: E731
+    c = T.ThreadChoice(None, available=2)
+    used = run(c, lambda n, k: (10.0 if n == 1 else 6.0) if heavy(k) else (1.0 if n == 1 else 0.95), 7, heavy)
+    assert used[T.WARM_UP:] == [1, 2, 1, 2, 1, 2] and c.current == 2
+    assert c.next() == 2                  # the round ended with the solves
+
+
+def test_a_round_without_equal_work_keeps_the_count_and_ends():
+    c = T.ThreadChoice(None, available=2)
+    used = run(c, lambda n, k: 1.0 if n == 2 else 0.1, T.REPROBE_EVERY, lambda k: k)
+    assert c.current == 2
+    assert used[T.WARM_UP:T.WARM_UP + T.MAX_PROBE_STEPS] == [1, 2] * (T.MAX_PROBE_STEPS // 2)
+    assert set(used[T.WARM_UP + T.MAX_PROBE_STEPS:]) == {2}
+    # a work done alike by both counts only once decides at the round's end
+    c = T.ThreadChoice(None, available=2)
+    used = run(c, lambda n, k: 1.0 if n == 2 else 0.1, T.REPROBE_EVERY, lambda k: "x" if k in (3, 4) else k)
+    assert used[3:5] == [1, 2] and c.current == 1
+    assert set(used[T.WARM_UP + T.MAX_PROBE_STEPS:]) == {1}
 
 
 def test_one_thread_machine_has_one_candidate():

@@ -94,11 +94,12 @@ def initial(model, state) -> BarkState | None:
     return st
 
 
-def step(model, state, dt_days: float) -> None:
-    """One bark step after the biology and the coupling (module docstring)."""
+def step(model, state, dt_days: float) -> bool:
+    """One bark step after the biology and the coupling (module docstring); returns whether it
+    searched for new cracks."""
     st: BarkState | None = state.bark
     if st is None:
-        return
+        return False
     sheet, b = model.bark, model.bark_setup
     eps = np.empty(sheet.n_faces)
     rose, loose = _faces(sheet.face_element, state.M, state.H_c, state.H_l, sheet.growth, float(b["drying"]),
@@ -109,6 +110,7 @@ def step(model, state, dt_days: float) -> None:
         _shed(model, st)
     if state.mech is not None:
         apply_cuts(state.mech, st)
+    return bool(rose > 0)
 
 
 @nb.njit(parallel=True, cache=True)

@@ -22,7 +22,7 @@ records per step the chunks run and why.
 
 Threads: with ``threads`` (a :class:`~wooddecay.sim.threads.ThreadChoice`) every macro step and
 every settling chunk runs through :meth:`ThreadChoice.run` (the count it gives, its wall time
-reported back); without, numba's own setting is left alone.
+and the step's work reported back); without, numba's own setting is left alone.
 
 Checkpoints: with ``checkpoint_dir`` and ``checkpoint_every = K`` the whole state is written
 after every K-th frame (``frame_<k>.npz``, written to a temporary name and renamed).
@@ -96,6 +96,9 @@ class Simulation:
         #: keeps it current; it is checkpointed)
         self.wall_seconds = 0.0
         self.settled = "no"  # "settled", or "cached" when loaded from ``settle_cache``
+        #: what the last macro step did, the key under which ``threads`` compares its time: the
+        #: schedule's reason and chunks and whether the bark searched for cracks
+        self.work: tuple = ()
         if mechanics:
             coupling.step(model, self.state)
             if settle:  # the bark's day-0 cracks and the settled rods, or both from the cache
@@ -124,7 +127,7 @@ class Simulation:
         if self.threads is None:
             self._macro_step(dt_bio)
         else:
-            self.threads.run(lambda: self._macro_step(dt_bio))
+            self.threads.run(lambda: self._macro_step(dt_bio), work=lambda: self.work)
 
     def _macro_step(self, dt_bio: float) -> None:
         model, state = self.model, self.state
@@ -135,7 +138,8 @@ class Simulation:
         inoculate(model, state)
         if self.mechanics:
             coupling.step(model, state)
-        bark.step(model, state, dt_bio)
+        searched = bark.step(model, state, dt_bio)
+        self.work = (step.get("due"), step.get("chunks"), searched)
         d = self._diagnostics()
         if self.mechanics:
             d["mechanics"].update(step)

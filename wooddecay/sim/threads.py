@@ -2,18 +2,26 @@
 thread and all threads measured on the run's own macro steps.
 
 Results are bit-identical for any count (SPEC §4), so the count may change between macro steps
-without changing a bake. ``auto`` times the first macro step after the warm-up ones with each
-candidate, ``PROBES`` times each, alternating (1, n, 1, n, ...), keeps all ``n`` threads only
-when their median is below ``MARGIN`` times one thread's, and probes again every
-``REPROBE_EVERY`` macro steps because the machine's load changes. Settling runs through it too,
-in chunks of ``N_mech`` substeps. Why: on a 2-core machine shared
-with another CPU-bound process every parallel region waits for a descheduled thread, and two
-threads ran up to 5x slower than one (docs/decisions.md, "Threads").
+without changing a bake. ``auto`` probes in rounds: from the macro step after the warm-up ones,
+and again every ``REPROBE_EVERY`` steps because the machine's load changes, it runs the steps
+with each candidate, alternating (1, n, 1, n, ...), and estimates what the round's steps cost with
+each count: per work done with both counts (the caller's ``work`` key: what the step ran), the
+round's steps of that work times the fastest of them with the count (timing noise only adds).
+The round ends once ``PROBES`` pairs of steps of equal work put all ``n`` threads below ``CLEAR``
+or above ``LOADED`` times one thread, else after ``MAX_PROBE_STEPS`` steps. Then all ``n``
+threads are taken below ``MARGIN`` times one thread, one thread at or above one thread's cost,
+and in between (or without a work done by both) the count stays. Settling runs through it too,
+in chunks of ``N_mech`` substeps.
+
+Why: on a 2-core machine shared with another CPU-bound process every parallel region waits for
+a descheduled thread, and two threads ran up to 5x slower than one. Why by work: under the
+adaptive schedule a step that solves costs ten times a quiet one and gains more from the second
+thread (a year of the tree: 0.67-0.72 of one thread's time in a solve, 0.89 in a quiet step), so
+the times of any two steps compare the schedule, not the threads (docs/decisions.md, "Threads").
 """
 from __future__ import annotations
 
 import os
-import statistics
 import time
 from collections import Counter
 
@@ -21,11 +29,16 @@ import numba
 
 from ..errors import InputError
 
-#: timed macro steps per candidate in a probe round
+#: pairs of steps of equal work that may end a probe round early
 PROBES = 2
+#: most macro steps a probe round takes
+MAX_PROBE_STEPS = 8
+#: a round ends early when all threads cost less than CLEAR or more than LOADED times one thread
+CLEAR = 0.75
+LOADED = 1.25
 #: macro steps between the starts of two probe rounds
 REPROBE_EVERY = 50
-#: all threads are kept only when at least this much faster than one (median ratio)
+#: all threads are taken only when they cost less than this times one thread
 MARGIN = 0.9
 #: macro steps that compile or load the kernels before any is timed
 WARM_UP = 1
@@ -68,38 +81,47 @@ class ThreadChoice:
         self.current = self.candidates[-1]
         self.steps = 0
         self.used: Counter = Counter()
-        self._samples: dict[int, list[float]] = {}
+        self._samples: dict[tuple, list[float]] = {}  # (work, count) -> seconds in this round
+        self._decided = -1  # the last probe round that reached its end
 
     def _probe(self, k: int) -> int | None:
         """The candidate macro step ``k`` probes, or None outside a probe round."""
         if len(self.candidates) == 1 or k < WARM_UP:
             return None
-        j = (k - WARM_UP) % REPROBE_EVERY
-        n = PROBES * len(self.candidates)
-        return self.candidates[j % len(self.candidates)] if j < n else None
+        r, j = divmod(k - WARM_UP, REPROBE_EVERY)
+        if r == self._decided or j >= MAX_PROBE_STEPS:
+            return None
+        return self.candidates[j % len(self.candidates)]
 
     def next(self) -> int:
         """The count for the next macro step (set it with :func:`numba.set_num_threads`)."""
         probe = self._probe(self.steps)
         return self.current if probe is None else probe
 
-    def record(self, count: int, seconds: float) -> None:
-        """The macro step just run used ``count`` threads and took ``seconds``."""
+    def record(self, count: int, seconds: float, work=None) -> None:
+        """The macro step just run used ``count`` threads, took ``seconds`` and did ``work`` (a
+        key: only steps of equal work are compared; module docstring)."""
         k = self.steps
         self.steps += 1
         self.used[count] += 1
         if self._probe(k) is None:
             return
-        self._samples.setdefault(count, []).append(seconds)
-        if all(len(self._samples.get(c, ())) >= PROBES for c in self.candidates):
-            one = statistics.median(self._samples[1])
-            many = statistics.median(self._samples[self.available])
-            self.current = self.available if many < MARGIN * one else 1
-            self._samples = {}
+        self._samples.setdefault((work, count), []).append(seconds)
+        r, j = divmod(k - WARM_UP, REPROBE_EVERY)
+        n = self.available
+        both = [w for w, c in self._samples if c == 1 and (w, n) in self._samples]
+        pairs = sum(min(len(self._samples[(w, 1)]), len(self._samples[(w, n)])) for w in both)
+        cost = {c: sum((len(self._samples[(w, 1)]) + len(self._samples[(w, n)])) * min(self._samples[(w, c)])
+                       for w in both) for c in (1, n)}
+        ratio = cost[n] / cost[1] if both and cost[1] > 0.0 else None
+        if (ratio is not None and pairs >= PROBES and not CLEAR <= ratio < LOADED) or j == MAX_PROBE_STEPS - 1:
+            if ratio is not None and (ratio < MARGIN or ratio >= 1.0):
+                self.current = n if ratio < MARGIN else 1
+            self._samples, self._decided = {}, r
 
-    def run(self, fn):
-        """``fn()`` with the count :meth:`next` gives, recording its wall time; numba's count is
-        restored afterwards."""
+    def run(self, fn, work=None):
+        """``fn()`` with the count :meth:`next` gives, recording its wall time and ``work()``
+        (None: every step does the same work); numba's count is restored afterwards."""
         count, before = self.next(), numba.get_num_threads()
         numba.set_num_threads(count)
         t0 = time.perf_counter()
@@ -107,7 +129,7 @@ class ThreadChoice:
             return fn()
         finally:
             numba.set_num_threads(before)
-            self.record(count, time.perf_counter() - t0)
+            self.record(count, time.perf_counter() - t0, None if work is None else work())
 
     def summary(self) -> dict:
         """What ``summary.json`` records: the request, the threads numba has, the macro steps run
