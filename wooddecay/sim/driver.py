@@ -96,9 +96,6 @@ class Simulation:
         #: keeps it current; it is checkpointed)
         self.wall_seconds = 0.0
         self.settled = "no"  # "settled", or "cached" when loaded from ``settle_cache``
-        #: what the last macro step did, the key under which ``threads`` compares its time: the
-        #: schedule's reason and chunks and whether the bark searched for cracks
-        self.work: tuple = ()
         if mechanics:
             coupling.step(model, self.state)
             if settle:  # the bark's day-0 cracks and the settled rods, or both from the cache
@@ -127,9 +124,11 @@ class Simulation:
         if self.threads is None:
             self._macro_step(dt_bio)
         else:
-            self.threads.run(lambda: self._macro_step(dt_bio), work=lambda: self.work)
+            self.threads.run(lambda: self._macro_step(dt_bio), keyed=True)
 
-    def _macro_step(self, dt_bio: float) -> None:
+    def _macro_step(self, dt_bio: float) -> tuple:
+        """:meth:`macro_step`; returns what it did, the work under which ``threads`` compares its
+        time: the schedule's reason and chunks and whether the bark searched for cracks."""
         model, state = self.model, self.state
         step = {}
         if self.mechanics:
@@ -139,11 +138,11 @@ class Simulation:
         if self.mechanics:
             coupling.step(model, state)
         searched = bark.step(model, state, dt_bio)
-        self.work = (step.get("due"), step.get("chunks"), searched)
         d = self._diagnostics()
         if self.mechanics:
             d["mechanics"].update(step)
         self.history.append(d)
+        return step.get("due"), step.get("chunks"), searched
 
     def _mechanics(self) -> dict:
         """Algorithm 1 lines 4-8 under ``model.time.schedule``: the N_mech substeps, or with

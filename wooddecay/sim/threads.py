@@ -119,17 +119,20 @@ class ThreadChoice:
                 self.current = n if ratio < MARGIN else 1
             self._samples, self._decided = {}, r
 
-    def run(self, fn, work=None):
-        """``fn()`` with the count :meth:`next` gives, recording its wall time and ``work()``
-        (None: every step does the same work); numba's count is restored afterwards."""
+    def run(self, fn, keyed: bool = False):
+        """``fn()`` with the count :meth:`next` gives, recording its wall time; with ``keyed``
+        ``fn`` returns the step's work (module docstring), recorded with it (else every step does
+        the same work). numba's count is restored afterwards; returns what ``fn`` returns."""
         count, before = self.next(), numba.get_num_threads()
         numba.set_num_threads(count)
         t0 = time.perf_counter()
+        done = None
         try:
-            return fn()
+            done = fn()
+            return done
         finally:
             numba.set_num_threads(before)
-            self.record(count, time.perf_counter() - t0, None if work is None else work())
+            self.record(count, time.perf_counter() - t0, done if keyed else None)
 
     def summary(self) -> dict:
         """What ``summary.json`` records: the request, the threads numba has, the macro steps run
