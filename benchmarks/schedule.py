@@ -8,6 +8,8 @@ one settled state, and prints every run (wall time of the simulation after settl
 mechanics after settling, chunks of N_mech substeps, solves, broken REG connections) and the lines
     adaptive_speedup <v> x                      fixed wall / adaptive wall, median over the pairs
     adaptive_max_position_error <v> m           largest particle position difference at the end
+    adaptive_max_shape_error <v> m              the same once each piece is moved rigidly onto the
+                                                fixed run's (how differently the wood deformed)
     adaptive_broken_ratio <v> -                 adaptive / fixed broken connections (1 when both 0)
 The runs of one schedule give the same bits, so only the wall times vary: the ratio is taken per
 pair (both runs under the same load of this shared machine) and given with its spread. A pair
@@ -42,6 +44,7 @@ def main(argv: list[str] | None = None) -> None:
         speedups = [f.wall / a.wall for f, a in zip(fixed, adaptive)]
         print(f"adaptive_speedup {statistics.median(speedups):.2f} x {spread(speedups)}")
         print(f"adaptive_max_position_error {a.error(f):.3e} m")
+        print(f"adaptive_max_shape_error {a.shape_error(f):.3e} m")
         print(f"adaptive_broken_ratio {ratio:.3f} -", flush=True)
 
 
