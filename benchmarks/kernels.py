@@ -5,6 +5,8 @@ Prints ``name value unit`` lines for samples/tree.toml (or the scene given):
     transport_frames_numba_seconds / transport_frames_reference_seconds / transport_frames_speedup
     components_numba_seconds / components_reference_seconds / components_speedup (medians of 9
     with their spread, a third of the elements and REG connections failed at random)
+    schedule_changed_numba_seconds / ..._reference_seconds / ..._speedup (the adaptive schedule's
+    change test, medians of 9, 2% of the integrities moved past its tolerance)
     reg_pairs_numba_seconds_threads_<k>  for k = 1 .. numba.config.NUMBA_NUM_THREADS
 Each timing is the best of 3 after a warm-up call.
 """
@@ -18,7 +20,7 @@ import numpy as np
 from timing import SAMPLES, best, spread, times
 
 import wooddecay as wd
-from wooddecay.sim import failure
+from wooddecay.sim import failure, schedule
 from wooddecay.sim.state import initial_state
 from wooddecay.strands.elements import transport_frames_numba, transport_frames_reference
 from wooddecay.strands.reg import segment_pairs, segment_pairs_reference
@@ -53,14 +55,24 @@ def main() -> None:
     rng = np.random.default_rng(0)
     ms.element_ok[rng.random(len(ms.element_ok)) < 1 / 3] = False
     ms.edge_ok[rng.random(len(ms.edge_ok)) < 1 / 3, 0] = False
-    t_nb = times(lambda: failure.components(m.mech, ms), 9)
-    t_ref = times(lambda: failure.components_reference(m.mech, ms), 9)
-    print(f"components_numba_seconds {np.median(t_nb):.5f} s {spread(t_nb)}")
-    print(f"components_reference_seconds {np.median(t_ref):.5f} s {spread(t_ref)}")
+    _against("components", lambda: failure.components(m.mech, ms), lambda: failure.components_reference(m.mech, ms))
+    tol = m.time.tolerances
+    ms.integrity = ms.integrity.copy()
+    ms.integrity[rng.random(len(ms.integrity)) < 0.02] -= 2.0 * tol.relative
+    _against("schedule_changed", lambda: schedule.changed(m, ms, tol), lambda: schedule.changed_reference(m, ms, tol))
+
+
+def _against(name: str, fast, reference) -> None:
+    """Medians of 9 of ``fast`` and its numpy ``reference``, their per-pair ratio and whether
+    they return the same."""
+    t_nb, t_ref = times(fast, 9), times(reference, 9)
+    print(f"{name}_numba_seconds {np.median(t_nb):.5f} s {spread(t_nb)}")
+    print(f"{name}_reference_seconds {np.median(t_ref):.5f} s {spread(t_ref)}")
     ratio = [r / n for r, n in zip(t_ref, t_nb)]
-    print(f"components_speedup {np.median(ratio):.1f} x {spread(ratio)}")
-    ok = np.array_equal(failure.components(m.mech, ms), failure.components_reference(m.mech, ms))
-    print(f"components_equal_reference {int(ok)} -")
+    print(f"{name}_speedup {np.median(ratio):.1f} x {spread(ratio)}")
+    a, b = fast(), reference()
+    same = all(np.array_equal(x, y) for x, y in zip(a, b)) if isinstance(a, tuple) else np.array_equal(a, b)
+    print(f"{name}_equal_reference {int(same)} -")
 
 
 if __name__ == "__main__":

@@ -47,6 +47,27 @@ def test_each_change_past_its_tolerance_makes_mechanics_due(change, reason):
         assert schedule.due(model, sim.state, tol) == due
 
 
+@pytest.mark.parametrize("changes", [(), ("mass_e",), ("integrity",), ("rest_length",), ("rest_offset",),
+                                     ("mass_e", "integrity", "rest_offset"), ("rest_length", "rest_offset", "integrity")])
+def test_the_change_test_matches_its_numpy_twin(changes):
+    """changed (one numba pass) gives changed_reference's reason and elements, for a few percent
+    of the rest data moved by random amounts around their tolerances."""
+    sim = tiny()
+    model, ms, tol = sim.model, sim.state.mech, sim.model.time.tolerances
+    rng = np.random.default_rng(len(changes))
+    for change in changes:
+        v = getattr(ms, change).copy()
+        rows = rng.choice(len(v), size=max(3, len(v) // 30), replace=False)
+        scale = {"rest_length": tol.strain * v[rows], "rest_offset": tol.strain * model.mech.edge_length[rows],
+                 "integrity": tol.relative, "mass_e": tol.relative * v[rows]}[change]
+        v[rows] += rng.uniform(-2.0, 2.0, len(rows)) * scale
+        setattr(ms, change, v)
+    reason, over = schedule.changed(model, ms, tol)
+    want_reason, want_over = schedule.changed_reference(model, ms, tol)
+    assert reason == want_reason and np.array_equal(over, want_over)
+    assert (reason is None) == (not changes) and (over.any() == bool(changes))
+
+
 def test_moving_loads_and_failures_make_mechanics_due():
     sim = tiny()
     model, state, ms, tol = sim.model, sim.state, sim.state.mech, sim.model.time.tolerances
