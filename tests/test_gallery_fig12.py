@@ -1,9 +1,9 @@
 """Fig. 12 in CI (``wooddecay gallery 12 --quick``, about 2.5 min on 2 cores, a file of its own
 so that it runs beside tests/test_gallery.py): its claim decided on its quick logs. More fungal
 activity from the ground breaks the log into more pieces, with a median block no larger, and
-leaves a lower pile (the mean height of its wood). At quick size the blocks are one BSP cell in
-both logs and their medians all but equal (9 against 9.5 elements, 34 against 31 pieces, 2026-11-27):
-that part holds with little margin, as at full size (8 against 8)."""
+leaves a lower pile (the mean height of its wood). The quick logs keep the scene's 400 cells; their
+blocks are about one cell: 7 against 8 elements, 58 against 54 pieces, a pile 5 mm lower (0.272
+against 0.277 m), 2026-11-28 (docs/decisions.md, "Fig. 12 at quick size")."""
 from __future__ import annotations
 
 import pytest
