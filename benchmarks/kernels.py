@@ -7,6 +7,8 @@ Prints ``name value unit`` lines for samples/tree.toml (or the scene given):
     with their spread, a third of the elements and REG connections failed at random)
     schedule_changed_numba_seconds / ..._reference_seconds / ..._speedup (the adaptive schedule's
     change test, medians of 9, 2% of the integrities moved past its tolerance)
+    diagnostics_numba_seconds / ..._reference_seconds / ..._speedup / ..._max_relative_difference
+    (the per-step diagnostics, medians of 9, H_c at random)
     reg_pairs_numba_seconds_threads_<k>  for k = 1 .. numba.config.NUMBA_NUM_THREADS
 Each timing is the best of 3 after a warm-up call.
 """
@@ -21,6 +23,7 @@ from timing import SAMPLES, best, spread, times
 
 import wooddecay as wd
 from wooddecay.sim import failure, schedule
+from wooddecay.sim.diagnostics import diagnostics, diagnostics_reference
 from wooddecay.sim.state import initial_state
 from wooddecay.strands.elements import transport_frames_numba, transport_frames_reference
 from wooddecay.strands.reg import segment_pairs, segment_pairs_reference
@@ -60,17 +63,31 @@ def main() -> None:
     ms.integrity = ms.integrity.copy()
     ms.integrity[rng.random(len(ms.integrity)) < 0.02] -= 2.0 * tol.relative
     _against("schedule_changed", lambda: schedule.changed(m, ms, tol), lambda: schedule.changed_reference(m, ms, tol))
+    state = initial_state(m, rods=False)
+    state.H_c[:] = rng.uniform(0.0, 1.0, len(state.H_c))
+    _against("diagnostics", lambda: diagnostics(m, state), lambda: diagnostics_reference(m, state), _relative)
 
 
-def _against(name: str, fast, reference) -> None:
+def _relative(a: dict, b: dict) -> float:
+    """Largest relative difference of two diagnostics dicts' numbers."""
+    pairs = [(a[k], b[k]) for k in ("mass_loss", "moisture_content_ratio")]
+    pairs += [(v, b["tissue_means"][t][f]) for t, means in a["tissue_means"].items() for f, v in means.items()]
+    return max(abs(x - y) / max(abs(y), 1e-300) for x, y in pairs)
+
+
+def _against(name: str, fast, reference, difference=None) -> None:
     """Medians of 9 of ``fast`` and its numpy ``reference``, their per-pair ratio and whether
-    they return the same."""
+    they return the same (``difference``: how far apart they are, for results summed in another
+    order)."""
     t_nb, t_ref = times(fast, 9), times(reference, 9)
     print(f"{name}_numba_seconds {np.median(t_nb):.5f} s {spread(t_nb)}")
     print(f"{name}_reference_seconds {np.median(t_ref):.5f} s {spread(t_ref)}")
     ratio = [r / n for r, n in zip(t_ref, t_nb)]
     print(f"{name}_speedup {np.median(ratio):.1f} x {spread(ratio)}")
     a, b = fast(), reference()
+    if difference is not None:
+        print(f"{name}_max_relative_difference {difference(a, b):.1e} -")
+        return
     same = all(np.array_equal(x, y) for x, y in zip(a, b)) if isinstance(a, tuple) else np.array_equal(a, b)
     print(f"{name}_equal_reference {int(same)} -")
 

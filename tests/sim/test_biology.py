@@ -18,6 +18,7 @@ import wooddecay as wd
 from wooddecay.cli import main
 from wooddecay.scene import PARAMS
 from wooddecay.sim import biology as B
+from wooddecay.sim.diagnostics import diagnostics, diagnostics_reference
 from wooddecay.sim.state import FIELDS, SimState, initial_state
 from wooddecay.strands.rings import HEARTWOOD, SAPWOOD
 
@@ -77,6 +78,7 @@ def test_serial_and_parallel_kernels_identical(monkeypatch):
 _THREADS = """
 import hashlib, sys, numpy as np, wooddecay as wd
 from wooddecay.sim import biology as B
+from wooddecay.sim.diagnostics import diagnostics, diagnostics_reference
 B.PARALLEL_MIN_ELEMENTS = 0
 scene = wd.load_scene(sys.argv[1], overrides={"fungi.alpha_b0": 0.1, "fungi.D_b": 3e-5})
 sim = wd.Simulation(wd.build_model(scene), mechanics=False)
@@ -289,3 +291,24 @@ def test_simulation_frames_and_diagnostics(tiny_model, tiny_scene):
     ml = [h["mass_loss"] for h in sim.history]
     assert np.all(np.diff(ml) >= -1e-15)  # no recovery (rho = 1e-4 is slower than depletion)
     assert len(sim.history) == 1 + int(np.ceil(tiny_scene.time.days / tiny_scene.time.dt_bio))  # day 0 + steps
+
+
+def test_diagnostics_match_their_numpy_twin(tiny_model):
+    """The numba pass against diagnostics_reference on a decayed state with consumed elements
+    (left out of the moisture ratio) and moisture off its bounds."""
+    sim = wd.Simulation(tiny_model, mechanics=False)
+    for _ in range(3):
+        sim.macro_step(tiny_model.time.dt_bio)
+    s = sim.state
+    rng = np.random.default_rng(1)
+    gone = rng.random(len(s.H_c)) < 0.2
+    s.H_c[gone] = s.H_l[gone] = 0.0
+    s.M[:] = rng.uniform(0.1, 1.2, len(s.M))
+    a, b = diagnostics(tiny_model, s), diagnostics_reference(tiny_model, s)
+    assert a.keys() == b.keys() and a["tissue_means"].keys() == b["tissue_means"].keys()
+    for key in ("mass_loss", "moisture_content_ratio"):
+        assert a[key] == pytest.approx(b[key], rel=1e-12), key
+    for tissue, means in a["tissue_means"].items():
+        for f, v in means.items():
+            assert v == pytest.approx(b["tissue_means"][tissue][f], rel=1e-12), (tissue, f)
+    assert 0.1 < a["mass_loss"] < 1.0
