@@ -70,7 +70,7 @@ def eig2(T: np.ndarray):
     """Eigenvalues (larger, smaller) and the unit eigenvector of the larger of symmetric 2x2
     tensors given as (N, 3) rows (tt, ll, tl): mean +- hypot((tt - ll) / 2, tl) and the angle
     atan2(2 tl, tt - ll) / 2, one tensor per iteration. :func:`eig2_reference` is its numpy twin,
-    2.2x slower on the tree's 830,660 faces, where it was 8% of a drying bake (docs/decisions.md,
+    2.2x slower on the tree's 830,660 faces (its sheet at 1 r_s), where it was 8% of a drying bake (docs/decisions.md,
     "Bark eigenpairs in numba")."""
     T = np.ascontiguousarray(T, dtype=np.float64)
     l1, l2, e = np.empty(len(T)), np.empty(len(T)), np.empty((len(T), 2))

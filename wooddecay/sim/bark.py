@@ -119,7 +119,7 @@ def _faces(fe, M, H_c, H_l, growth, drying, shrinkage, M_0, rate, dt_days, eps_s
     of its element's moisture), its bond weakened in place (:func:`shedding.weaken`) and its
     ``M_last`` set to that moisture, in the numpy twins' operation order (the same bits). Returns
     the number of faces whose loading rose above ``eps_seen`` and of faces still on whose bond is
-    gone. Why: the twins' gathers and temporaries over the tree's 830,660 faces cost 25 ms a step,
+    gone. Why: the twins' gathers and temporaries over the tree's 830,660 faces (its sheet at 1 r_s) cost 25 ms a step,
     this 6 ms (``benchmarks/bark.py``; docs/decisions.md, "The bark's step in one pass")."""
     rose = 0
     loose = 0
