@@ -34,7 +34,7 @@ def test_auto_keeps_all_threads_on_an_idle_machine():
     assert used[:T.WARM_UP] == [2] * T.WARM_UP
     assert used[T.WARM_UP:T.WARM_UP + probes] == [1, 2] * T.PROBES
     assert c.current == 2
-    assert used.count(1) == T.PROBES * 4     # one probe round every REPROBE_EVERY steps
+    assert used.count(1) == T.PROBES * 3     # rounds at steps 1, 51 and 151: test_probes_back_off
 
 
 def test_auto_drops_to_one_thread_when_threads_wait_and_comes_back_when_idle():
@@ -45,6 +45,16 @@ def test_auto_drops_to_one_thread_when_threads_wait_and_comes_back_when_idle():
     assert set(used[first:T.WARM_UP + T.REPROBE_EVERY]) == {1}        # loaded: one thread
     assert used[-1] == 2 and c.current == 2                            # idle again: both
     assert sum(1 for n in used[:busy_until] if n == 2) <= T.WARM_UP + T.PROBES * 3
+
+
+def test_probes_back_off_while_the_count_holds():
+    """On a machine loaded throughout, the rounds after the one that dropped to one thread come
+    at doubling intervals up to REPROBE_MOST, each probing all threads PROBES times."""
+    c = T.ThreadChoice(None, available=2)
+    used = run(c, lambda n, k: 3.0 if n == 2 else 1.0, 2000)
+    starts = [1, 51, 151, 351, 751, 1151, 1551, 1951]
+    assert [k for k, n in enumerate(used) if n == 2 and k >= T.WARM_UP] == [s + d for s in starts for d in (1, 3)]
+    assert T.REPROBE_MOST == 400 and c.current == 1
 
 
 def test_a_count_changes_only_past_the_margin():

@@ -3,7 +3,11 @@ thread and all threads measured on the run's own macro steps.
 
 Results are bit-identical for any count (SPEC §4), so the count may change between macro steps
 without changing a bake. ``auto`` probes in rounds: from the macro step after the warm-up ones,
-and again every ``REPROBE_EVERY`` steps because the machine's load changes, it runs the steps
+and again ``REPROBE_EVERY`` steps later because the machine's load changes, the interval doubling
+(up to ``REPROBE_MOST``) after each later round that keeps the count and back to ``REPROBE_EVERY``
+when a round changes it, since a probe of all threads on a loaded machine costs several steps of one
+(a year of the tree under a second CPU-bound process: 42 such probes took its 151 s of simulation
+on one thread to 199 s, docs/decisions.md "Threads"). A round runs the steps
 with each candidate, alternating (1, n, 1, n, ...), and estimates what the round's steps cost with
 each count: per work done with both counts (the caller's ``work`` key: what the step ran), the
 round's steps of that work times the fastest of them with the count (timing noise only adds).
@@ -36,8 +40,10 @@ MAX_PROBE_STEPS = 8
 #: a round ends early when all threads cost less than CLEAR or more than LOADED times one thread
 CLEAR = 0.75
 LOADED = 1.25
-#: macro steps between the starts of two probe rounds
+#: macro steps between the starts of two probe rounds after a round that changed the count
 REPROBE_EVERY = 50
+#: the most macro steps between the starts of two probe rounds
+REPROBE_MOST = 8 * REPROBE_EVERY
 #: all threads are taken only when they cost less than this times one thread
 MARGIN = 0.9
 #: macro steps that compile or load the kernels before any is timed
@@ -82,14 +88,13 @@ class ThreadChoice:
         self.steps = 0
         self.used: Counter = Counter()
         self._samples: dict[tuple, list[float]] = {}  # (work, count) -> seconds in this round
-        self._decided = -1  # the last probe round that reached its end
+        self._start = WARM_UP  # the first macro step of the current or next probe round
+        self._every = REPROBE_EVERY  # macro steps from its start to the next round's
 
     def _probe(self, k: int) -> int | None:
         """The candidate macro step ``k`` probes, or None outside a probe round."""
-        if len(self.candidates) == 1 or k < WARM_UP:
-            return None
-        r, j = divmod(k - WARM_UP, REPROBE_EVERY)
-        if r == self._decided or j >= MAX_PROBE_STEPS:
+        j = k - self._start
+        if len(self.candidates) == 1 or not 0 <= j < MAX_PROBE_STEPS:
             return None
         return self.candidates[j % len(self.candidates)]
 
@@ -107,7 +112,7 @@ class ThreadChoice:
         if self._probe(k) is None:
             return
         self._samples.setdefault((work, count), []).append(seconds)
-        r, j = divmod(k - WARM_UP, REPROBE_EVERY)
+        j = k - self._start
         n = self.available
         both = [w for w, c in self._samples if c == 1 and (w, n) in self._samples]
         pairs = sum(min(len(self._samples[(w, 1)]), len(self._samples[(w, n)])) for w in both)
@@ -115,9 +120,12 @@ class ThreadChoice:
                        for w in both) for c in (1, n)}
         ratio = cost[n] / cost[1] if both and cost[1] > 0.0 else None
         if (ratio is not None and pairs >= PROBES and not CLEAR <= ratio < LOADED) or j == MAX_PROBE_STEPS - 1:
+            before = self.current
             if ratio is not None and (ratio < MARGIN or ratio >= 1.0):
                 self.current = n if ratio < MARGIN else 1
-            self._samples, self._decided = {}, r
+            held = self.current == before and self._start > WARM_UP
+            self._every = min(2 * self._every, REPROBE_MOST) if held else REPROBE_EVERY
+            self._samples, self._start = {}, self._start + self._every
 
     def run(self, fn, keyed: bool = False):
         """``fn()`` with the count :meth:`next` gives, recording its wall time; with ``keyed``
