@@ -56,7 +56,7 @@ def pytest_configure(config):
     runs on one numba thread and every bake given no thread count on one (``$WOODDECAY_THREADS``;
     ``auto`` sizes itself from the threads numba has, not from a test's count): two workers of two
     threads each on two cores make every parallel region wait for a descheduled thread, and
-    ``auto`` would time two threads against one every 50 macro steps (docs/decisions.md,
+    ``auto`` would time two threads against one in probe rounds (docs/decisions.md,
     "Threads"). Tests of thread-count independence set their counts themselves."""
     if os.environ.get("PYTEST_XDIST_WORKER"):
         os.environ[threads.ENV] = "1"
