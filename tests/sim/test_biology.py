@@ -78,7 +78,6 @@ def test_serial_and_parallel_kernels_identical(monkeypatch):
 _THREADS = """
 import hashlib, sys, numpy as np, wooddecay as wd
 from wooddecay.sim import biology as B
-from wooddecay.sim.diagnostics import diagnostics, diagnostics_reference
 B.PARALLEL_MIN_ELEMENTS = 0
 scene = wd.load_scene(sys.argv[1], overrides={"fungi.alpha_b0": 0.1, "fungi.D_b": 3e-5})
 sim = wd.Simulation(wd.build_model(scene), mechanics=False)
