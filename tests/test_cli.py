@@ -127,3 +127,18 @@ def test_inspect_bad_strands_usd_path_fails_before_building(tmp_path, no_build, 
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0] and "Traceback" not in r.output
     assert list(tmp_path.iterdir()) == []
+
+
+def test_python_dash_m_runs_the_command():
+    """``python -m wooddecay`` is the command (its name in the usage line), with its exit codes."""
+    import subprocess
+    import sys
+
+    ok = subprocess.run([sys.executable, "-m", "wooddecay", "inspect", str(SAMPLES / "tiny.toml"), "--json"],
+                        capture_output=True, text=True)
+    assert ok.returncode == 0, ok.stderr
+    assert json.loads(ok.stdout)["bsp_cells"] == 40
+    bad = subprocess.run([sys.executable, "-m", "wooddecay", "frobnicate"], capture_output=True, text=True)
+    assert bad.returncode == 2 and bad.stderr.startswith("error:") and bad.stderr.strip().count("\n") == 0
+    usage = subprocess.run([sys.executable, "-m", "wooddecay", "--help"], capture_output=True, text=True)
+    assert usage.stdout.startswith("Usage: wooddecay "), usage.stdout[:80]
