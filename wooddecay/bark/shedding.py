@@ -243,8 +243,9 @@ def _farthest_sites(xy, P, elongation, k, piece, near):
 
 def cuts(model, sheet, label: np.ndarray, off: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """REG pairs (m,) and strand links (n,) to cut so that the plates of the faces ``off`` come
-    loose, and the plate each element goes with (n,; -1: it stays on the wood): those between an element of such a plate and any element not in the same plate. A strand
-    link is cut by failing the element before it, and two failures side by side separate nothing
+    loose, and the plate each element goes with (n,; -1: it stays on the wood): those between an
+    element of such a plate and any element not in the same plate. A strand link is cut by
+    failing the element before it, and two failures side by side separate nothing
     (:mod:`wooddecay.sim.failure`), so an element that would be cut at both its links goes with
     the element before it (a lone plate element stays on the wood, a lone element between two
     plates goes with the first)."""
