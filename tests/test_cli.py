@@ -1,8 +1,10 @@
-"""`wooddecay inspect` and `wooddecay init`: reports, templates and one-line errors."""
+"""`wooddecay inspect`, `wooddecay init` and `python -m wooddecay`: reports, templates and one-line errors."""
 from __future__ import annotations
 
 import json
 import shlex
+import subprocess
+import sys
 
 import pytest
 from click.testing import CliRunner
@@ -131,9 +133,6 @@ def test_inspect_bad_strands_usd_path_fails_before_building(tmp_path, no_build, 
 
 def test_python_dash_m_runs_the_command():
     """``python -m wooddecay`` is the command (its name in the usage line), with its exit codes."""
-    import subprocess
-    import sys
-
     ok = subprocess.run([sys.executable, "-m", "wooddecay", "inspect", str(SAMPLES / "tiny.toml"), "--json"],
                         capture_output=True, text=True)
     assert ok.returncode == 0, ok.stderr
