@@ -173,13 +173,15 @@ def test_panel_frames_and_shared_camera_box():
 
 def test_sparser_rods_compare_block_purity_only_where_the_default_came_apart():
     """A whole trunk (one piece) has block purity 0 by definition; a sparser bake with one loose
-    block reads 0.5 and is not a change of its pattern. A log in 100 pieces is compared on it."""
+    block reads 0.5 and is not a change of its pattern, nor is a trunk in 3 pieces against 2 (the
+    median of so few is one piece's). A log in 100 pieces is compared on it."""
     from wooddecay.gallery.sensitivity import within_tolerance
 
     sig = {"mass_loss": 0.68, "hollow_fraction": 0.52, "largest_piece_fraction": 0.6, "block_purity": 0.0, "pieces": 1}
     loose = {**sig, "block_purity": 0.51, "pieces": 2}
     assert within_tolerance(loose, sig)
     assert not within_tolerance({**loose, "hollow_fraction": 0.64}, sig)
+    assert within_tolerance(loose, {**sig, "block_purity": 1.0, "pieces": 3})
     log = {**sig, "hollow_fraction": 0.0, "block_purity": 1.0, "pieces": 107}
     assert not within_tolerance({**log, "block_purity": 0.6, "pieces": 13}, log)
     assert within_tolerance({**log, "block_purity": 0.9, "pieces": 68}, log)

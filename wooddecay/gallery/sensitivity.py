@@ -6,7 +6,7 @@ run, as Fig. 6 reads its cracks) and the degraded state (the last frame) of both
 alike (one camera fitted to both, no captions, no quantisation) and compared by SSIM (:mod:`.ssim`; the paper: 0.9984 and 0.9868, our targets
 SSIM_TARGET). Resolution: strands 2x and 4x sparser (r_s x sqrt 2 and x 2, so 1/2 and 1/4 of the
 strands) keep the last frame's signature within TOLERANCE of the default's (block purity where the
-default has come apart: :func:`within_tolerance`).
+default has come apart into PURITY_PIECES pieces or more: :func:`within_tolerance`).
 """
 from __future__ import annotations
 
@@ -27,6 +27,8 @@ STUDIED = ("fig12", "fig14")
 SSIM_TARGET = (0.99, 0.985)
 #: largest absolute change of the last frame's signature under 2x and 4x sparser rods
 TOLERANCE = {"mass_loss": 0.05, "hollow_fraction": 0.1, "largest_piece_fraction": 0.25, "block_purity": 0.2}
+#: block purity is a median over the pieces: compared only where the default has this many
+PURITY_PIECES = 5
 #: renders compared by SSIM: as the panels, without captions or quantisation
 SSIM_OPTIONS = ("--no-labels", "--max-kb", "0")
 
@@ -104,9 +106,10 @@ def fit_box(frames, pad: float) -> list[str]:
 
 def within_tolerance(signature: dict, ref: dict) -> bool:
     """Whether ``signature`` keeps ``ref``'s within TOLERANCE; block purity only where ``ref``'s
-    wood has come apart (two pieces or more: a single piece has purity 0 by definition, and
-    one loose block more would read as a change of 0.5)."""
-    keys = [k for k in TOLERANCE if k != "block_purity" or ref["pieces"] >= 2]
+    wood has come apart into PURITY_PIECES pieces or more. Why: block purity is the median over
+    the pieces, the largest included; over fewer, one piece decides it (a single piece has purity
+    0 by definition, and Fig. 14's trunk read 1.0 in 3 pieces at dt_bio and 0.51 in 2 at dt_bio / 2)."""
+    keys = [k for k in TOLERANCE if k != "block_purity" or ref["pieces"] >= PURITY_PIECES]
     return all(abs(signature[k] - ref[k]) <= TOLERANCE[k] for k in keys)
 
 
