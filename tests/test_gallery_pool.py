@@ -7,7 +7,7 @@ import pickle
 import pytest
 
 from wooddecay.errors import InputError
-from wooddecay.gallery import pool
+from wooddecay.gallery import bakes, pool
 from wooddecay.gallery.run import plan, select
 
 JOBS = [pool.Job("fig6.toml", {}, f"/tmp/never/{k}") for k in range(3)]
@@ -34,6 +34,13 @@ def test_the_plan_is_every_variant_then_the_studies_bakes_in_figure_order(tmp_pa
         "fig12/uniform", "fig12/one_side", *(f"fig20/{f}/{v}" for f in ("fig12", "fig14")
                                              for v in ("dt_half", "sparse2", "sparse4"))]
     assert jobs[1].overrides["inoculation.1.activity"] == 0.2 and jobs[0].overrides["strands.r_s"] == 0.012
+
+
+def test_a_resumed_plan_leaves_out_the_finished_bakes_of_variants_and_studies(tmp_path, monkeypatch):
+    monkeypatch.setattr(bakes, "finished_bake", lambda scene, folder: folder.name in ("uniform", "sparse4") or None)
+    folders = [j.folder.relative_to(tmp_path).as_posix() for j in plan(select(("fig12", "fig20")), tmp_path, True, True)]
+    assert folders == ["fig12/one_side", *(f"fig20/{f}/{v}" for f in ("fig12", "fig14") for v in ("dt_half", "sparse2"))]
+    assert len(plan(select(("fig12", "fig20")), tmp_path, True, False)) == 8
 
 
 @pytest.mark.slow

@@ -77,6 +77,13 @@ def bake_scene(scene_file: str, overrides: dict, folder: Path, resume: bool = Fa
                  time.perf_counter() - t0, False, model)
 
 
+def pending(job: pool.Job) -> bool:
+    """Whether ``job`` must bake: always without ``job.resume``, else unless ``job.folder`` holds
+    a finished bake of its scene (:func:`finished_bake`)."""
+    scene = load_scene(SCENES / job.scene_file, overrides=job.overrides)
+    return not (job.resume and finished_bake(scene, job.folder))
+
+
 def finished_bake(scene, folder: Path) -> tuple[dict, list, Path] | None:
     """The summary, frame files and USD file of a finished final-quality bake of ``scene`` in
     ``folder``, else None."""

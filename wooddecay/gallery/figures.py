@@ -45,8 +45,10 @@ class Figure:
     #: (:func:`.bakes.frame_rows`) that picks the frame the claim is read on
     panels: tuple = (-1,)
     render_options: tuple = ()
-    study: Callable | None = None  # (out_dir, quick, renders, log) -> (measured by variant, [chart paths])
-    #: (out_dir, quick) -> the study's bakes that can be made ahead (:mod:`.pool`)
+    #: (out_dir, quick, renders, log, resume) -> (measured by variant, [chart paths]); ``resume``
+    #: reuses the study's finished bakes (Fig. 20; the pull test and the barrier curves compute)
+    study: Callable | None = None
+    #: (out_dir, quick, resume) -> the study's bakes that can be made ahead (:mod:`.pool`)
     study_bakes: Callable | None = None
 
 
@@ -161,7 +163,7 @@ def _fig19_decide(m):
     return all(progresses(v) for v in m.values())
 
 
-def _fig17_study(out, quick, renders, log):
+def _fig17_study(out, quick, renders, log, resume):
     scene = pull.specimen_scene(quality="draft")
     model = build_model(scene)
     rel = 0.25 if quick else 0.1
@@ -181,7 +183,7 @@ def _fig17_decide(m):
     return bool(h[0] >= 10.0 * s[1] and s[1] <= i[0] and i[1] <= h[0])
 
 
-def _fig18_study(out, quick, renders, log):
+def _fig18_study(out, quick, renders, log, resume):
     days = 600.0 if quick else 1500.0
     runs = [barrier.run_barrier(r, days=days, dt=2.0 if quick else 1.0) for r in barrier.RATIOS]
     chart = out / "fig18.png"
@@ -190,16 +192,16 @@ def _fig18_study(out, quick, renders, log):
             for r in runs}, [chart]
 
 
-def _fig20_study(out, quick, renders, log):
+def _fig20_study(out, quick, renders, log, resume):
     from . import sensitivity
 
-    return sensitivity.run(out, quick, renders, log)
+    return sensitivity.run(out, quick, renders, log, resume)
 
 
-def _fig20_bakes(out, quick):
+def _fig20_bakes(out, quick, resume):
     from . import sensitivity
 
-    return sensitivity.jobs(out, quick)
+    return sensitivity.jobs(out, quick, resume)
 
 
 def _fig20_decide(m):

@@ -22,10 +22,9 @@ from pathlib import Path
 from .. import render
 from ..atomic import write_bytes
 from ..errors import InputError
-from ..scene import load_scene
 from ..sim.threads import requested_threads
 from . import pool
-from .bakes import SCENES, bake_scene, finished_bake, frame_rows, render_panel
+from .bakes import bake_scene, frame_rows, pending, render_panel
 from .figures import FIGURES, Figure
 
 def select(names) -> list[Figure]:
@@ -61,16 +60,14 @@ def _overrides(fig: Figure, variant, quick: bool) -> dict:
 
 def plan(figures: list[Figure], out: Path, quick: bool, resume: bool) -> list[pool.Job]:
     """The bakes of ``figures`` into ``out`` in the order they are read: each variant's (those
-    that ``resume`` reuses left out) and the studies' (:attr:`Figure.study_bakes`)."""
+    that ``resume`` reuses left out) and the studies' (:attr:`Figure.study_bakes`), those too."""
     jobs = []
     for fig in figures:
         for v in fig.variants:
-            job = pool.Job(v.scene or fig.scene, _overrides(fig, v, quick), out / fig.key / v.name, resume)
-            if not (resume and finished_bake(load_scene(SCENES / job.scene_file, overrides=job.overrides), job.folder)):
-                jobs.append(job)
+            jobs.append(pool.Job(v.scene or fig.scene, _overrides(fig, v, quick), out / fig.key / v.name, resume))
         if fig.study_bakes is not None:
-            jobs += fig.study_bakes(out / fig.key, quick)
-    return jobs
+            jobs += fig.study_bakes(out / fig.key, quick, resume)
+    return [job for job in jobs if pending(job)]
 
 
 def _brief(sig: dict) -> str:
@@ -82,13 +79,13 @@ def _brief(sig: dict) -> str:
 
 def run_figure(fig: Figure, out: Path, quick: bool, renders: bool, log=print, resume: bool = False) -> dict:
     """Bake (or study), render and decide one figure; its entry of signatures.json. ``resume``:
-    reuse the finished bakes of variants whose scene is unchanged (a study runs again)."""
+    reuse the finished bakes of variants whose scene is unchanged (a study's bakes too)."""
     t0 = time.perf_counter()
     folder = out / fig.key
     folder.mkdir(parents=True, exist_ok=True)
     panels = []
     if fig.study is not None:
-        measured, charts = fig.study(folder, quick, renders, log)
+        measured, charts = fig.study(folder, quick, renders, log, resume)
         panels += [str(Path(c).relative_to(out)) for c in charts]
     else:
         measured = {}

@@ -33,8 +33,9 @@ PURITY_PIECES = 5
 SSIM_OPTIONS = ("--no-labels", "--max-kb", "0")
 
 
-def run(out: Path, quick: bool, renders: bool, log) -> tuple[dict, list]:
-    """The study (module docstring) into ``out``; measured per scene, and the chart."""
+def run(out: Path, quick: bool, renders: bool, log, resume: bool = False) -> tuple[dict, list]:
+    """The study (module docstring) into ``out``; measured per scene, and the chart. ``resume``
+    reuses the finished bakes in ``out`` (:func:`.bakes.bake_scene`)."""
     measured = {}
     for name in STUDIED:
         scene_file = FIGURES[name].scene
@@ -42,11 +43,12 @@ def run(out: Path, quick: bool, renders: bool, log) -> tuple[dict, list]:
         scene = load_scene(SCENES / scene_file, overrides=FIGURES[name].quick if quick else {})
         for v, overrides in variants(name, quick).items():
             reuse = own_bakes(name, out) if v == "dt" else ()
-            b = bake_scene(scene_file, overrides, out / name / v, reuse=reuse)
+            b = bake_scene(scene_file, overrides, out / name / v, resume, reuse)
             runs[v] = {"overrides": overrides, "signature": b.summary["frames"][-1]["signature"],
                        "seconds": round(b.seconds, 1), "elements": b.summary["counts"]["elements"], "reused": b.reused}
             frames[v], usds[v], summaries[v] = b.frames, b.usd, b.summary
-            log(f"  fig20/{name}/{v}: {b.seconds:.0f} s" + (f" ({name}'s own bake)" if b.reused else ""))
+            reused = f"{name}'s own bake" if v == "dt" else "its finished bake"
+            log(f"  fig20/{name}/{v}: {b.seconds:.0f} s" + (f" ({reused})" if b.reused else ""))
         entry = {"runs": runs}
         ref = runs["dt"]["signature"]
         entry["within_tolerance"] = {v: within_tolerance(runs[v]["signature"], ref) for v in ("sparse2", "sparse4")}
@@ -71,10 +73,10 @@ def variants(name: str, quick: bool) -> dict[str, dict]:
             "sparse4": {**base, "strands.r_s": scene.strands.r_s * 2.0}}
 
 
-def jobs(out: Path, quick: bool) -> list[Job]:
+def jobs(out: Path, quick: bool, resume: bool = False) -> list[Job]:
     """The study's bakes that :mod:`.pool` can make ahead into ``out``: all but the runs at the
     default step, which are the figures' own bakes (:func:`own_bakes`)."""
-    return [Job(FIGURES[name].scene, overrides, out / name / v)
+    return [Job(FIGURES[name].scene, overrides, out / name / v, resume)
             for name in STUDIED for v, overrides in variants(name, quick).items() if v != "dt"]
 
 
