@@ -59,8 +59,8 @@ def _overrides(fig: Figure, variant, quick: bool) -> dict:
 
 
 def plan(figures: list[Figure], out: Path, quick: bool, resume: bool) -> list[pool.Job]:
-    """The bakes of ``figures`` into ``out`` in the order they are read: each variant's (those
-    that ``resume`` reuses left out) and the studies' (:attr:`Figure.study_bakes`), those too."""
+    """The bakes of ``figures`` into ``out`` in the order they are read: each variant's and the
+    studies' (:attr:`Figure.study_bakes`), those ``resume`` reuses left out (:func:`.bakes.pending`)."""
     jobs = []
     for fig in figures:
         for v in fig.variants:

@@ -33,7 +33,7 @@ PURITY_PIECES = 5
 SSIM_OPTIONS = ("--no-labels", "--max-kb", "0")
 
 
-def run(out: Path, quick: bool, renders: bool, log, resume: bool = False) -> tuple[dict, list]:
+def run(out: Path, quick: bool, renders: bool, log, resume: bool) -> tuple[dict, list]:
     """The study (module docstring) into ``out``; measured per scene, and the chart. ``resume``
     reuses the finished bakes in ``out`` (:func:`.bakes.bake_scene`)."""
     measured = {}
@@ -73,7 +73,7 @@ def variants(name: str, quick: bool) -> dict[str, dict]:
             "sparse4": {**base, "strands.r_s": scene.strands.r_s * 2.0}}
 
 
-def jobs(out: Path, quick: bool, resume: bool = False) -> list[Job]:
+def jobs(out: Path, quick: bool, resume: bool) -> list[Job]:
     """The study's bakes that :mod:`.pool` can make ahead into ``out``: all but the runs at the
     default step, which are the figures' own bakes (:func:`own_bakes`)."""
     return [Job(FIGURES[name].scene, overrides, out / name / v, resume)
