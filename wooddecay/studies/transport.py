@@ -7,7 +7,11 @@ replaced by a constant one so that planar fronts and heat kernels have fixed pri
   the direction over 2 D a_dir (1 is exact).
 * :func:`fisher_speed_ratio`: R_b with H_c = 1, no defence, open moisture window is Fisher-KPP;
   the planar front's speed over 2 sqrt(alpha D a_dir), fitted over t in [17, 34] / alpha with
-  Bramson's log correction (an ideal 1D finite-difference solver gives 0.993 on that window).
+  Bramson's log correction (an ideal 1D finite-difference solver gives 0.993 on that window), at
+  a resolution q = h sqrt(alpha / D_dir) of the element spacing h in front widths.
+* :func:`front_resolution`: that q for the decay fronts of a scene's model, and
+  :func:`lattice_speed_ratio` the speed a 1D lattice of spacing h gives a front at q: a pulled
+  front runs ahead of the continuum's on a coarse graph, since its leading edge jumps h at once.
 """
 from __future__ import annotations
 
@@ -98,12 +102,21 @@ def heat_kernel_ratio(direction: str, D: float = 1e-3, t_end: float = 0.6) -> tu
     return float(np.polyfit(ts[late], vs[late], 1)[0] / (2 * D * A_DIR[direction])), s.clamp_count
 
 
-def fisher_speed_ratio(direction: str, alpha: float = 1.0) -> tuple[float, int]:
-    """(fitted front speed) / (2 sqrt(alpha D_dir)) and the clamp count (module docstring)."""
+#: element spacing h of the Fisher blocks along the grain (their rod length) and across it (2 r_s)
+FISHER_SPACING = {"l": 0.01, "r": 0.01, "t": 0.01}
+#: front resolution q of the Fisher blocks unless asked for another: resolved fronts
+FISHER_Q = {"l": 0.2, "r": 0.25, "t": 0.25}
+
+
+def fisher_speed_ratio(direction: str, alpha: float = 1.0, q: float | None = None,
+                       alpha_dt: float = 0.1) -> tuple[float, int]:
+    """(fitted front speed) / (2 sqrt(alpha D_dir)) and the clamp count (module docstring), for a
+    front whose width sqrt(D_dir / alpha) is the element spacing over ``q`` (default FISHER_Q),
+    in biology steps of ``alpha_dt`` / alpha."""
     a = A_DIR[direction]
-    D_dir = 0.0025 if direction == "l" else 0.0016
+    D_dir = alpha * (FISHER_SPACING[direction] / (FISHER_Q[direction] if q is None else q)) ** 2
     if direction == "l":
-        scene, model = block(4.0, 0.05, 0.05, 0.01, alpha, D_dir / a)
+        scene, model = block(4.0, 0.05, 0.05, FISHER_SPACING["l"], alpha, D_dir / a)
     else:  # two elements along the grain: the front is uniform along x, so more add only copies
         scene, model = block(0.03, 3.4, 0.04, 0.015, alpha, D_dir / a)
     model = constant_frame_model(model, scene, direction)
@@ -116,7 +129,7 @@ def fisher_speed_ratio(direction: str, alpha: float = 1.0) -> tuple[float, int]:
     area = V.sum() / x.max()
     ts, X = [], []
     while s.t_days < 34.0 / alpha - 1e-9:
-        biology.step(model, s, 0.1 / alpha)
+        biology.step(model, s, alpha_dt / alpha)
         ts.append(s.t_days)
         X.append(np.sum(V * s.R_b) / area)
     ts, X = np.array(ts), np.array(X)
@@ -124,3 +137,36 @@ def fisher_speed_ratio(direction: str, alpha: float = 1.0) -> tuple[float, int]:
     corrected = X + 1.5 * np.sqrt(D_dir / alpha) * np.log(alpha * ts)
     v = np.polyfit(ts[late], corrected[late], 1)[0]
     return float(v / (2 * np.sqrt(alpha * D_dir))), s.clamp_count
+
+
+def lattice_speed_ratio(q: float, alpha_dt: float = 0.0) -> float:
+    """Speed of a pulled Fisher-KPP front on a 1D lattice (u_t = D (u_{i+1} - 2 u_i + u_{i-1}) / h^2
+    + alpha u (1 - u), explicit Euler steps of dt) over the continuum's 2 sqrt(alpha D), at q =
+    h sqrt(alpha / D) and ``alpha_dt`` = alpha dt (0: exact in time). The linearised leading edge
+    u ~ exp(-mu (x - c t) / h) grows by G = 1 + alpha dt (1 + 2 (cosh mu - 1) / q^2) a step, so
+    the ratio is the minimum over mu > 0 of q ln G / (2 mu alpha dt) (van Saarloos 2003, Phys.
+    Rep. 386, §2), which at alpha dt -> 0 is (q / mu + 2 (cosh mu - 1) / (q mu)) / 2: 1 as q -> 0."""
+    mu = np.linspace(1e-4, 40.0, 400_001)
+    with np.errstate(over="ignore"):
+        growth = 1.0 + 2.0 * (np.cosh(mu) - 1.0) / q**2
+        c = q * (growth if alpha_dt == 0.0 else np.log1p(alpha_dt * growth) / alpha_dt) / (2.0 * mu)
+    return float(np.min(c))
+
+
+def front_resolution(model) -> dict[str, dict[str, float]]:
+    """Per fungus ("white", "brown") and direction (l, r, t) the median over the elements of q =
+    h sqrt(g / (D a_dir)): h the element spacing (the rod length along the grain, 2 r_s across
+    it), g the fastest linear growth at a front's leading edge (Eqs. 8-9 at R -> 0 on sound wood
+    in an open moisture window without defence: alpha_w0 (lambda_l + lambda_c) / (K_c + 1) for
+    white rot, alpha_b0 for brown), D the fungus' diffusivity and a_dir the transport factor."""
+    P, tissue = model.bio.P, model.bio.tissue
+    names = biology.BIO_PARAMS
+    col = {k: P[tissue, names.index(k)] for k in ("alpha_w0", "alpha_b0", "D_w", "D_b", "lambda_l", "lambda_c", "K_c")}
+    growth = {"white": (col["alpha_w0"] * (col["lambda_l"] + col["lambda_c"]) / (col["K_c"] + 1.0), col["D_w"]),
+              "brown": (col["alpha_b0"], col["D_b"])}
+    aniso = model.materials.table(("a_r", "a_t", "a_l"))[tissue]
+    rod = np.linalg.norm(model.particles[model.first_particle + 1] - model.particles[model.first_particle], axis=1)
+    h = {"l": rod, "r": 2.0 * model.r_s, "t": 2.0 * model.r_s}
+    a = {"r": aniso[:, 0], "t": aniso[:, 1], "l": aniso[:, 2]}
+    return {f: {d: float(np.median(h[d] * np.sqrt(g / (D * a[d])))) for d in ("l", "r", "t")}
+            for f, (g, D) in growth.items()}
