@@ -215,7 +215,9 @@ def _fig18_decide(m):
     return bool(np.all(np.diff(p) >= 0) and p[-1] > p[0])
 
 
-END_VIEW = ("--azimuth", "-150")  # one view onto the x = 0 end face
+#: one view head-on onto the x = 0 end face, the section the paper shows: radial splits and
+#: delamination rings read there and not from the side (docs/decisions.md, "Gallery")
+END_VIEW = ("--azimuth", "-180", "--elevation", "6")
 #: --quick: the log of Figs. 12-13 and the trees of Figs. 16, 19 with wider strands (log 1.3x,
 #: trees 2.5x with rods twice as long: their twigs then hold no wood) and fewer cells; they and
 #: Fig. 14's trunk rot for years at a 4-day biology step (the trees within their 7.6-day bound),
