@@ -5,7 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from wooddecay.studies.transport import fisher_speed_ratio, heat_kernel_ratio, lattice_speed_ratio
+import wooddecay as wd
+from wooddecay.studies.transport import (fisher_speed_ratio, front_resolution, heat_kernel_ratio,
+                                      lattice_speed_ratio)
+
+from ..conftest import SAMPLES
 
 
 @pytest.mark.slow
@@ -60,3 +64,16 @@ def test_under_resolved_front_runs_ahead():
     coarse, _ = fisher_speed_ratio("r", q=6.57, alpha_dt=0.02)
     assert fine > 1.1
     assert coarse - 1.0 > 2.0 * (fine - 1.0)
+
+
+def test_front_resolution_scales_with_the_spacing():
+    """q = h sqrt(g / (D a_dir)): the shipped log's white rot across the grain at r_s 9 mm (2 r_s
+    = 18 mm, g = alpha_w0 (lambda_l + lambda_c) / (K_c + 1) = 0.01 / 1.2 per day, D a_r = 1e-6 x
+    0.25 m^2 per day) is 3.29; strands twice as wide double q across the grain and leave it along."""
+    fine = front_resolution(wd.build_model(wd.load_scene(SAMPLES / "log.toml")))
+    coarse = front_resolution(wd.build_model(wd.load_scene(SAMPLES / "log.toml", {"strands.r_s": 0.018})))
+    assert fine["white"]["r"] == pytest.approx(0.018 * np.sqrt(0.01 / 1.2 / 2.5e-7), rel=1e-9)
+    for fungus in ("white", "brown"):
+        assert coarse[fungus]["r"] == pytest.approx(2.0 * fine[fungus]["r"], rel=1e-9)
+        assert coarse[fungus]["t"] == pytest.approx(2.0 * fine[fungus]["t"], rel=1e-9)
+        assert coarse[fungus]["l"] == pytest.approx(fine[fungus]["l"], rel=0.05)
