@@ -80,8 +80,8 @@ def bake_scene(scene_file: str, overrides: dict, folder: Path, resume: bool = Fa
 def pending(job: pool.Job) -> bool:
     """Whether ``job`` must bake: always without ``job.resume``, else unless ``job.folder`` holds
     a finished bake of its scene (:func:`finished_bake`)."""
-    scene = load_scene(SCENES / job.scene_file, overrides=job.overrides)
-    return not (job.resume and finished_bake(scene, job.folder))
+    return not job.resume or finished_bake(load_scene(SCENES / job.scene_file, overrides=job.overrides),
+                                           job.folder) is None
 
 
 def finished_bake(scene, folder: Path) -> tuple[dict, list, Path] | None:

@@ -102,8 +102,9 @@ def heat_kernel_ratio(direction: str, D: float = 1e-3, t_end: float = 0.6) -> tu
     return float(np.polyfit(ts[late], vs[late], 1)[0] / (2 * D * A_DIR[direction])), s.clamp_count
 
 
-#: element spacing h of the Fisher blocks along the grain (their rod length) and across it (2 r_s)
-FISHER_SPACING = {"l": 0.01, "r": 0.01, "t": 0.01}
+#: element spacing h of the Fisher blocks: the rod length of the block along the grain, 2 r_s
+#: (the template's r_s 5 mm) across it
+FISHER_SPACING = 0.01
 #: front resolution q of the Fisher blocks unless asked for another: resolved fronts
 FISHER_Q = {"l": 0.2, "r": 0.25, "t": 0.25}
 
@@ -114,9 +115,9 @@ def fisher_speed_ratio(direction: str, alpha: float = 1.0, q: float | None = Non
     front whose width sqrt(D_dir / alpha) is the element spacing over ``q`` (default FISHER_Q),
     in biology steps of ``alpha_dt`` / alpha."""
     a = A_DIR[direction]
-    D_dir = alpha * (FISHER_SPACING[direction] / (FISHER_Q[direction] if q is None else q)) ** 2
+    D_dir = alpha * (FISHER_SPACING / (FISHER_Q[direction] if q is None else q)) ** 2
     if direction == "l":
-        scene, model = block(4.0, 0.05, 0.05, FISHER_SPACING["l"], alpha, D_dir / a)
+        scene, model = block(4.0, 0.05, 0.05, FISHER_SPACING, alpha, D_dir / a)
     else:  # two elements along the grain: the front is uniform along x, so more add only copies
         scene, model = block(0.03, 3.4, 0.04, 0.015, alpha, D_dir / a)
     model = constant_frame_model(model, scene, direction)
@@ -159,14 +160,10 @@ def front_resolution(model) -> dict[str, dict[str, float]]:
     it), g the fastest linear growth at a front's leading edge (Eqs. 8-9 at R -> 0 on sound wood
     in an open moisture window without defence: alpha_w0 (lambda_l + lambda_c) / (K_c + 1) for
     white rot, alpha_b0 for brown), D the fungus' diffusivity and a_dir the transport factor."""
-    P, tissue = model.bio.P, model.bio.tissue
-    names = biology.BIO_PARAMS
-    col = {k: P[tissue, names.index(k)] for k in ("alpha_w0", "alpha_b0", "D_w", "D_b", "lambda_l", "lambda_c", "K_c")}
-    growth = {"white": (col["alpha_w0"] * (col["lambda_l"] + col["lambda_c"]) / (col["K_c"] + 1.0), col["D_w"]),
-              "brown": (col["alpha_b0"], col["D_b"])}
-    aniso = model.materials.table(("a_r", "a_t", "a_l"))[tissue]
-    rod = np.linalg.norm(model.particles[model.first_particle + 1] - model.particles[model.first_particle], axis=1)
-    h = {"l": rod, "r": 2.0 * model.r_s, "t": 2.0 * model.r_s}
-    a = {"r": aniso[:, 0], "t": aniso[:, 1], "l": aniso[:, 2]}
+    p = model.materials.per_element
+    growth = {"white": (p("alpha_w0") * (p("lambda_l") + p("lambda_c")) / (p("K_c") + 1.0), p("D_w")),
+              "brown": (p("alpha_b0"), p("D_b"))}
+    h = {"l": model.rest_length, "r": 2.0 * model.r_s, "t": 2.0 * model.r_s}
+    a = {d: p(f"a_{d}") for d in ("l", "r", "t")}
     return {f: {d: float(np.median(h[d] * np.sqrt(g / (D * a[d])))) for d in ("l", "r", "t")}
             for f, (g, D) in growth.items()}
