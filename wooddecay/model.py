@@ -275,6 +275,7 @@ def _time_spec(scene) -> TimeSpec:
                     tolerances=Tolerances(strain=float(scene.time.strain_tolerance),
                                           relative=float(scene.time.tolerance),
                                           rest_speed=float(scene.time.rest_speed),
+                                          hold_speed=float(scene.time.hold_speed),
                                           max_seconds=float(scene.time.max_mechanics)))
 
 

@@ -59,7 +59,7 @@ def test_pair_strains_and_flags_equal_numpy_reference():
     limit[rng.random(pair.shape) < 0.3] += 1.0  # far from failing: the atan2 is skipped
     ok = np.ones_like(ms.edge_ok)
     m = len(ok)
-    new = failure._flag_edges(*args, ref, limit, np.ones(m), np.zeros(m), ok)
+    new = failure._flag_edges(np.arange(m), *args, ref, limit, np.ones(m), np.zeros(m), ok)
     over = pair - ref > limit
     np.testing.assert_array_equal(~ok[:, 0], over[:, 0])
     np.testing.assert_array_equal(ok[:, 1:], ~over[:, :1] & ~over[:, 1:])

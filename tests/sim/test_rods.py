@@ -10,6 +10,8 @@ from ..conftest import sample
 from .helpers import perturbed
 
 def test_rod_kernels_equal_numpy_reference():
+    """Stage 2 sweeps some of the tiny log's REG colour classes on one thread and the others in
+    parallel (rods.PARALLEL_MIN)."""
     setup, ms = perturbed()
     dt = 1e-3
     sw = setup.sweep
@@ -17,6 +19,8 @@ def test_rod_kernels_equal_numpy_reference():
     ms.edge_ok[1::7, 1:] = False  # connection only
     kreg = sw.arrays(ms)
     assert len(kreg.active) < len(sw.order)
+    sizes = np.diff(kreg.ptr)
+    assert (sizes < rods.PARALLEL_MIN).any() and (sizes >= rods.PARALLEL_MIN).any()
     results = []
     for kernels in ((rods.stretch_shear, rods.bend_twist, rods.reg_pass),
                     (rods.stretch_shear_reference, rods.bend_twist_reference, rods.reg_pass_reference)):

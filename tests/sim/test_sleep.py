@@ -1,5 +1,5 @@
 """Sleeping pieces (wooddecay.sim.sleep): quiet pieces sleep, loud ones wake their neighbours,
-failures and loads wake everything, coupled changes wake only the pieces they changed past the
+loads wake everything, failures the pieces they touch, coupled changes wake only the pieces they changed past the
 schedule's tolerances, so a coupled run sleeps."""
 from __future__ import annotations
 
@@ -50,7 +50,7 @@ def test_a_loud_piece_wakes_the_pieces_it_touches_and_no_other():
         assert set(np.unique(ms.component[~ms.asleep])) == woken
 
 
-def test_failures_and_loads_wake_everything_new_masses_wake_nothing():
+def test_loads_wake_everything_failures_their_pieces_new_masses_nothing():
     sim = fragments()
     st, ms = sim.model.mech, sim.state.mech
     quiet_window(st, ms)
@@ -74,8 +74,17 @@ def test_failures_and_loads_wake_everything_new_masses_wake_nothing():
     e = np.flatnonzero(st.inner & ms.element_ok & np.r_[False, ms.element_ok[:-2], False]
                        & np.r_[False, ms.element_ok[2:], False])[0]
     ms.limit_elem[e] = -np.inf
+    piece = ms.component == ms.component[e]
     assert mechanics.macro_step(sim.model, sim.state, 1) > 0
-    assert not ms.asleep.any()
+    # the pieces the failure made and those touching them wake, the rest sleeps on
+    near = set(np.unique(ms.component[piece]))
+    pairs = contact.candidate_pairs(ms.x, st.fp, st.radius, ms.component, 0.0)
+    pairs = pairs[ms.element_ok[pairs[:, 0]] & ms.element_ok[pairs[:, 1]]]
+    c = ms.component[pairs[contact.pair_overlaps(ms.x, st.fp, st.radius, pairs)
+                           > contact.pair_overlaps(st.x_rest, st.fp, st.radius, pairs)]]
+    woken = near | {b for a, b in c if a in near} | {a for a, b in c if b in near}
+    assert set(np.unique(ms.component[~ms.asleep])) == woken
+    assert ms.asleep.any()
 
 
 def test_only_the_pieces_that_changed_past_the_tolerances_wake():

@@ -46,12 +46,19 @@ from ..quaternion import conj_np, mul, mul_np, rotate
 from ..unionfind import labels, union
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(cache=True)
 def element_strains(fp, x, q, rest_length):
     """(n, 2) stretch and shear strain of every element."""
-    n = len(fp)
-    out = np.empty((n, 2))
-    for e in nb.prange(n):
+    out = np.empty((len(fp), 2))
+    _strains_at(np.arange(len(fp)), fp, x, q, rest_length, out)
+    return out
+
+
+@nb.njit(parallel=True, cache=True)
+def _strains_at(idx, fp, x, q, rest_length, out):
+    """:func:`element_strains` of the elements ``idx`` into their rows of ``out``."""
+    for t in nb.prange(len(idx)):
+        e = idx[t]
         a = fp[e]
         b = a + 1
         l = rest_length[e]
@@ -61,7 +68,6 @@ def element_strains(fp, x, q, rest_length):
         g3 = gx * d3[0] + gy * d3[1] + gz * d3[2]
         sx, sy, sz = gx - g3 * d3[0], gy - g3 * d3[1], gz - g3 * d3[2]
         out[e, 1] = math.sqrt(sx * sx + sy * sy + sz * sz)
-    return out
 
 
 @nb.njit(inline="always", cache=True)
@@ -106,14 +112,15 @@ def pair_strains(edges, fp, x, q, rest_offset, edge_length, edge_rest):
 
 
 @nb.njit(cache=True)
-def _flag_elements(strain, limit, link_integrity, I_fail, crumbled, inner, element_ok):
-    """New element failures, in element order (serial, so deterministic): a crumbled element
-    fails; an element over its limit, or whose strand link has decayed below ``I_fail``, cuts its
-    strand only where that separates something, i.e. it is ``inner`` (a neighbour on both sides in
-    its strand) and both neighbours are intact (module docstring)."""
-    n = len(strain)
-    new = np.zeros(n, dtype=np.bool_)
-    for e in range(n):
+def _flag_elements(idx, strain, limit, link_integrity, I_fail, crumbled, inner, element_ok):
+    """New failures among the elements ``idx`` (increasing), in element order (serial, so
+    deterministic): a crumbled element fails; an element over its limit, or whose strand link has
+    decayed below ``I_fail``, cuts its strand only where that separates something, i.e. it is
+    ``inner`` (a neighbour on both sides in its strand) and both neighbours are intact (module
+    docstring)."""
+    new = np.zeros(len(element_ok), dtype=np.bool_)
+    for t in range(len(idx)):
+        e = idx[t]
         if element_ok[e] and crumbled[e]:
             element_ok[e] = False
             new[e] = True
@@ -125,16 +132,17 @@ def _flag_elements(strain, limit, link_integrity, I_fail, crumbled, inner, eleme
 
 
 @nb.njit(parallel=True, cache=True)
-def _flag_edges(edges, fp, x, q, rest_offset, edge_length, edge_rest, strain_ref, limit, integrity, I_fail, edge_ok):
-    """New failures per edge: 0 none, 1 bend / twist only, 2 connection (all flags: over the
-    bundle limit, or decayed below ``I_fail``). The strains
+def _flag_edges(idx, edges, fp, x, q, rest_offset, edge_length, edge_rest, strain_ref, limit, integrity, I_fail,
+                edge_ok):
+    """New failures per edge among the edges ``idx``: 0 none, 1 bend / twist only, 2 connection
+    (all flags: over the bundle limit, or decayed below ``I_fail``). The strains
     (:func:`pair_strains`) are measured on intact edges only, in the same pass as the test. The
     angles 2 atan(v / r0) (v / |v|) are bounded by 2 v / r0 (atan z <= z); where that bound, with
     a margin far above rounding, is within the limit the edge cannot fail and the atan2 is
     skipped, so the flags are those of the exact test."""
-    m = len(edge_ok)
-    new = np.zeros(m, dtype=np.int8)
-    for k in nb.prange(m):
+    new = np.zeros(len(edge_ok), dtype=np.int8)
+    for t in nb.prange(len(idx)):
+        k = idx[t]
         if not edge_ok[k, 0]:
             continue
         if (integrity[k] < I_fail[k]
@@ -244,15 +252,20 @@ def pair_strains_reference(edges, fp, x, q, rest_offset, edge_length, edge_rest)
     return np.stack([bundle, f * np.linalg.norm(r[:, 1:3], axis=1), f * np.abs(r[:, 3])], axis=1)
 
 
-def update(setup, ms) -> int:
+def update(setup, ms, tested: tuple | None = None) -> int:
     """Flag the constraints whose strain beyond the settled reference (``ms.strain_ref_*``,
     :func:`mechanics.settle`) exceeds their limit; recompute components if anything separated.
+    ``tested``: (elements, edges), increasing indices, to test only those (the rest has been
+    tested at its current positions and limits, :func:`mechanics.stiffness`); None: all.
     Returns the number of new failures (elements plus edges)."""
-    elem = element_strains(setup.fp, ms.x, ms.q, ms.rest_length)
-    new_e = _flag_elements(elem - ms.strain_ref_elem, ms.limit_elem, ms.link_integrity, setup.I_fail_elem,
+    idx_e, idx_k = tested if tested is not None else (setup.all_elements, setup.all_edges)
+    elem = np.empty((setup.n_elements, 2))
+    _strains_at(idx_e, setup.fp, ms.x, ms.q, ms.rest_length, elem)
+    new_e = _flag_elements(idx_e, elem - ms.strain_ref_elem, ms.limit_elem, ms.link_integrity, setup.I_fail_elem,
                            ms.crumbled, setup.inner, ms.element_ok)
-    new_k = _flag_edges(setup.edges, setup.fp, ms.x, ms.q, ms.rest_offset, setup.edge_length, setup.edge_rest,
-                        ms.strain_ref_edge, ms.limit_edge, ms.integrity, setup.I_fail_edge, ms.edge_ok)
+    new_k = _flag_edges(idx_k, setup.edges, setup.fp, ms.x, ms.q, ms.rest_offset, setup.edge_length,
+                        setup.edge_rest, ms.strain_ref_edge, ms.limit_edge, ms.integrity, setup.I_fail_edge,
+                        ms.edge_ok)
     count_e, count_k = np.count_nonzero(new_e), np.count_nonzero(new_k)
     count = int(count_e + count_k)
     if count_e or (count_k and (new_k == 2).any()):

@@ -26,6 +26,7 @@ strand's E I, G J over dp_0. The kernels of :mod:`~wooddecay.sim.rods` and
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
+from functools import cached_property
 from typing import NamedTuple
 
 import numba as nb
@@ -178,6 +179,16 @@ class MechSetup:
     def n_elements(self) -> int:
         return len(self.fp)
 
+    @cached_property
+    def all_elements(self) -> np.ndarray:
+        """Every element id (:func:`failure.update` tests these by default)."""
+        return np.arange(len(self.fp))
+
+    @cached_property
+    def all_edges(self) -> np.ndarray:
+        """Every REG edge id."""
+        return np.arange(len(self.edges))
+
 
 @dataclass(eq=False)
 class MechState:
@@ -207,6 +218,7 @@ class MechState:
     strain_ref_elem: np.ndarray  # (n, 2) settled stretch, shear strain (failure measures from it)
     strain_ref_edge: np.ndarray  # (m, 3) settled bundle, bend, twist strain
     asleep: np.ndarray  # (n,) bool: the element's piece sleeps (:mod:`~wooddecay.sim.sleep`)
+    held: np.ndarray  # (n,) bool: the element's piece is held still in this solve (:mod:`~wooddecay.sim.schedule`)
     sleep_x: np.ndarray  # (P, 3) positions at the start of the sleep window
     sleep_t: np.ndarray  # (1,) seconds at the start of the sleep window
     force: np.ndarray  # (P, 3) external forces: the [[load]]s of the day (:func:`macro_step`)
@@ -376,7 +388,8 @@ def initial_state(model) -> MechState:
         link_integrity=np.ones(n), crumbled=np.zeros(n, dtype=bool), limit_elem=np.full((n, 2), np.inf), limit_edge=np.full((m, 3), np.inf),
         element_ok=np.ones(n, dtype=bool), edge_ok=np.ones((m, 3), dtype=bool),
         component=np.zeros(n, dtype=np.int64), strain_ref_elem=np.zeros((n, 2)),
-        strain_ref_edge=np.zeros((m, 3)), asleep=np.zeros(n, dtype=bool), sleep_x=np.zeros((P, 3)),
+        strain_ref_edge=np.zeros((m, 3)), asleep=np.zeros(n, dtype=bool), held=np.zeros(n, dtype=bool),
+        sleep_x=np.zeros((P, 3)),
         sleep_t=np.zeros(1), force=np.zeros((P, 3)), torque=np.zeros((n, 3)),
     )
     set_masses(setup, ms, np.zeros(n))
@@ -581,8 +594,38 @@ def strand_stage(setup: MechSetup, ms: MechState, kjoint, plan: Stage1Plan, lam:
 
 def stiffness(setup: MechSetup, ms: MechState) -> tuple:
     """The REG (:meth:`RegSweep.arrays`) and strand joint stiffness of the current state and its
-    :func:`stage1_plan`; they change only with the failure flags, I_ij and dp."""
-    return setup.sweep.arrays(ms), _joint_stiffness(setup, ms), stage1_plan(setup, ms)
+    :func:`stage1_plan`, without the constraints that move nothing while pieces are still
+    (:func:`without_still`), and what the failure test needs to test after a substep that tested
+    everything (None: everything; else the elements that move and the REG edges with such an end:
+    the others' strains and limits stay as they were); they change only with the failure flags,
+    I_ij, dp and what is still."""
+    kreg, kjoint, plan = setup.sweep.arrays(ms), _joint_stiffness(setup, ms), stage1_plan(setup, ms)
+    if not sleep.still(ms).any():
+        return kreg, kjoint, plan, None
+    moves = movable(setup, ms)
+    kreg, plan = without_still(setup, moves, kreg, plan)
+    edges = setup.edges
+    return kreg, kjoint, plan, (np.flatnonzero(moves), np.flatnonzero(moves[edges[:, 0]] | moves[edges[:, 1]]))
+
+
+def movable(setup: MechSetup, ms: MechState) -> np.ndarray:
+    """The elements with a particle or a quaternion of nonzero weight."""
+    return (ms.w_p[setup.fp] > 0.0) | (ms.w_p[setup.fp + 1] > 0.0) | (ms.w_q > 0.0)
+
+
+def without_still(setup: MechSetup, moves: np.ndarray, kreg: RegStiffness, plan: Stage1Plan) -> tuple:
+    """``kreg``'s active edges and ``plan``'s elements, joints and runs less those of which no
+    element ``moves`` (:func:`movable`): every weight they would apply is zero, so their
+    projections move nothing, and a sleeping or held piece costs no sweep. Returns (kreg, plan)."""
+    edges, active = setup.sweep.edges, kreg.active
+    active = active[moves[edges[active, 0]] | moves[edges[active, 1]]]
+    kreg = kreg._replace(active=active, ptr=np.searchsorted(active, setup.sweep.ptr).astype(np.int64))
+    je = setup.joints
+    count = np.concatenate([[0], np.cumsum(moves)])
+    run = count[plan.hi] > count[plan.lo]
+    plan = Stage1Plan(plan.lo[run], plan.hi[run], tuple(c[moves[c]] for c in plan.elems),
+                      tuple(j[moves[je[j, 0]] | moves[je[j, 1]]] for j in plan.joint_sets))
+    return kreg, plan
 
 
 def substep(model, state, dt: float) -> int:
@@ -592,14 +635,15 @@ def substep(model, state, dt: float) -> int:
 
 
 def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: tuple | None = None, lam: dict | None = None,
-             check: bool = True) -> int:
+             check: bool = True, check_all: bool = True) -> int:
     """:func:`substep`; ``stiff``: :func:`stiffness` of this state, if the caller holds it;
     ``lam``: a dict that receives the substep's multipliers (:func:`strain_excess`); ``check``:
-    test for failures (:func:`failure.update`), else return 0."""
+    test for failures (:func:`failure.update`), else return 0; ``check_all``: test every
+    constraint, else only those ``stiff`` names (the rest has not moved since a test of all)."""
     x_old, q_old = np.empty_like(ms.x), np.empty_like(ms.q)
     _predict(ms.x, ms.v, ms.q, ms.omega, ms.w_p, ms.w_q, ms.mass_p, ms.force, setup.gravity, ms.torque,
              np.exp(-setup.damping * dt), dt, x_old, q_old)
-    kreg, kjoint, plan = stiff or stiffness(setup, ms)
+    kreg, kjoint, plan, tested = stiff or stiffness(setup, ms)
     fresh = _multipliers(setup)
     lam = fresh if lam is None else lam
     lam.update(fresh)
@@ -627,7 +671,9 @@ def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: tuple | None = N
     contact.collider_velocities(ms.v, ms.x, ms.w_p, setup.colliders, hit_c)
     contact.contact_velocities(ms.v, ms.x, ms.w_p, setup.fp, ms.radius, ms.pairs, hit_p)
     ms.t_seconds += dt
-    return failure.update(setup, ms) if check else 0
+    if not check:
+        return 0
+    return failure.update(setup, ms, None if check_all else tested)
 
 
 def strain_excess(setup: MechSetup, ms: MechState) -> float:
@@ -646,7 +692,7 @@ def strain_excess(setup: MechSetup, ms: MechState) -> float:
     probe, lam, dt = ms.copy(), {}, setup.dt / load_split(setup, ms.w_p, ms.force)
     _substep(setup, probe, dt, lam=lam)
     before = {k: v.copy() for k, v in lam.items()}
-    kreg, (kb, kt), plan = stiffness(setup, probe)
+    kreg, (kb, kt), plan, _ = stiffness(setup, probe)
     _project(setup, probe, (kb, kt), plan, kreg, lam, dt)
     fp, w_p, w_q, l = setup.fp, probe.w_p, probe.w_q, probe.rest_length
     wa, wb = w_p[fp], w_p[fp + 1]
@@ -684,7 +730,8 @@ def refresh_pairs(setup: MechSetup, ms: MechState) -> None:
     :func:`failure.update` changed the components (it clears ``pairs_x``). Failed elements take
     no part: a broken element's segment joins the end of one piece to the start of the next
     (its second particle is the next element's first), so it is no longer wood and its capsule
-    would drag through both pieces. ``pairs_rest`` holds each pair's overlap at the rest
+    would drag through both pieces. Nor do pairs of which no element can move (:func:`movable`;
+    sleeping and held pieces): they move nothing. ``pairs_rest`` holds each pair's overlap at the rest
     positions (shrunk as brown rot shrank the pair), which contact does not push out (:mod:`~wooddecay.sim.contact`, "Rest overlap"), and
     ``pairs_protect`` the overlap beyond it that the pair had when its elements separated
     (``sep_keys``, ``sep_overlap``), which contact pushes out at most at v_depenetration."""
@@ -692,6 +739,9 @@ def refresh_pairs(setup: MechSetup, ms: MechState) -> None:
     if ms.pairs_x is not None and _within(ms.x, ms.pairs_x, 0.5 * margin):
         return
     ms.pairs = contact.candidate_pairs(ms.x, setup.fp, ms.radius, ms.component, margin, active=ms.element_ok)
+    if sleep.still(ms).any():  # a pair of which no element moves does nothing
+        moves = movable(setup, ms)
+        ms.pairs = ms.pairs[moves[ms.pairs[:, 0]] | moves[ms.pairs[:, 1]]]
     shrink = np.divide(ms.radius, setup.radius, out=np.ones_like(ms.radius), where=setup.radius > 0.0)  # brown rot
     ms.pairs_rest = (contact.pair_overlaps(setup.x_rest, setup.fp, setup.radius, ms.pairs)
                      * 0.5 * (shrink[ms.pairs[:, 0]] + shrink[ms.pairs[:, 1]]))
@@ -782,11 +832,13 @@ def advance(model, state, n_sub: int) -> int:
 def _advance(setup: MechSetup, ms: MechState, n_sub: int, stiff: tuple | None = None,
              check: bool = True) -> tuple[int, tuple | None]:
     """:func:`advance`; returns (new failures, the stiffness to pass to the next call); ``check``
-    as in :func:`_substep`."""
+    as in :func:`_substep`. The first substep tests every constraint for failure, the others
+    only those of elements that can move (:func:`stiffness`): still wood keeps its strains and,
+    within a call, its limits."""
     new = 0
-    for _ in range(n_sub):
+    for i in range(n_sub):
         stiff = stiffness(setup, ms) if stiff is None else stiff
-        count = _substep(setup, ms, setup.dt, stiff, check=check)
+        count = _substep(setup, ms, setup.dt, stiff, check=check, check_all=i == 0)
         new += count
         if count:  # flags changed
             stiff = None
@@ -827,8 +879,8 @@ def macro_step(model, state, n_sub: int) -> int:
     """Algorithm 1 lines 4-8: ``n_sub`` substeps of ``model.mech.dt`` under the loads of the day
     ``state.t_days``, each split in :func:`load_split` of them; returns new failures. With
     ``sleep_speed`` > 0 pieces that stopped moving sleep (:mod:`~wooddecay.sim.sleep`): the
-    substeps stop at every end of a sleep window to update who sleeps, and a failure wakes
-    everything."""
+    substeps stop at every end of a sleep window to update who sleeps, and a failure wakes the
+    still pieces it touched and those touching them (:func:`sleep.wake_failed`)."""
     setup, ms = model.mech, state.mech
     ms.force = external_forces(setup, state.t_days)
     split = load_split(setup, ms.w_p, ms.force)
@@ -841,10 +893,13 @@ def macro_step(model, state, n_sub: int) -> int:
     new, stiff = 0, None
     while n_sub > 0:
         k = min(n_sub, max(sleep.substeps_left(setup, ms), 1))
+        flags, stopped = (ms.element_ok.copy(), ms.edge_ok.copy()), sleep.still(ms)
         count, stiff = _advance(setup, ms, k, stiff)
         new, n_sub = new + count, n_sub - k
         if count:
-            sleep.wake_all(setup, ms)
+            sleep.wake_failed(setup, ms, *flags, refresh_pairs)
         elif sleep.substeps_left(setup, ms) == 0:
             sleep.update(setup, ms)
+        if not np.array_equal(stopped, sleep.still(ms)):  # the kernels skip what is still
+            stiff, ms.pairs_x = None, None
     return new

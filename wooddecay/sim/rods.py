@@ -139,6 +139,12 @@ def bend_twist(pairs, idx, q, w_q, rest, length, k_bend, k_twist, lam, dt):
                         lam, k, dt)
 
 
+#: a colour class of fewer REG edges than this is swept on the calling thread: a parallel
+#: region costs about 2 us to start, more than such a class's work (docs/decisions.md, "Small
+#: classes on one thread")
+PARALLEL_MIN = 96
+
+
 @nb.njit(parallel=True, cache=True)
 def reg_pass(edges, ptr, active, fp, x, q, w_p, w_q, rest_offset, k_conn, rest, length, k_bend, k_twist,
              lam_c, lam_bt, dt):
@@ -147,30 +153,43 @@ def reg_pass(edges, ptr, active, fp, x, q, w_p, w_q, rest_offset, k_conn, rest, 
     :func:`color_edges`), those with a connection, bend or twist stiffness left; on each the
     connection constraint of Eq. 2 on element centres, then the pair's bend-twist coupling where
     it holds. One call per sweep: a call per class (41 per substep on the log) cost 9% of Stage 2;
-    a failed edge costs nothing (docs/decisions.md, "One call per Stage 2 sweep")."""
+    a failed edge costs nothing (docs/decisions.md, "One call per Stage 2 sweep"). Classes under
+    ``PARALLEL_MIN`` edges run serially: the edges of a class are independent, so the bits are the
+    same."""
     for c in range(len(ptr) - 1):
-        for t in nb.prange(ptr[c], ptr[c + 1]):
-            k = active[t]
-            i, j = edges[k, 0], edges[k, 1]
-            ai, aj = fp[i], fp[j]
-            bi, bj = ai + 1, aj + 1
-            W = 0.25 * (w_p[ai] + w_p[bi] + w_p[aj] + w_p[bj])
-            if k_conn[k] > 0.0 and W > 0.0:
-                dx = 0.5 * (x[aj, 0] + x[bj, 0] - x[ai, 0] - x[bi, 0])
-                dy = 0.5 * (x[aj, 1] + x[bj, 1] - x[ai, 1] - x[bi, 1])
-                dz = 0.5 * (x[aj, 2] + x[bj, 2] - x[ai, 2] - x[bi, 2])
-                L = math.sqrt(dx * dx + dy * dy + dz * dz)
-                if L > 0.0:
-                    dl = _xpbd(L - rest_offset[k], lam_c[k], W, k_conn[k], dt)
-                    lam_c[k] += dl
-                    h = 0.5 * dl / L
-                    for cc, dc in ((0, dx), (1, dy), (2, dz)):
-                        x[ai, cc] -= w_p[ai] * h * dc
-                        x[bi, cc] -= w_p[bi] * h * dc
-                        x[aj, cc] += w_p[aj] * h * dc
-                        x[bj, cc] += w_p[bj] * h * dc
-            if k_bend[k] > 0.0 or k_twist[k] > 0.0:
-                _bend_twist_one(i, j, q, w_q, rest, length[k], k_bend[k], k_twist[k], lam_bt, k, dt)
+        if ptr[c + 1] - ptr[c] < PARALLEL_MIN:
+            for t in range(ptr[c], ptr[c + 1]):
+                _reg_edge(active[t], edges, fp, x, q, w_p, w_q, rest_offset, k_conn, rest, length, k_bend, k_twist,
+                          lam_c, lam_bt, dt)
+        else:
+            for t in nb.prange(ptr[c], ptr[c + 1]):
+                _reg_edge(active[t], edges, fp, x, q, w_p, w_q, rest_offset, k_conn, rest, length, k_bend, k_twist,
+                          lam_c, lam_bt, dt)
+
+
+@nb.njit(inline="always", cache=True)
+def _reg_edge(k, edges, fp, x, q, w_p, w_q, rest_offset, k_conn, rest, length, k_bend, k_twist, lam_c, lam_bt, dt):
+    """:func:`reg_pass` on the edge at colour position ``k``."""
+    i, j = edges[k, 0], edges[k, 1]
+    ai, aj = fp[i], fp[j]
+    bi, bj = ai + 1, aj + 1
+    W = 0.25 * (w_p[ai] + w_p[bi] + w_p[aj] + w_p[bj])
+    if k_conn[k] > 0.0 and W > 0.0:
+        dx = 0.5 * (x[aj, 0] + x[bj, 0] - x[ai, 0] - x[bi, 0])
+        dy = 0.5 * (x[aj, 1] + x[bj, 1] - x[ai, 1] - x[bi, 1])
+        dz = 0.5 * (x[aj, 2] + x[bj, 2] - x[ai, 2] - x[bi, 2])
+        L = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if L > 0.0:
+            dl = _xpbd(L - rest_offset[k], lam_c[k], W, k_conn[k], dt)
+            lam_c[k] += dl
+            h = 0.5 * dl / L
+            for cc, dc in ((0, dx), (1, dy), (2, dz)):
+                x[ai, cc] -= w_p[ai] * h * dc
+                x[bi, cc] -= w_p[bi] * h * dc
+                x[aj, cc] += w_p[aj] * h * dc
+                x[bj, cc] += w_p[bj] * h * dc
+    if k_bend[k] > 0.0 or k_twist[k] > 0.0:
+        _bend_twist_one(i, j, q, w_q, rest, length[k], k_bend[k], k_twist[k], lam_bt, k, dt)
 
 
 def active_edges(ptr: np.ndarray, k_conn: np.ndarray, k_bend: np.ndarray, k_twist: np.ndarray

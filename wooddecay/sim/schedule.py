@@ -43,13 +43,26 @@ Skipped steps leave every rest-data change within the tolerances unrelaxed, so t
 sees strains at most ``strain_tolerance`` early and a resting shape lags by at most ``tolerance``
 of its sag; ``benchmarks/schedule.py`` measures the difference to the fixed schedule.
 
+Held pieces: after every chunk of a solve the pieces at rest (their centre of mass slower than
+``time.hold_speed``) are held still for the next chunk (:func:`hold_still`), as a sleeping piece
+is (zero weights, :mod:`~wooddecay.sim.sleep`), and the kernels skip every constraint of which
+nothing can move (:func:`mechanics.stiffness`). A piece a moving one touches stays awake when
+the mover's momentum could set it moving (m v > M hold_speed). Pieces held when a solve ends at its
+cap stay held into the next ("moving") solve; a solve that ends quiet releases them, and so do
+a failure in or beside them, a load, and rest data that changed past the tolerances (held
+pieces keep the reference data of :func:`mark` they were held with). Why (docs/decisions.md,
+"Held pieces"): in a collapse the solve goes on for the few pieces falling off the heap, and
+the log they fall from took the substeps' time.
+
 The reference rest data and the quiet flag live in the :class:`~wooddecay.sim.mechanics.MechState`
-(``solved_*``), so they are checkpointed and a resumed bake decides as the uninterrupted one.
+(``solved_*``, ``held``), so they are checkpointed and a resumed bake decides as the uninterrupted
+one.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
@@ -71,6 +84,7 @@ class Tolerances:
     strain: float  # strain_tolerance
     relative: float  # tolerance: integrity and mass
     rest_speed: float  # m/s
+    hold_speed: float  # m/s (:func:`hold_still`; 0: never)
     max_seconds: float  # max_mechanics, s per macro step
 
 
@@ -78,7 +92,7 @@ def mark(model, ms: mech.MechState, t_days: float, quiet: bool) -> None:
     """Take the current rest data of the awake elements and of the REG pairs with an awake end
     as the state of the last solve, on day ``t_days``. A sleeping piece keeps the data it fell
     asleep with, so its changes add up until they wake it (:func:`wake_changed`)."""
-    awake = ~ms.asleep
+    awake = ~sleep.still(ms)
     edges = model.mech.edges
     pair_awake = awake[edges[:, 0]] | awake[edges[:, 1]]
     ms.solved_rest_length[awake] = ms.rest_length[awake]
@@ -164,15 +178,16 @@ def due(model, state, tol: Tolerances) -> str | None:
     nothing else asks for a solve; failures it finds are kept and wake everything."""
     ms, setup = state.mech, model.mech
     if not ms.quiet[0]:
+        sleep.wake(setup, ms, changed(model, ms, tol)[1])  # held pieces whose rest data changed
         return "moving"
     if active_loads(setup, state.t_days) != active_loads(setup, float(ms.solved_day[0])):
         return "load"
     reason = wake_changed(model, state, tol)
     if reason is not None:
         return reason
-    pieces = big_pieces(ms)
+    pieces, flags = big_pieces(ms), (ms.element_ok.copy(), ms.edge_ok.copy())
     if failure.update(setup, ms) and big_pieces(ms) != pieces:
-        sleep.wake_all(setup, ms)
+        sleep.wake_failed(setup, ms, *flags, mech.refresh_pairs)
         return "failure"
     return None
 
@@ -183,28 +198,78 @@ def big_pieces(ms: mech.MechState) -> int:
     return int(np.count_nonzero(np.bincount(ms.component) >= MIN_PIECE))
 
 
-def moving(setup: mech.MechSetup, ms: mech.MechState, x0: np.ndarray, seconds: float, rest_speed: float) -> bool:
-    """Whether a piece of at least ``MIN_PIECE`` elements still moves (module docstring): its
-    centre of mass (intact element centres weighted by mass) is gaining speed above
-    ``rest_speed`` (its velocity now exceeds its mean velocity since the positions ``x0``,
-    ``seconds`` ago: falling, tipping, sliding off), or it carries a kinetic energy share
-    m_piece / m_wood v^2 above ``rest_speed``^2, v the larger of the two. A small piece that rolls
-    or rocks where it landed stops holding the solve open; a large one does as soon as it is
-    slower than ``rest_speed``."""
+class Motion(NamedTuple):
+    """Each piece's element count, mass and centre-of-mass speeds over a chunk (:func:`motion`)."""
+
+    count: np.ndarray
+    mass: np.ndarray
+    v_now: np.ndarray  # at the chunk's end
+    v_mean: np.ndarray  # mean over the chunk
+
+
+def motion(setup: mech.MechSetup, ms: mech.MechState, x0: np.ndarray, seconds: float) -> Motion:
+    """:class:`Motion` of every piece: its centre of mass (intact element centres weighted by
+    mass) now and on average since the positions ``x0``, ``seconds`` ago."""
     fp, n = setup.fp, int(ms.component.max(initial=-1)) + 1
     m_e = ms.mass_e * ms.element_ok
     mass = np.bincount(ms.component, weights=m_e, minlength=n)
-    big = (np.bincount(ms.component, minlength=n) >= MIN_PIECE) & (mass > 0.0)
+    weight = np.divide(1.0, mass, out=np.zeros(n), where=mass > 0.0)
 
     def com_speed(a):
-        v = np.stack([np.bincount(ms.component, weights=m_e * a[:, c], minlength=n)[big] for c in range(3)], axis=1)
-        return np.linalg.norm(v, axis=1) / mass[big]
+        v = np.stack([np.bincount(ms.component, weights=m_e * a[:, c], minlength=n) for c in range(3)], axis=1)
+        return np.linalg.norm(v, axis=1) * weight
 
-    v_now = com_speed(0.5 * (ms.v[fp] + ms.v[fp + 1]))
-    v_mean = com_speed(0.5 * (ms.x[fp] + ms.x[fp + 1] - x0[fp] - x0[fp + 1])) / seconds
+    return Motion(np.bincount(ms.component, minlength=n), mass, com_speed(0.5 * (ms.v[fp] + ms.v[fp + 1])),
+                  com_speed(0.5 * (ms.x[fp] + ms.x[fp + 1] - x0[fp] - x0[fp + 1])) / seconds)
+
+
+def moving(setup: mech.MechSetup, ms: mech.MechState, x0: np.ndarray, seconds: float, rest_speed: float) -> bool:
+    """Whether a piece of at least ``MIN_PIECE`` elements still moves (module docstring): its
+    centre of mass is gaining speed above ``rest_speed`` (its velocity now exceeds its mean
+    velocity since the positions ``x0``, ``seconds`` ago: falling, tipping, sliding off), or it
+    carries a kinetic energy share m_piece / m_wood v^2 above ``rest_speed``^2, v the larger of
+    the two. A small piece that rolls or rocks where it landed stops holding the solve open; a
+    large one does as soon as it is slower than ``rest_speed``."""
+    return any_moving(motion(setup, ms, x0, seconds), rest_speed)
+
+
+def any_moving(m: Motion, rest_speed: float) -> bool:
+    """:func:`moving` from the pieces' :class:`Motion`."""
+    big = (m.count >= MIN_PIECE) & (m.mass > 0.0)
+    v_now, v_mean = m.v_now[big], m.v_mean[big]
     v = np.maximum(v_now, v_mean)
-    share = mass[big] / mass.sum()
+    share = m.mass[big] / m.mass.sum()
     return bool(np.any((v > rest_speed) & ((v_now > v_mean) | (share * v * v > rest_speed * rest_speed))))
+
+
+def hold_still(setup: mech.MechSetup, ms: mech.MechState, m: Motion, hold_speed: float) -> None:
+    """Hold still, until the solve's next chunk, every awake piece (of any size) at rest: its
+    centre of mass slower than ``hold_speed`` on average and at the end of the chunk
+    (:class:`Motion`), unless a moving piece touches it whose momentum could set it moving at
+    ``hold_speed`` (m v > M hold_speed: a block falling onto its like, not a stick sliding down
+    the log). Release the others; ``hold_speed`` 0 holds nothing (module docstring, "Held
+    pieces")."""
+    if hold_speed <= 0.0:
+        release(setup, ms)
+        return
+    v = np.maximum(m.v_now, m.v_mean)
+    moves = v > hold_speed
+    near = moves.copy()
+    a, b = sleep.touching(setup, ms)
+    push = m.mass * v
+    near[a[moves[b] & (push[b] > m.mass[a] * hold_speed)]] = True
+    near[b[moves[a] & (push[a] > m.mass[b] * hold_speed)]] = True
+    held = ~near[ms.component] & ~ms.asleep
+    if not np.array_equal(held, ms.held):
+        ms.held = held
+        sleep.hold(setup, ms)
+
+
+def release(setup: mech.MechSetup, ms: mech.MechState) -> None:
+    """Release every held piece."""
+    if ms.held.any():
+        ms.held[:] = False
+        sleep.hold(setup, ms)
 
 
 def relax_substeps(model) -> int:
@@ -236,7 +301,11 @@ def solve(model, state, tol: Tolerances, reason: str | None = None) -> int:
         mech.macro_step(model, state, n_sub)
         chunks += 1
         substeps += n_sub
-        quiet = big_pieces(ms) == pieces and not moving(model.mech, ms, x0, n_sub * dt, tol.rest_speed)
+        m = motion(model.mech, ms, x0, n_sub * dt)
+        quiet = big_pieces(ms) == pieces and not any_moving(m, tol.rest_speed)
+        hold_still(model.mech, ms, m, tol.hold_speed)
         n_sub = model.time.N_mech
+    if quiet:
+        release(model.mech, ms)
     mark(model, ms, state.t_days, quiet)
     return chunks

@@ -18,10 +18,12 @@ Rule, evaluated at the end of every window of ``sleep_time`` seconds of :func:`m
 * a sleeping piece that such a *loud* piece touches wakes up;
 * a sleeping piece has zero inverse mass and inertia, so the solver holds it like an anchored
   element: it does not move, and the pieces on it rest on a still support; its velocities are
-  zero.
+  zero. The schedule holds pieces the same way within a solve (``held``,
+  :func:`wooddecay.sim.schedule.hold_still`); :func:`still` is either.
 
-Everything wakes (:func:`wake_all`, which restarts the window) when a constraint fails and when
-an external force acts on a sleeping particle. The coupling's new masses, rest data and
+Everything wakes (:func:`wake_all`, which restarts the window) when an external force acts on a
+sleeping particle. A failure wakes the pieces it touched and those touching them
+(:func:`wake_failed`; the window goes on). The coupling's new masses, rest data and
 integrity after every biology step wake only the pieces where they changed past the schedule's
 tolerances since those pieces fell asleep (:func:`wake`, called by
 :func:`wooddecay.sim.schedule.wake_changed`): a small change leaves a piece asleep, holding the
@@ -49,20 +51,45 @@ def weights(setup, ms) -> tuple[np.ndarray, np.ndarray]:
 
 
 def wake_all(setup, ms) -> None:
-    """Wake every piece and start a new window at the current state."""
+    """Wake every piece, release the held ones and start a new window at the current state."""
     ms.asleep[:] = False
+    ms.held[:] = False
     ms.w_p, ms.w_q = weights(setup, ms)
     _restart(ms)
 
 
 def wake(setup, ms, elements: np.ndarray) -> int:
-    """Wake the sleeping pieces holding any of ``elements`` (a boolean mask); the window goes
-    on. Returns the number of pieces woken."""
-    pieces = np.unique(ms.component[elements & ms.asleep])
+    """Wake the sleeping or held pieces holding any of ``elements`` (a boolean mask); the window
+    goes on. Returns the number of pieces woken."""
+    pieces = np.unique(ms.component[elements & still(ms)])
     if len(pieces):
-        ms.asleep[np.isin(ms.component, pieces)] = False
+        woken = np.isin(ms.component, pieces)
+        ms.asleep[woken] = False
+        ms.held[woken] = False
         hold(setup, ms)
     return len(pieces)
+
+
+def wake_failed(setup, ms, element_ok: np.ndarray, edge_ok: np.ndarray, refresh) -> int:
+    """Wake the still pieces (:func:`still`) that hold an element or a REG edge whose flags
+    differ from ``element_ok``, ``edge_ok`` (before the failures), then those touching such a
+    piece (``refresh(setup, ms)`` rebuilds the contact list, which leaves out pairs of two still
+    elements); the window goes on. Returns the number of pieces woken."""
+    hit = element_ok != ms.element_ok
+    hit[setup.edges[(edge_ok != ms.edge_ok).any(axis=1)].ravel()] = True
+    if not (hit.any() and still(ms).any()):
+        return 0
+    near = np.zeros(int(ms.component.max(initial=-1)) + 1, dtype=bool)
+    near[ms.component[hit]] = True
+    woken = wake(setup, ms, near[ms.component])
+    if woken:
+        ms.pairs_x = None
+        refresh(setup, ms)
+    a, b = touching(setup, ms)
+    touch = near[a] | near[b]
+    near[a[touch]] = True
+    near[b[touch]] = True
+    return woken + wake(setup, ms, near[ms.component])
 
 
 def substeps_left(setup, ms) -> int:
@@ -86,7 +113,7 @@ def update(setup, ms) -> int:
     np.maximum.at(speed, ms.component, np.maximum(moved[setup.fp], moved[setup.fp + 1]) / elapsed)
     loud = speed > WAKE_FACTOR * setup.sleep_speed
     hit = np.zeros(n_comp, dtype=bool)  # touched by a loud piece
-    a, b = _touching(setup, ms)
+    a, b = touching(setup, ms)
     np.logical_or.at(hit, a, loud[b])
     np.logical_or.at(hit, b, loud[a])
     asleep = (speed < setup.sleep_speed) & ~hit
@@ -96,7 +123,7 @@ def update(setup, ms) -> int:
     return int(asleep.sum())
 
 
-def _touching(setup, ms) -> tuple[np.ndarray, np.ndarray]:
+def touching(setup, ms) -> tuple[np.ndarray, np.ndarray]:
     """Components of the two sides of every contact pair that overlaps beyond its rest overlap."""
     pairs = ms.pairs
     if len(pairs) == 0:
@@ -105,17 +132,24 @@ def _touching(setup, ms) -> tuple[np.ndarray, np.ndarray]:
     return ms.component[pairs[on, 0]], ms.component[pairs[on, 1]]
 
 
+def still(ms) -> np.ndarray:
+    """The elements the solver holds still: asleep, or held by the schedule for this solve
+    (:mod:`~wooddecay.sim.schedule`, "held")."""
+    return ms.asleep | ms.held
+
+
 def hold(setup, ms) -> None:
-    """Weights (from ``ms.mass_p``, ``ms.mass_e``) and velocities of the current ``asleep``
-    flags: a particle sleeps when every element it belongs to sleeps."""
+    """Weights (from ``ms.mass_p``, ``ms.mass_e``) and velocities of the current ``asleep`` and
+    ``held`` flags (:func:`still`): a particle is still when every element it belongs to is."""
     w_p, w_q = weights(setup, ms)
+    stopped = still(ms)
     awake_p = np.zeros(setup.n_particles, dtype=bool)
-    awake_p[setup.fp[~ms.asleep]] = True
-    awake_p[setup.fp[~ms.asleep] + 1] = True
+    awake_p[setup.fp[~stopped]] = True
+    awake_p[setup.fp[~stopped] + 1] = True
     ms.w_p = np.where(awake_p, w_p, 0.0)
-    ms.w_q = np.where(ms.asleep, 0.0, w_q)
+    ms.w_q = np.where(stopped, 0.0, w_q)
     ms.v[~awake_p] = 0.0
-    ms.omega[ms.asleep] = 0.0
+    ms.omega[stopped] = 0.0
 
 
 def _restart(ms) -> None:
