@@ -90,8 +90,9 @@ class Tolerances:
 
 def mark(model, ms: mech.MechState, t_days: float, quiet: bool) -> None:
     """Take the current rest data of the awake elements and of the REG pairs with an awake end
-    as the state of the last solve, on day ``t_days``. A sleeping piece keeps the data it fell
-    asleep with, so its changes add up until they wake it (:func:`wake_changed`)."""
+    as the state of the last solve, on day ``t_days``. A sleeping or held piece keeps the data
+    it fell asleep or was held with, so its changes add up until they wake it
+    (:func:`wake_changed`)."""
     awake = ~sleep.still(ms)
     edges = model.mech.edges
     pair_awake = awake[edges[:, 0]] | awake[edges[:, 1]]
@@ -174,11 +175,12 @@ def wake_changed(model, state, tol: Tolerances) -> str | None:
 
 def due(model, state, tol: Tolerances) -> str | None:
     """Why mechanics must run in the macro step starting at ``state.t_days``, or None (module
-    docstring); wakes the sleeping pieces that changed. The failure test runs last, only when
-    nothing else asks for a solve; failures it finds are kept and wake everything."""
+    docstring); wakes the sleeping and held pieces that changed. The failure test runs last, only
+    when nothing else asks for a solve; failures it finds are kept and wake the pieces they touch
+    (:func:`sleep.wake_failed`)."""
     ms, setup = state.mech, model.mech
     if not ms.quiet[0]:
-        sleep.wake(setup, ms, changed(model, ms, tol)[1])  # held pieces whose rest data changed
+        wake_changed(model, state, tol)  # held pieces whose rest data changed
         return "moving"
     if active_loads(setup, state.t_days) != active_loads(setup, float(ms.solved_day[0])):
         return "load"
@@ -223,18 +225,13 @@ def motion(setup: mech.MechSetup, ms: mech.MechState, x0: np.ndarray, seconds: f
                   com_speed(0.5 * (ms.x[fp] + ms.x[fp + 1] - x0[fp] - x0[fp + 1])) / seconds)
 
 
-def moving(setup: mech.MechSetup, ms: mech.MechState, x0: np.ndarray, seconds: float, rest_speed: float) -> bool:
+def moving(m: Motion, rest_speed: float) -> bool:
     """Whether a piece of at least ``MIN_PIECE`` elements still moves (module docstring): its
-    centre of mass is gaining speed above ``rest_speed`` (its velocity now exceeds its mean
-    velocity since the positions ``x0``, ``seconds`` ago: falling, tipping, sliding off), or it
-    carries a kinetic energy share m_piece / m_wood v^2 above ``rest_speed``^2, v the larger of
-    the two. A small piece that rolls or rocks where it landed stops holding the solve open; a
-    large one does as soon as it is slower than ``rest_speed``."""
-    return any_moving(motion(setup, ms, x0, seconds), rest_speed)
-
-
-def any_moving(m: Motion, rest_speed: float) -> bool:
-    """:func:`moving` from the pieces' :class:`Motion`."""
+    centre of mass is gaining speed above ``rest_speed`` (its velocity at the chunk's end exceeds
+    its mean velocity over the chunk: falling, tipping, sliding off), or it carries a kinetic
+    energy share m_piece / m_wood v^2 above ``rest_speed``^2, v the larger of the two
+    (:class:`Motion`). A small piece that rolls or rocks where it landed stops holding the solve
+    open; a large one does as soon as it is slower than ``rest_speed``."""
     big = (m.count >= MIN_PIECE) & (m.mass > 0.0)
     v_now, v_mean = m.v_now[big], m.v_mean[big]
     v = np.maximum(v_now, v_mean)
@@ -302,7 +299,7 @@ def solve(model, state, tol: Tolerances, reason: str | None = None) -> int:
         chunks += 1
         substeps += n_sub
         m = motion(model.mech, ms, x0, n_sub * dt)
-        quiet = big_pieces(ms) == pieces and not any_moving(m, tol.rest_speed)
+        quiet = big_pieces(ms) == pieces and not moving(m, tol.rest_speed)
         hold_still(model.mech, ms, m, tol.hold_speed)
         n_sub = model.time.N_mech
     if quiet:
