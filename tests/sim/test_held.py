@@ -71,3 +71,16 @@ def test_resting_pieces_are_held_moving_and_pushed_ones_are_not():
     assert ms.w_p.any()
     schedule.release(st, ms)
     assert not ms.held.any()
+
+
+def test_a_failure_releases_the_held_piece_it_breaks_without_sleeping_too():
+    sim = fragments(**{"mechanics.sleep_speed": 0.0})
+    st, ms = sim.model.mech, sim.state.mech
+    ms.held[:] = True
+    sleep.hold(st, ms)
+    e = np.flatnonzero(st.inner & ms.element_ok & np.r_[False, ms.element_ok[:-2], False]
+                       & np.r_[False, ms.element_ok[2:], False])[0]
+    ms.limit_elem[e] = -np.inf
+    piece = ms.component == ms.component[e]
+    assert mechanics.macro_step(sim.model, sim.state, 1) > 0
+    assert not ms.held[piece].any() and ms.held.any()

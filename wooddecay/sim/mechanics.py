@@ -887,8 +887,12 @@ def macro_step(model, state, n_sub: int) -> int:
     if split > 1:
         setup, n_sub = replace(setup, dt=setup.dt / split), n_sub * split
     ms.pairs_x = None  # rebuild the contact list from this state (resumable bit-exactly)
-    if setup.sleep_speed <= 0.0:
-        return _advance(setup, ms, n_sub)[0]
+    if setup.sleep_speed <= 0.0:  # nothing sleeps, but the schedule may hold pieces
+        flags = ms.element_ok.copy(), ms.edge_ok.copy()
+        new = _advance(setup, ms, n_sub)[0]
+        if new:
+            sleep.wake_failed(setup, ms, *flags, refresh_pairs)
+        return new
     sleep.wake_loaded(setup, ms)
     new, stiff = 0, None
     while n_sub > 0:
