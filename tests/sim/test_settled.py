@@ -1,5 +1,5 @@
 """The settled-state cache (wooddecay.sim.settled): keyed by the wood, not the days or outputs;
-loading gives the bits settling gives; a broken file is settled again."""
+loading gives the bits settling gives; a broken file, or one other code wrote, is settled again."""
 from __future__ import annotations
 
 import numpy as np
@@ -71,6 +71,29 @@ def test_a_broken_cache_file_is_settled_again(tmp_path, damage):
     path.write_bytes(damage)
     assert wd.Simulation(m, settle_cache=tmp_path).settled == "settled"
     assert wd.Simulation(m, settle_cache=tmp_path).settled == "cached"
+
+
+def test_a_state_other_code_settled_is_settled_again(tmp_path, monkeypatch):
+    """The file records the hash of the package's sources: a state settled by older (or newer)
+    code would start the bake from other bits than settling gives."""
+    m = model()
+    monkeypatch.setattr(settled, "code_hash", lambda: "older code")
+    assert wd.Simulation(m, settle_cache=tmp_path).settled == "settled"
+    assert wd.Simulation(m, settle_cache=tmp_path).settled == "cached"
+    monkeypatch.undo()
+    assert wd.Simulation(m, settle_cache=tmp_path).settled == "settled"
+    assert wd.Simulation(m, settle_cache=tmp_path).settled == "cached"
+
+
+def test_the_code_hash_follows_the_sources(tmp_path):
+    (tmp_path / "sim").mkdir()
+    (tmp_path / "sim" / "rods.py").write_text("K = 1\n")
+    first = settled.sources_hash(tmp_path)
+    (tmp_path / "notes.txt").write_text("not a source")
+    assert settled.sources_hash(tmp_path) == first
+    (tmp_path / "sim" / "rods.py").write_text("K = 2\n")
+    assert settled.sources_hash(tmp_path) != first
+    assert settled.code_hash() is settled.code_hash()  # hashed once per process
 
 
 def test_the_cache_folder_follows_the_environment(monkeypatch, tmp_path):

@@ -122,12 +122,16 @@ def _bend_twist_one(i, j, q, w_q, rest, length, kb, kt, lam, k, dt):
     # dq_j = w_j f q_i u, dq_i = -w_i f q_j u, u = (0, dlambda)
     uj = mul(a0, a1, a2, a3, 0.0, dl0, dl1, dl2)
     ui = mul(b0, b1, b2, b3, 0.0, dl0, dl1, dl2)
-    n0, n1, n2, n3 = b0 + wj * f * uj[0], b1 + wj * f * uj[1], b2 + wj * f * uj[2], b3 + wj * f * uj[3]
-    t = 1.0 / math.sqrt(n0 * n0 + n1 * n1 + n2 * n2 + n3 * n3)
-    q[j, 0], q[j, 1], q[j, 2], q[j, 3] = n0 * t, n1 * t, n2 * t, n3 * t
-    n0, n1, n2, n3 = a0 - wi * f * ui[0], a1 - wi * f * ui[1], a2 - wi * f * ui[2], a3 - wi * f * ui[3]
-    t = 1.0 / math.sqrt(n0 * n0 + n1 * n1 + n2 * n2 + n3 * n3)
-    q[i, 0], q[i, 1], q[i, 2], q[i, 3] = n0 * t, n1 * t, n2 * t, n3 * t
+    # a quaternion of weight 0 (anchored, asleep, held) keeps its bits: renormalising it would
+    # move it by an ulp
+    if wj > 0.0:
+        n0, n1, n2, n3 = b0 + wj * f * uj[0], b1 + wj * f * uj[1], b2 + wj * f * uj[2], b3 + wj * f * uj[3]
+        t = 1.0 / math.sqrt(n0 * n0 + n1 * n1 + n2 * n2 + n3 * n3)
+        q[j, 0], q[j, 1], q[j, 2], q[j, 3] = n0 * t, n1 * t, n2 * t, n3 * t
+    if wi > 0.0:
+        n0, n1, n2, n3 = a0 - wi * f * ui[0], a1 - wi * f * ui[1], a2 - wi * f * ui[2], a3 - wi * f * ui[3]
+        t = 1.0 / math.sqrt(n0 * n0 + n1 * n1 + n2 * n2 + n3 * n3)
+        q[i, 0], q[i, 1], q[i, 2], q[i, 3] = n0 * t, n1 * t, n2 * t, n3 * t
 
 
 @nb.njit(parallel=True, cache=True)
@@ -294,8 +298,8 @@ def bend_twist_reference(pairs, idx, q, w_q, rest, length, k_bend, k_twist, lam,
     dl = _xpbd_np(C, lam[idx], W[:, None], k, dt)
     lam[idx] += dl
     u = pure_np(dl)
-    q[j] = normalize_np(qj + (wj * f)[:, None] * mul_np(qi, u))
-    q[i] = normalize_np(qi - (wi * f)[:, None] * mul_np(qj, u))
+    q[j[wj > 0]] = normalize_np(qj + (wj * f)[:, None] * mul_np(qi, u))[wj > 0]
+    q[i[wi > 0]] = normalize_np(qi - (wi * f)[:, None] * mul_np(qj, u))[wi > 0]
 
 
 def reg_pass_reference(edges, ptr, active, fp, x, q, w_p, w_q, rest_offset, k_conn, rest, length, k_bend, k_twist,

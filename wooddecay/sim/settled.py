@@ -9,12 +9,16 @@ stored in the file): of another [bark] they are cracked again, the rods loaded.
 
 The cache is a folder of ``<settle_hash>.npz`` files, each the mechanics arrays a checkpoint
 holds plus the clock, and the bark's arrays (``bark_*``), written to a temporary name and renamed.
-A file that cannot be read, of another version, hash or shape, is settled again and replaced.
+A file that cannot be read, of another version, hash or shape, or written by other code (the
+hash of the package's sources, :func:`code_hash`), is settled again and replaced: a state that
+older code settled would otherwise start a bake of newer code from other bits.
 Loading gives the bits settling gives (every kernel is deterministic), so a bake is the same with
 and without the cache.
 """
 from __future__ import annotations
 
+import functools
+import hashlib
 import json
 import os
 from pathlib import Path
@@ -29,6 +33,22 @@ from . import mechanics as mech
 VERSION = 5
 #: environment variable naming the cache folder ("" or "off": no cache)
 ENV = "WOODDECAY_CACHE"
+
+
+@functools.cache
+def code_hash() -> str:
+    """:func:`sources_hash` of this package, once per process: the settled state depends on the
+    code besides the scene."""
+    return sources_hash(Path(__file__).resolve().parent.parent)
+
+
+def sources_hash(root: Path) -> str:
+    """SHA-256 of the Python sources under ``root``, their paths and bytes."""
+    h = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        h.update(path.relative_to(root).as_posix().encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()
 
 
 def default_folder() -> Path | None:
@@ -77,7 +97,8 @@ def _load(path: Path, model, state) -> tuple[bool, bool]:
     except ValueError:
         return False, False
     if (meta.get("version") != VERSION or meta.get("settle_hash") != model.info.settle_hash
-            or not isinstance(meta.get("t_seconds"), float) or not isinstance(meta.get("failures"), int)):
+            or meta.get("code") != code_hash() or not isinstance(meta.get("t_seconds"), float)
+            or not isinstance(meta.get("failures"), int)):
         return False, False
     rods = state.mech.arrays()
     if not _matches(arrays, rods):
@@ -94,7 +115,7 @@ def _load(path: Path, model, state) -> tuple[bool, bool]:
 
 def _save(path: Path, model, state) -> None:
     ms = state.mech
-    meta = {"version": VERSION, "settle_hash": model.info.settle_hash, "bark": _bark_key(model),
+    meta = {"version": VERSION, "settle_hash": model.info.settle_hash, "code": code_hash(), "bark": _bark_key(model),
             "t_seconds": ms.t_seconds, "failures": ms.failures}
 
     def write(tmp: Path) -> None:

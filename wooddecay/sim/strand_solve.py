@@ -234,9 +234,10 @@ def solve_strands(lo, hi, joint_of, fp, x, q, w_p, w_q, rest_length, k_stretch, 
                         v += g[r, 10 + k] * dl[r]
                     q[e + 1, k] += w_q[e + 1] * v
         for e in range(e0, e1):
-            norm = np.sqrt(q[e, 0] ** 2 + q[e, 1] ** 2 + q[e, 2] ** 2 + q[e, 3] ** 2)
-            for c in range(4):
-                q[e, c] /= norm
+            if w_q[e] > 0.0:  # a still quaternion keeps its bits
+                norm = np.sqrt(q[e, 0] ** 2 + q[e, 1] ** 2 + q[e, 2] ** 2 + q[e, 3] ** 2)
+                for c in range(4):
+                    q[e, c] /= norm
 
 
 def solve_strands_reference(lo, hi, joint_of, fp, x, q, w_p, w_q, rest_length, k_stretch, k_shear, element_ok,
@@ -277,4 +278,5 @@ def solve_strands_reference(lo, hi, joint_of, fp, x, q, w_p, w_q, rest_length, k
                 lam_j[joint_of[e]] += dl[6 * t + 3:6 * t + 6]
             q[e] += step[3 * (m + 1) + 4 * t:3 * (m + 1) + 4 * t + 4]
         x[fp[e0]:fp[e0] + m + 1] += step[:3 * (m + 1)].reshape(-1, 3)
-        q[e0:e1] /= np.linalg.norm(q[e0:e1], axis=1)[:, None]
+        moves = w_q[e0:e1] > 0.0
+        q[e0:e1][moves] /= np.linalg.norm(q[e0:e1][moves], axis=1)[:, None]
