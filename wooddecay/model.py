@@ -16,7 +16,9 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
+from . import fmath as fm
 from .arrays import group_rows
+from .bark.sheet import BarkSheet, build_sheet, recent_growth
 from .scene import TISSUE_KEYS
 from .sim import biology, climate, contact, coupling, mechanics
 from .sim.biology import BioSetup
@@ -28,13 +30,19 @@ from .strands import bsp as bsp_mod
 from .strands.elements import element_geometry, sample_strands
 from .strands.materials import Materials
 from .strands.profiles import narrow_area, signed_distance
-from .strands.regions import region_mask
 from .strands.reg import build_reg, csr_adjacency, transport_graph
-from .bark.sheet import BarkSheet, build_sheet, recent_growth
-from .strands.rings import (TISSUES, age_of, classify_tissue, cumulative_widths, profile_years, radial_coordinate,
-                            year_noise)
-from .strands.strands import build_strands
+from .strands.regions import region_mask
+from .strands.rings import (
+    TISSUES,
+    age_of,
+    classify_tissue,
+    cumulative_widths,
+    profile_years,
+    radial_coordinate,
+    year_noise,
+)
 from .strands.skeleton import Skeleton
+from .strands.strands import build_strands
 from .strands.topology import Topology, build_topology
 from .strands.weakpoints import weak_point_field
 
@@ -335,7 +343,7 @@ def build_model(scene) -> WoodModel:
         elem_years = _lerp(years[node_a].astype(float), years[node_b].astype(float), edge_t)
         tissue = classify_tissue(bd, age, elem_years, bark_thickness=rg.bark_thickness,
                                  sapwood_rings=rg.sapwood_rings, pith_rings=rg.pith_rings)
-        wood_coords = np.stack([np.hypot(uv[:, 0], uv[:, 1]), np.arctan2(uv[:, 1], uv[:, 0]), geo.s], axis=1)
+        wood_coords = np.stack([fm.hypot(uv[:, 0], uv[:, 1]), fm.arctan2(uv[:, 1], uv[:, 0]), geo.s], axis=1)
         materials = Materials({k: tuple(scene.tissue_param(t, k) for t in TISSUES) for k in TISSUE_KEYS}, tissue)
         mass = (materials.per_element("rho_dry") * (1.0 + materials.per_element("M_init")) * np.pi * st.r_s**2
                 * geo.rest_length)

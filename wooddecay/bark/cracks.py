@@ -29,15 +29,15 @@ the bark thickness.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import math
+from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, dijkstra
 
+from .. import fmath as fm
 from .sheet import branch_trees
 
 #: a crack edge follows the crack direction within 60 degrees
@@ -45,7 +45,7 @@ ALIGN = 0.5
 #: a crack narrows over this many sheet edges towards its tips
 TAPER_EDGES = 5.0
 #: share of a crack's length within 30 degrees of the grain counts as along the grain
-ALONG_GRAIN = np.cos(np.radians(30.0))
+ALONG_GRAIN = fm.cos(np.radians(30.0))
 
 
 @dataclass(eq=False)
@@ -92,9 +92,9 @@ def _eig2(T, l1, l2, e):
 def eig2_reference(T: np.ndarray):
     """Plain-numpy :func:`eig2`."""
     a, d, b = T[:, 0], T[:, 1], T[:, 2]
-    mean, half = 0.5 * (a + d), np.hypot(0.5 * (a - d), b)
-    theta = 0.5 * np.arctan2(2.0 * b, a - d)
-    return mean + half, mean - half, np.stack([np.cos(theta), np.sin(theta)], 1)
+    mean, half = 0.5 * (a + d), fm.hypot(0.5 * (a - d), b)
+    theta = 0.5 * fm.arctan2(2.0 * b, a - d)
+    return mean + half, mean - half, np.stack([fm.cos(theta), fm.sin(theta)], 1)
 
 
 def _from_eig(l1, l2, e):
@@ -284,7 +284,7 @@ def cast_shadows(sheet, st: CrackState, new: np.ndarray, shadow_length: float) -
     n = _strip_pairs(*args, False, none_i, none_i, none_f, none_f)
     edge, face, arg, hat = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64), np.empty(n), np.empty(n)
     _strip_pairs(*args, True, edge, face, arg, hat)
-    _accumulate(new[edge], face, np.exp(arg) * hat, sheet.edge_dir, st.shadow)
+    _accumulate(new[edge], face, fm.exp(arg) * hat, sheet.edge_dir, st.shadow)
     touched = np.zeros(sheet.n_faces, dtype=np.bool_)
     touched[face] = True
     return np.flatnonzero(touched)
@@ -386,7 +386,7 @@ def cast_shadows_reference(sheet, st: CrackState, new: np.ndarray, shadow_length
         r[:, 0] = (r[:, 0] + 0.5 * P) % P - 0.5 * P
         t = sheet.edge_dir[k]
         n = np.stack([-t[:, 1], t[:, 0]], 1)
-        w = np.exp(-np.abs((r * n).sum(1)) / shadow_length) * np.clip(
+        w = fm.exp(-np.abs((r * n).sum(1)) / shadow_length) * np.clip(
             1.0 - np.abs((r * t).sum(1)) / sheet.edge_length[k], 0.0, None)
         add = w[:, None] * np.stack([n[:, 0] ** 2, n[:, 1] ** 2, n[:, 0] * n[:, 1]], 1)
         np.add.at(st.shadow, f, add)

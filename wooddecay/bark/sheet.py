@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .. import fmath as fm
 from ..strands.profiles import polygon_perimeter
 from ..strands.rings import BARK
 
@@ -158,7 +159,7 @@ def build_sheet(model, bark, recent: np.ndarray, eccentricity: float, rng: np.ra
         f2 = np.where(flip[:, None], np.stack([a, d, c], 1), np.stack([bq, d, c], 1))
         faces = np.vstack([f1, f2])
         up = np.stack([np.interp(s, s_n, topo.up2d[chain, k]) for k in (0, 1)], 1)
-        ecc = 1.0 + eccentricity * (np.cos(phi) * up[:, 0] + np.sin(phi) * up[:, 1])
+        ecc = 1.0 + eccentricity * (fm.cos(phi) * up[:, 0] + fm.sin(phi) * up[:, 1])
         g_v = float(bark["growth"]) * np.interp(s, s_n, recent[chain]) * ecc
         cu, cv = NOISE_CELLS[pattern]
         period_u = max(1, int(round(n_phi / cu)))

@@ -49,6 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
+from .. import fmath as fm
 from ..strands import profiles
 from ..strands.mesh_skeleton import contour_around
 from .offset import offset_contour
@@ -111,7 +112,7 @@ def _feet(poly: np.ndarray, pts: np.ndarray):
     n = len(pts)
     e0 = np.argmin(dist, axis=1)
     u = e / np.sqrt(ln2)[:, None]
-    turned = (u[e0] @ u.T) < np.cos(CORNER)
+    turned = (u[e0] @ u.T) < fm.cos(CORNER)
     d1 = np.where(turned, dist, np.inf)
     e1 = np.argmin(d1, axis=1)
     rows = np.arange(n)
@@ -130,7 +131,7 @@ def _valid_mirrors(poly: np.ndarray, pts: np.ndarray, feet: np.ndarray, r_s: flo
     e_in, e_out = a - np.roll(a, 1, axis=0), np.roll(a, -1, axis=0) - a
     reflex = e_in[:, 0] * e_out[:, 1] - e_in[:, 1] * e_out[:, 0] < 0.0  # CCW profiles
     l_in, l_out = np.linalg.norm(e_in, axis=1), np.linalg.norm(e_out, axis=1)
-    turn = np.arccos(np.clip((e_in * e_out).sum(1) / l_in / l_out, -1.0, 1.0))
+    turn = fm.arccos(np.clip((e_in * e_out).sum(1) / l_in / l_out, -1.0, 1.0))
     sharp = turn > CORNER
     tight = sharp | (0.5 * (l_in + l_out) < MILD_RADIUS * r_s * turn)  # or a radius under MILD_RADIUS r_s
     ghost = (2.0 * feet - pts[:, None]).reshape(-1, 2)
@@ -156,7 +157,7 @@ def _mirror_tapered(P, offset, nearest, polys, alive, depth, valid, r_s: float) 
         out = offset[k0, i, 0]
         if not np.linalg.norm(out) > 0.0:
             continue
-        angle = float(np.arctan2(out[1], out[0]))
+        angle = float(fm.arctan2(out[1], out[0]))
         step = {k: float(profiles.ray_extent(polys[k], P[k, i], [angle])[0]) for k in rows}
         unit = out / np.linalg.norm(out)
         ghost = {k: P[k, i] + 2.0 * step[k] * unit for k in rows}
@@ -177,7 +178,7 @@ def _steady_parts(off: np.ndarray) -> list:
     from its first node section to its last (the run's ends for the first and last part)."""
     a, b = off[:-1], off[1:]
     cos = (a * b).sum(axis=1) / np.maximum(np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1), 1e-300)
-    cut = list(np.flatnonzero(cos < np.cos(CORNER)) + 1)
+    cut = list(np.flatnonzero(cos < fm.cos(CORNER)) + 1)
     return list(zip([0, *cut], [*cut, len(off)]))
 
 
@@ -412,7 +413,7 @@ def setup_branch(model, b: int) -> Branch | None:
         if steady:  # a tapered ghost keeps its side: across the junction profile along its direction
             unit, held = tapered[i], {}
             for kj, (k, c, off, dist, ok) in mine.items():
-                step = float(profiles.ray_extent(junction[kj][5], P[kj, i], [np.arctan2(unit[1], unit[0])])[0])
+                step = float(profiles.ray_extent(junction[kj][5], P[kj, i], [fm.arctan2(unit[1], unit[0])])[0])
                 if step > 0.0:
                     off = off.copy()
                     off[c, 0] = 2.0 * step * unit
@@ -463,7 +464,7 @@ def setup_branch(model, b: int) -> Branch | None:
     centre = 0.5 * (lo + hi)
     reach = np.where(alive[:, :n], np.linalg.norm(P - centre[:, None], axis=2), 0.0).max(axis=1) + FAR_MARGIN * r_s
     ang = 2.0 * np.pi * np.arange(FAR_RING) / FAR_RING
-    ring = centre[:, None] + reach[:, None, None] * np.stack([np.cos(ang), np.sin(ang)], 1)[None]
+    ring = centre[:, None] + reach[:, None, None] * np.stack([fm.cos(ang), fm.sin(ang)], 1)[None]
     P = np.concatenate([P, G, ring], axis=1)
     alive = np.concatenate([alive, np.array(ghost_alive, dtype=bool).reshape(-1, len(d)).T,
                             np.ones((len(d), FAR_RING), dtype=bool)], axis=1)

@@ -20,6 +20,7 @@ from dataclasses import replace
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .. import fmath as fm
 from ..strands import profiles
 
 #: how far beyond a bark face (in r_s) another branch's wood makes it a wall
@@ -89,7 +90,7 @@ def _at_surface(model, mesh, faces: np.ndarray) -> np.ndarray:
     topo, skel = model.topology, model.skeleton
     w = mesh.wood[mesh.faces[faces]]
     r, d = w[:, :, 0].mean(axis=1), w[:, 0, 2]
-    phi = np.angle(np.exp(1j * w[:, :, 1]).mean(axis=1))
+    phi = fm.arctan2(fm.sin(w[:, :, 1]).mean(axis=1), fm.cos(w[:, :, 1]).mean(axis=1))  # circular mean
     branch = model.branch[mesh.face_element[faces]]
     order = np.lexsort((topo.s, topo.branch))  # nodes by branch, then along it
     key = topo.branch[order] * (topo.s.max() + 1.0) + topo.s[order]
@@ -113,4 +114,4 @@ def _winding(mesh, elements: np.ndarray, points: np.ndarray) -> np.ndarray:
     la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
     det = np.einsum("ij,ij->i", a, np.cross(b, c))
     den = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la + np.einsum("ij,ij->i", c, a) * lb
-    return np.bincount(pair, weights=2.0 * np.arctan2(det, den), minlength=len(elements)) / (4.0 * np.pi)
+    return np.bincount(pair, weights=2.0 * fm.arctan2(det, den), minlength=len(elements)) / (4.0 * np.pi)

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import fmath as fm
+
 
 def offset_contour(points, r_s: float, join: str = "round", max_angle: float = np.pi / 8,
                    miter_limit: float = 4.0):
@@ -46,18 +48,18 @@ def offset_contour(points, r_s: float, join: str = "round", max_angle: float = n
     for i in range(m):
         n_in, n_out = nrm[i - 1], nrm[i]
         t_in, t_out = tdir[i - 1], tdir[i]
-        turn = float(np.arctan2(t_in[0] * t_out[1] - t_in[1] * t_out[0], float(t_in @ t_out)))
+        turn = float(fm.arctan2(t_in[0] * t_out[1] - t_in[1] * t_out[0], float(t_in @ t_out)))
         v = P[i]
         if turn > 1e-12:                                      # convex corner
             if join == "round":
                 k = max(1, int(np.ceil(turn / max_angle)))
-                a0 = np.arctan2(n_in[1], n_in[0])
+                a0 = fm.arctan2(n_in[1], n_in[0])
                 ang = a0 + turn * np.arange(k + 1) / k
                 for a in ang:
-                    out.append(v + r * np.array([np.cos(a), np.sin(a)]))
+                    out.append(v + r * np.array([fm.cos(a), fm.sin(a)]))
                     owner.append(i)
                 continue
-            if 1.0 / max(np.cos(0.5 * turn), 1e-300) > miter_limit:
+            if 1.0 / max(fm.cos(0.5 * turn), 1e-300) > miter_limit:
                 out.extend((v + r * n_in, v + r * n_out))
                 owner.extend((i, i))
                 continue

@@ -49,12 +49,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.spatial import ConvexHull
 
+from .. import fmath as fm
 from .branch import Branch, section_frame, setup_branch
 from .checks import closed_oriented
 from .conform import conform_bark
 from .junction import junction_walls
-from .skin import rest_skinning
 from .kinetic import FLIP, REPAIR, SECTION, perturbation, sweep
+from .skin import rest_skinning
 
 #: face kinds (DESIGN "USD stage": uniform int faceKind)
 BARK, SIDE, CAP = 0, 1, 2
@@ -554,7 +555,7 @@ def build_meshlets(model) -> Meshlets:
     skin_element = ce[rows]
     skin_weight, skin_local, ring = rest_skinning(model, points, skin_indptr, skin_element)
     uvv = guv[v_gid]
-    wood = np.stack([np.hypot(uvv[:, 0], uvv[:, 1]), np.arctan2(uvv[:, 1], uvv[:, 0]), gd[v_gid]], axis=1)
+    wood = np.stack([fm.hypot(uvv[:, 0], uvv[:, 1]), fm.arctan2(uvv[:, 1], uvv[:, 0]), gd[v_gid]], axis=1)
     mesh = Meshlets(
         points=points, faces=faces.astype(np.int64), face_element=elem, face_kind=kind,
         face_neighbour=nbr, vertex_element=v_elem, vertex_shared=v_gid,

@@ -50,6 +50,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from .. import fmath as fm
 from .biology import moisture_bounds
 from .diagnostics import mass_remaining
 from .mechanics import set_masses, set_radius
@@ -111,7 +112,7 @@ def limit_factor(M: np.ndarray, M_k: np.ndarray, M_2: np.ndarray, p_l: np.ndarra
     """f(M - M_2) of Eq. 19 with its knee at M_k (module docstring): 1 at or above M_k, 0 at or
     below M_2 (when M_2 >= M_k too), a power p_l between."""
     span = np.where(M_k > M_2, M_k - M_2, 1.0)
-    return np.where(M >= M_k, 1.0, np.clip((M - M_2) / span, 0.0, 1.0) ** p_l)
+    return np.where(M >= M_k, 1.0, fm.power(np.clip((M - M_2) / span, 0.0, 1.0), p_l))
 
 
 def knee(cs: "CouplingSetup", M_1: np.ndarray) -> np.ndarray:

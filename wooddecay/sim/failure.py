@@ -41,9 +41,10 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from . import contact
+from .. import fmath as fm
 from ..quaternion import conj_np, mul, mul_np, rotate
 from ..unionfind import labels, union
+from . import contact
 
 
 @nb.njit(cache=True)
@@ -248,7 +249,7 @@ def pair_strains_reference(edges, fp, x, q, rest_offset, edge_length, edge_rest)
     r = mul_np(conj_np(edge_rest), mul_np(conj_np(q[i]), q[j]))
     r = r * np.where(r[:, :1] >= 0.0, 1.0, -1.0)
     vn = np.linalg.norm(r[:, 1:], axis=1)
-    f = np.where(vn > 0.0, 2.0 * np.arctan2(vn, r[:, 0]) / np.where(vn > 0.0, vn, 1.0), 0.0)
+    f = np.where(vn > 0.0, 2.0 * fm.arctan2(vn, r[:, 0]) / np.where(vn > 0.0, vn, 1.0), 0.0)
     return np.stack([bundle, f * np.linalg.norm(r[:, 1:3], axis=1), f * np.abs(r[:, 3])], axis=1)
 
 

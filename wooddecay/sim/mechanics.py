@@ -32,6 +32,7 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
+from .. import fmath as fm
 from ..quaternion import conj_np, mul, mul_np, rotate
 from . import contact, failure, rods, sleep, strand_solve
 
@@ -320,7 +321,7 @@ def prepare(model, config: MechConfig, colliders: np.ndarray, loads: tuple[Load,
     P = len(model.particles)
     E, G = per_element("E"), per_element("G")
     r = model.radius
-    A, I_b = np.pi * r**2, np.pi * r**4 / 4.0
+    A, I_b = np.pi * r**2, np.pi * (r * r) * (r * r) / 4.0  # products, not numpy's power (wooddecay.fmath)
     l0 = model.rest_length
     last = np.zeros(n, dtype=bool)
     last[model.element_offsets[1:] - 1] = True
@@ -642,7 +643,7 @@ def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: tuple | None = N
     constraint, else only those ``stiff`` names (the rest has not moved since a test of all)."""
     x_old, q_old = np.empty_like(ms.x), np.empty_like(ms.q)
     _predict(ms.x, ms.v, ms.q, ms.omega, ms.w_p, ms.w_q, ms.mass_p, ms.force, setup.gravity, ms.torque,
-             np.exp(-setup.damping * dt), dt, x_old, q_old)
+             fm.exp(-setup.damping * dt), dt, x_old, q_old)
     kreg, kjoint, plan, tested = stiff or stiffness(setup, ms)
     fresh = _multipliers(setup)
     lam = fresh if lam is None else lam

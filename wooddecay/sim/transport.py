@@ -30,6 +30,9 @@ from itertools import combinations
 
 import numpy as np
 
+from .. import fmath as fm
+
+
 def _supports(k: int) -> np.ndarray:
     """The non-empty supports of a k-vector, largest first (for the batched NNLS)."""
     return np.array([[i in c for i in range(k)] for n in range(k, 0, -1) for c in combinations(range(k), n)])
@@ -145,7 +148,7 @@ def assemble(
     h2 = np.mean(perp2[reg]) if reg.any() else 1.0
     rel = aniso[rows, :2] / aniso[rows, :2].max(axis=1, keepdims=True)
     overlap = segment_overlap(pa, pb, rows, cols) / length[rows]
-    psi = np.where(reg, overlap * np.exp(-0.5 * np.sum(proj**2 / (h2 * rel), axis=1)), 0.0)
+    psi = np.where(reg, overlap * fm.exp(-0.5 * np.sum(proj**2 / (h2 * rel), axis=1)), 0.0)
     A = np.zeros((n, 2, 2))
     for k in range(2):
         for m in range(k, 2):

@@ -17,6 +17,7 @@ import numpy as np
 from matplotlib.path import Path as _MplPath
 from scipy.spatial import cKDTree
 
+from .. import fmath as fm
 from .assignment import assign_sites
 from .profiles import Profile, closest_edge
 
@@ -49,7 +50,7 @@ def hex_lattice(profile: Profile, spacing: float, lattice: tuple[float, np.ndarr
     i, j = np.meshgrid(np.arange(-n, n + 1), np.arange(-n, n + 1), indexing="ij")
     pts = np.stack([i + 0.5 * j, j * (np.sqrt(3.0) / 2.0)], axis=-1).reshape(-1, 2) * spacing
     a, offset = lattice
-    rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    rot = np.array([[fm.cos(a), -fm.sin(a)], [fm.sin(a), fm.cos(a)]])
     pts = (pts + np.asarray(offset) * spacing) @ rot.T + c
     return pts[inside(poly, pts)]
 

@@ -30,12 +30,21 @@ across it).
 from __future__ import annotations
 
 import math
+
 import numpy as np
 
 from wooddecay.errors import InputError
 from wooddecay.strands.mesh_input import Y_TO_Z_UP, MeshInput, checked_path
 from wooddecay.strands.mesh_skeleton import plane_basis, principal_axis
-from wooddecay.strands.profiles import is_ccw, polygon_area, polygon_perimeter, ray_extent, resample_closed
+from wooddecay.strands.profiles import (
+    is_ccw,
+    polygon_area,
+    polygon_perimeter,
+    ray_extent,
+    resample_closed,
+)
+
+from .. import fmath as fm
 
 SUFFIXES = (".ply", ".xyz", ".txt", ".csv", ".las", ".laz")
 #: fewest points a cloud must have
@@ -122,7 +131,7 @@ def loft(points: np.ndarray, resolution: float, source: str) -> MeshInput:
     for centre, contour in zip(centres, contours):
         if contour.ndim == 1:  # star-shaped: vertices at fixed angles, so consecutive rings match
             r = np.interp(theta, BINS, contour, period=2 * np.pi)
-            q = r[:, None] * np.column_stack([np.cos(theta), np.sin(theta)])
+            q = r[:, None] * np.column_stack([fm.cos(theta), fm.sin(theta)])
         else:
             q = resample_closed(contour, around)
         ring = centre + q[:, :1] * u + q[:, 1:] * v
@@ -189,7 +198,7 @@ def _closed_contour(q: np.ndarray, resolution: float) -> np.ndarray | None:
 def _star_shaped(loop: np.ndarray) -> bool:
     """Whether every ray from the origin leaves the counter-clockwise ``loop`` once: its polar
     angle never turns back by more than STAR_TOLERANCE."""
-    ang = np.unwrap(np.arctan2(loop[:, 1], loop[:, 0]))
+    ang = np.unwrap(fm.arctan2(loop[:, 1], loop[:, 0]))
     return bool(np.all(np.diff(ang) > -STAR_TOLERANCE))
 
 
@@ -200,10 +209,10 @@ def _slab_contour(q: np.ndarray, resolution: float, source: str, k: int, n_slabs
     loop = _closed_contour(q, resolution)
     if loop is not None and not _star_shaped(loop):
         return loop
-    ang = np.arctan2(q[:, 1], q[:, 0])
+    ang = fm.arctan2(q[:, 1], q[:, 0])
     b = np.minimum(((ang + np.pi) / (2 * np.pi) * ANGLES).astype(np.int64), ANGLES - 1)
     r = np.full(ANGLES, -np.inf)
-    np.maximum.at(r, b, np.hypot(q[:, 0], q[:, 1]))
+    np.maximum.at(r, b, fm.hypot(q[:, 0], q[:, 1]))
     filled = np.isfinite(r)
     if filled.mean() < MIN_FILLED:
         raise InputError(source, "", f"slice {k + 1} of {n_slabs} along the cloud's axis has points at "
@@ -232,7 +241,7 @@ def _hull_radii(radii: np.ndarray) -> np.ndarray:
 
 
 def _radii_polygon(radii: np.ndarray) -> np.ndarray:
-    return radii[:, None] * np.column_stack([np.cos(BINS), np.sin(BINS)])
+    return radii[:, None] * np.column_stack([fm.cos(BINS), fm.sin(BINS)])
 
 
 def tube_sides(along: int, around: int) -> np.ndarray:

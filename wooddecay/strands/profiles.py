@@ -18,6 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from .. import fmath as fm
+
 PROFILE_SEGMENTS = 64
 """Vertices used to discretise circles and ellipses."""
 
@@ -91,7 +93,7 @@ def circle(radius: float) -> Profile:
         ``kind="circle"`` with a ``PROFILE_SEGMENTS``-gon inscribed in the circle.
     """
     t = _unit_angles(PROFILE_SEGMENTS)
-    poly = float(radius) * np.column_stack([np.cos(t), np.sin(t)])
+    poly = float(radius) * np.column_stack([fm.cos(t), fm.sin(t)])
     return Profile("circle", (("radius", float(radius)),), poly)
 
 
@@ -111,8 +113,8 @@ def ellipse(a: float, b: float, angle: float = 0.0) -> Profile:
         ``kind="ellipse"`` with a ``PROFILE_SEGMENTS``-gon inscribed in the ellipse.
     """
     t = _unit_angles(PROFILE_SEGMENTS)
-    local = np.column_stack([float(a) * np.cos(t), float(b) * np.sin(t)])
-    c, s = np.cos(angle), np.sin(angle)
+    local = np.column_stack([float(a) * fm.cos(t), float(b) * fm.sin(t)])
+    c, s = fm.cos(angle), fm.sin(angle)
     poly = local @ np.array([[c, s], [-s, c]])
     params = (("a", float(a)), ("b", float(b)), ("angle", float(angle)))
     return Profile("ellipse", params, poly)
@@ -397,7 +399,7 @@ def _ray_hits(poly: np.ndarray, origin, angles) -> tuple[np.ndarray, np.ndarray,
     a, d = _edges(poly)
     o = np.asarray(origin, dtype=np.float64).reshape(2)
     th = np.atleast_1d(np.asarray(angles, dtype=np.float64)).ravel()
-    r = np.column_stack([np.cos(th), np.sin(th)])
+    r = np.column_stack([fm.cos(th), fm.sin(th)])
     dist, edge, tpar = np.zeros(len(th)), np.full(len(th), -1), np.zeros(len(th))
     rel = a - o
     for sl in _blocks(len(th), len(a)):

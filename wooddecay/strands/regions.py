@@ -12,10 +12,12 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from .. import fmath as fm
+
 
 def _wood_cartesian(wood_coords: np.ndarray) -> np.ndarray:
     r, phi, s = wood_coords.T
-    return np.stack([r * np.cos(phi), r * np.sin(phi), s], axis=1)
+    return np.stack([r * fm.cos(phi), r * fm.sin(phi), s], axis=1)
 
 
 def region_mask(model, region: Mapping) -> np.ndarray:
@@ -30,7 +32,7 @@ def region_mask(model, region: Mapping) -> np.ndarray:
         if wood:
             x = _wood_cartesian(model.wood_coords)
             r, phi, s = region["center"]
-            c = np.array([r * np.cos(phi), r * np.sin(phi), s])
+            c = np.array([r * fm.cos(phi), r * fm.sin(phi), s])
         else:
             x, c = model.centers, np.asarray(region["center"])
         return np.linalg.norm(x - c, axis=1) <= region["radius"]

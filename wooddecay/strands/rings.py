@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import fmath as fm
 from .profiles import Profile, contains, signed_distance
 
 #: the tree's life in Weibull time [T_BIRTH, T_LIFE]: juvenile rise, "prime of life" peak,
@@ -41,7 +42,7 @@ TISSUES = ("bark", "sapwood", "heartwood", "pith")
 
 def weibull_rate(t: np.ndarray, c: float) -> np.ndarray:
     """s(t) = c t^(c-1) exp(-t^c), woodification Eq. 2."""
-    return c * np.power(t, c - 1.0) * np.exp(-np.power(t, c))
+    return c * fm.power(t, c - 1.0) * fm.exp(-fm.power(t, c))
 
 
 def year_noise(max_years: int, width_noise: float, rng: np.random.Generator) -> np.ndarray:

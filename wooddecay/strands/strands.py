@@ -25,9 +25,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
+from .. import fmath as fm
+from ..errors import InputError
 from .packing import pack_profile, random_lattice, seed_positions, strand_capacity
 from .profiles import polygon_centroid, ray_extent
-from ..errors import InputError
 from .skeleton import Skeleton
 from .topology import Topology
 
@@ -56,7 +57,7 @@ def star_map(src_poly: np.ndarray, dst_poly: np.ndarray, pts: np.ndarray, pad: f
     c_src = polygon_centroid(src_poly)
     c_dst = polygon_centroid(dst_poly)
     rel = pts - c_src
-    phi = np.arctan2(rel[:, 1], rel[:, 0])
+    phi = fm.arctan2(rel[:, 1], rel[:, 0])
     scale = ray_extent(dst_poly, c_dst, phi) / (ray_extent(src_poly, c_src, phi) + pad)
     return c_dst + rel * scale[:, None]
 

@@ -15,6 +15,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .. import fmath as fm
+
 
 def _fade(t: np.ndarray) -> np.ndarray:
     return t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
@@ -70,5 +72,5 @@ def weak_point_field(
     W = 0.5 + 0.5 * total / norm
     if len(junctions):
         d, _ = cKDTree(junctions).query(centers)
-        W = W + junction_boost * np.exp(-((d / junction_radius) ** 2))
+        W = W + junction_boost * fm.exp(-((d / junction_radius) ** 2))
     return np.clip(W, 0.0, 1.0)

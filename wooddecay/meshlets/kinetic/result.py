@@ -25,6 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ... import fmath as fm
+
 KIND_NAMES = ("section", "flip", "hull", "insert", "delete", "repair")
 SECTION, FLIP, HULL, INSERT, DELETE, REPAIR = range(6)
 #: kinds whose event stores a full snapshot instead of the changes
@@ -40,7 +42,7 @@ def perturbation(n):
     """(n, 2) index-based displacements u_i of the sites (see the module docstring)."""
     i = np.arange(n, dtype=float)
     rho = 0.5 + 0.5 * np.mod(i * _INV_PHI, 1.0)
-    return np.stack([rho * np.cos(i * _GOLDEN_ANGLE), rho * np.sin(i * _GOLDEN_ANGLE)], axis=1)
+    return np.stack([rho * fm.cos(i * _GOLDEN_ANGLE), rho * fm.sin(i * _GOLDEN_ANGLE)], axis=1)
 
 
 def canon_triangle(a, b, c):
