@@ -25,6 +25,7 @@ strand's E I, G J over dp_0. The kernels of :mod:`~wooddecay.sim.rods` and
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, fields, replace
 from functools import cached_property
 from typing import NamedTuple
@@ -32,7 +33,6 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from .. import fmath as fm
 from ..quaternion import conj_np, mul, mul_np, rotate
 from . import contact, failure, rods, sleep, strand_solve
 
@@ -643,7 +643,7 @@ def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: tuple | None = N
     constraint, else only those ``stiff`` names (the rest has not moved since a test of all)."""
     x_old, q_old = np.empty_like(ms.x), np.empty_like(ms.q)
     _predict(ms.x, ms.v, ms.q, ms.omega, ms.w_p, ms.w_q, ms.mass_p, ms.force, setup.gravity, ms.torque,
-             fm.exp(-setup.damping * dt), dt, x_old, q_old)
+             math.exp(-setup.damping * dt), dt, x_old, q_old)  # libm's, as wooddecay.fmath
     kreg, kjoint, plan, tested = stiff or stiffness(setup, ms)
     fresh = _multipliers(setup)
     lam = fresh if lam is None else lam
