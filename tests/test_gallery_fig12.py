@@ -1,12 +1,12 @@
 """Fig. 12 in CI (``wooddecay gallery 12 --quick``, about 2 min on 2 cores, a file of its own so
-that it runs beside tests/test_gallery.py): the part of its claim that holds at quick size. More
-fungal activity from the ground breaks the log into more pieces, takes more of its mass and leaves
-a lower pile (the mean height of its wood); on seeds 7 (the scene's), 2 and 3 all three held, 58
-against 57, 56 against 53 and 57 against 49 pieces, piles lower by 4.9, 0.4 and 12.8 mm. Its
-"finer fragments" does not hold at quick size: the one-sided log's median loose block was the
-larger on all three (8 against 7.5, 8 against 7.5, 7 against 6.5 elements; 2026-11-29), so it is
-printed here and decided by the full gallery (docs/gallery.md, docs/decisions.md "Fig. 12 at
-quick size")."""
+that it runs beside tests/test_gallery.py): sixteen times the fungal activity from the ground takes
+more of the log's mass, breaks its wood finer (a smaller weight-average fragment,
+``measures.fragment_share``) and leaves a lower pile (the mean height of its wood). The quick logs
+on seeds 7 (the scene's), 2 and 3 (one bake each, 2026-11-29): fragment share 0.509 -> 0.424,
+0.552 -> 0.487, 0.529 -> 0.415; pile 21.8 and 20.9 mm lower on seeds 7 and 2, 3.8 mm higher on
+seed 3; the full-size logs hold on all three (docs/decisions.md, "Fig. 12: finer is the
+weight-average fragment"). The median loose block is printed, not decided: the loose blocks are
+single BSP cells rotted to their lignin in both logs."""
 from __future__ import annotations
 
 import pytest
@@ -20,11 +20,13 @@ def fig12(tmp_path_factory):
 
 
 @pytest.mark.slow
-def test_quick_fig12_one_sided_activity_gives_more_pieces_and_a_lower_pile(fig12):
+def test_quick_fig12_one_sided_activity_breaks_the_wood_finer_into_a_lower_pile(fig12):
     uniform, one_side = (fig12["variants"][k] for k in ("uniform", "one_side"))
     a, b = uniform["signature"], one_side["signature"]
-    assert a["pieces"] >= 5 and b["pieces"] > a["pieces"]
-    assert b["debris_centre_height_m"] < a["debris_centre_height_m"]
+    assert a["pieces"] >= 5
     assert b["mass_loss"] > a["mass_loss"]
-    print(f"median loose block: one side {one_side['median_block_elements']} elements, uniform "
-          f"{uniform['median_block_elements']}; the figure holds: {fig12['holds']}")
+    assert one_side["fragment_share"] < uniform["fragment_share"]
+    assert b["debris_centre_height_m"] < a["debris_centre_height_m"]
+    assert fig12["holds"]
+    print(f"pieces: one side {b['pieces']}, uniform {a['pieces']}; median loose block: one side "
+          f"{one_side['median_block_elements']} elements, uniform {uniform['median_block_elements']}")

@@ -45,3 +45,25 @@ def test_radial_cracks_sum_the_shrinkage_of_broken_tangential_connections_per_se
 
     none = measures.radial_cracks(model, first, _frame(model, M_0, np.zeros(len(e), dtype=bool)))
     assert none == {"radial_crack_opening_m": 0.0, "radial_crack_sectors": 0, "effective_radial_cracks": 0.0}
+
+
+def test_fragment_share_is_the_weight_average_piece_of_the_remaining_wood():
+    model = sample("log")[1]
+    n, V = model.n_elements, model.bio.op.volume
+    whole = np.ones(n)
+
+    def share(component, H):
+        frame = Frame(index=0, t_days=0.0, fields={"H_c": H, "H_l": H}, mech={"component": component}, diagnostics={})
+        return measures.fragment_share(model, frame)
+
+    assert share(np.zeros(n, dtype=np.int64), whole) == 1.0
+    halves = (np.arange(n) >= n // 2).astype(np.int64)
+    a, b = V[: n // 2].sum(), V[n // 2:].sum()
+    np.testing.assert_allclose(share(halves, whole), (a * a + b * b) / (a + b) ** 2, rtol=1e-12)
+    np.testing.assert_allclose(share(np.arange(n), whole), np.sum(V * V) / V.sum() ** 2, rtol=1e-12)
+    consumed = whole.copy()
+    consumed[n // 2:] = 0.0  # the second half crumbled: the first is all the wood left
+    assert share(halves, consumed) == 1.0
+    half_rotted = whole.copy()
+    half_rotted[n // 2:] = 0.5  # H_l = H_c = 0.5: half its mass left
+    np.testing.assert_allclose(share(halves, half_rotted), (a * a + b * b / 4) / (a + b / 2) ** 2, rtol=1e-12)

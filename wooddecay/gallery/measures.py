@@ -2,7 +2,7 @@
 the rod state of a bake's frames (:class:`wooddecay.sim.driver.Frame`, ``mech``: x, component,
 element_ok, edge_ok). The per-frame signature of ``summary.json`` (:mod:`wooddecay.sim.signature`)
 is the common part; these add what one figure needs: the size and shape of the blocks that came
-loose (Figs. 11, 12), the opening-weighted number of cracks (Fig. 6c) and the state of a part of
+loose (Figs. 11, 12), how finely the wood is broken (Fig. 12), the opening-weighted number of cracks (Fig. 6c) and the state of a part of
 the wood (Fig. 13's two ends).
 """
 from __future__ import annotations
@@ -47,6 +47,18 @@ def loose_blocks(model, frame, mask: np.ndarray | None = None) -> dict:
     return {"blocks": len(sizes), "median_block_elements": med(sizes), "median_block_length_m": med(lengths),
             "median_block_aspect": med(aspects),
             "median_block_purity": med(purities)}
+
+
+def fragment_share(model, frame) -> float:
+    """How finely the wood is broken: the weight-average fragment, sum_i w_i^2 / (sum_i w_i)^2 over
+    the connected pieces of ``frame`` (every one, the largest and bits of one element included),
+    w_i the remaining wood of piece i (volume times (H_l + k_H H_c) / (1 + k_H), crumbled elements
+    left out), as a share of all the wood left. It is the share of the wood in the piece that a
+    bit of wood picked at random lies in: 1 for the whole log, 1/n for n equal pieces."""
+    left = np.where(crumbled(model, frame), 0.0, model.bio.op.volume * mass_remaining(
+        frame.fields["H_c"], frame.fields["H_l"], model.coupling.k_H))
+    w = np.bincount(frame.mech["component"], weights=left)
+    return float(np.sum(w * w) / w.sum() ** 2)
 
 
 #: sectors around the pith in which Fig. 6's radial cracks are counted (10 degrees each)
