@@ -230,7 +230,8 @@ LOG_QUICK = {"strands.r_s": 0.012, "bsp.cells": 200, "time.frames": 4}
 YEARS_QUICK = {"time.dt_bio": 4.0}
 LOG_YEARS_QUICK = {**LOG_QUICK, **YEARS_QUICK}
 #: Fig. 12's log breaks into blocks of about one BSP cell, so its quick log keeps the scene's 400
-#: cells and its pieces are the full scene's cells (docs/decisions.md "Fig. 12 at quick size")
+#: cells and its pieces are the full scene's cells (docs/decisions.md, "Fig. 12: finer is the
+#: weight-average fragment")
 FIG12_QUICK = {**LOG_YEARS_QUICK, "bsp.cells": 400}
 TREE_QUICK = {"strands.r_s": 0.02, "strands.rod_length": 0.1, "bsp.cells": 100, **YEARS_QUICK}
 
