@@ -12,7 +12,6 @@ Everything that imports ``bpy`` runs in a subprocess of this Python: ``bpy`` bun
 """
 from __future__ import annotations
 
-import hashlib
 import importlib.metadata
 import importlib.util
 import os
@@ -23,7 +22,7 @@ import tempfile
 import tomllib
 from pathlib import Path
 
-from .atomic import cache_home
+from .atomic import cache_home, tree_hash
 
 #: the add-on's source folder in a source checkout
 SOURCE = Path(__file__).resolve().parent.parent / "blender_addon"
@@ -115,11 +114,8 @@ def installed(source: Path = SOURCE) -> Path:
     and renamed into place, so a render running beside it finds a whole one or none."""
     check_bpy()
     source = Path(source).resolve()
-    digest = hashlib.sha256(importlib.metadata.version("bpy").encode())
-    for path in sorted(p for p in source.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
-        digest.update(str(path.relative_to(source)).encode() + b"\0" + path.read_bytes() + b"\0")
     base = cache_home() / "addon"
-    folder = base / digest.hexdigest()[:32]
+    folder = base / tree_hash(source, salt=importlib.metadata.version("bpy").encode())[:32]
     if not folder.is_dir():
         base.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=".build-", dir=base))

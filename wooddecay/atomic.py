@@ -7,10 +7,12 @@ suffix last (USD picks its format from it), flushes it to disk and renames it ov
 :class:`~wooddecay.errors.InputError` naming the file, and removes the temporary file.
 :func:`check_output` validates an output path before any work is done. :func:`read_archive` reads
 back an ``.npz`` of arrays and a JSON ``meta`` (checkpoints, the settled-state cache).
-:func:`cache_home` is wooddecay's folder in the user's cache (the settled states, the add-on).
+:func:`cache_home` is wooddecay's folder in the user's cache (the settled states, the add-on), and
+:func:`tree_hash` the key of what is cached from a folder of files (the add-on's source, the package's code).
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import pickle
@@ -76,3 +78,12 @@ def read_archive(path) -> tuple[dict, dict]:
 def cache_home() -> Path:
     """``$XDG_CACHE_HOME/wooddecay`` (``~/.cache/wooddecay`` without the variable)."""
     return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "wooddecay"
+
+
+def tree_hash(root: Path, pattern: str = "*", salt: bytes = b"") -> str:
+    """SHA-256 of ``salt`` and the files under ``root`` whose names match ``pattern`` (outside
+    ``__pycache__``), each as its path relative to ``root`` and its bytes, in path order."""
+    digest = hashlib.sha256(salt)
+    for path in sorted(p for p in root.rglob(pattern) if p.is_file() and "__pycache__" not in p.parts):
+        digest.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
+    return digest.hexdigest()

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import wooddecay as wd
+from wooddecay.atomic import tree_hash
 from wooddecay.sim import settled
 
 from ..conftest import SAMPLES
@@ -88,11 +89,11 @@ def test_a_state_other_code_settled_is_settled_again(tmp_path, monkeypatch):
 def test_the_code_hash_follows_the_sources(tmp_path):
     (tmp_path / "sim").mkdir()
     (tmp_path / "sim" / "rods.py").write_text("K = 1\n")
-    first = settled.sources_hash(tmp_path)
+    first = tree_hash(tmp_path, "*.py")
     (tmp_path / "notes.txt").write_text("not a source")
-    assert settled.sources_hash(tmp_path) == first
+    assert tree_hash(tmp_path, "*.py") == first
     (tmp_path / "sim" / "rods.py").write_text("K = 2\n")
-    assert settled.sources_hash(tmp_path) != first
+    assert tree_hash(tmp_path, "*.py") != first
     assert settled.code_hash() is settled.code_hash()  # hashed once per process
 
 

@@ -2,8 +2,8 @@
 the rod state of a bake's frames (:class:`wooddecay.sim.driver.Frame`, ``mech``: x, component,
 element_ok, edge_ok). The per-frame signature of ``summary.json`` (:mod:`wooddecay.sim.signature`)
 is the common part; these add what one figure needs: the size and shape of the blocks that came
-loose (Figs. 11, 12), how finely the wood is broken (Fig. 12), the opening-weighted number of cracks (Fig. 6c) and the state of a part of
-the wood (Fig. 13's two ends).
+loose (Figs. 11, 12), how finely the wood is broken (Fig. 12), the opening-weighted number of
+cracks (Fig. 6c) and the state of a part of the wood (Fig. 13's two ends).
 """
 from __future__ import annotations
 

@@ -18,14 +18,13 @@ and without the cache.
 from __future__ import annotations
 
 import functools
-import hashlib
 import json
 import os
 from pathlib import Path
 
 import numpy as np
 
-from ..atomic import cache_home, read_archive, replace_with
+from ..atomic import cache_home, read_archive, replace_with, tree_hash
 from ..errors import InputError
 from . import bark
 from . import mechanics as mech
@@ -37,18 +36,9 @@ ENV = "WOODDECAY_CACHE"
 
 @functools.cache
 def code_hash() -> str:
-    """:func:`sources_hash` of this package, once per process: the settled state depends on the
-    code besides the scene."""
-    return sources_hash(Path(__file__).resolve().parent.parent)
-
-
-def sources_hash(root: Path) -> str:
-    """SHA-256 of the Python sources under ``root``, their paths and bytes."""
-    h = hashlib.sha256()
-    for path in sorted(root.rglob("*.py")):
-        h.update(path.relative_to(root).as_posix().encode())
-        h.update(path.read_bytes())
-    return h.hexdigest()
+    """:func:`~wooddecay.atomic.tree_hash` of this package's Python sources, once per process: the
+    settled state depends on the code besides the scene."""
+    return tree_hash(Path(__file__).resolve().parent.parent, "*.py")
 
 
 def default_folder() -> Path | None:
