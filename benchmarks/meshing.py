@@ -12,6 +12,11 @@ Prints ``name value unit`` lines:
     narrow_notes_seconds <v> s    the build's check for profile parts narrower than a strand
                                   (ellipse and polygon profiles; best of 3)
     skin_seconds <v> s            one frame of skinning positions and six fields (best of 3)
+    rest_skinning_seconds <v> s   the rest skinning weights and local coordinates of every meshlet
+                                  vertex: the numba kernel, its numpy twin and their ratio
+                                  (medians of 5 alternating pairs, spread)
+    winding_seconds <v> s         winding numbers of 20,000 points about their meshlets (the
+                                  junction walls' test): kernel, numpy twin, ratio (likewise)
 Usage: python benchmarks/meshing.py [samples/tree.toml]
 """
 from __future__ import annotations
@@ -23,7 +28,7 @@ import time
 import numpy as np
 
 import wooddecay as wd
-from wooddecay.meshlets import checks, skin
+from wooddecay.meshlets import checks, junction, skin
 
 from wooddecay.model import narrow_notes
 
@@ -56,6 +61,27 @@ def main(path: str = str(SAMPLES / "tree.toml")) -> None:
     print(f"meshing_events {mesh.stats}")
     print(f"narrow_notes_seconds {best(lambda: narrow_notes(scene.skeleton, scene.strands.r_s)):.4f} s")
     print(f"skin_seconds {t_skin:.4f} s")
+    rest = (mesh.points, mesh.skin_indptr, mesh.skin_element)
+    pair("rest_skinning", lambda: skin.rest_skinning(model, *rest), lambda: skin.rest_skinning_reference(model, *rest))
+    rng = np.random.default_rng(0)
+    elements = rng.integers(0, mesh.count, 20_000)
+    probes = model.centers[elements] + rng.normal(scale=model.r_s, size=(len(elements), 3))
+    pair("winding", lambda: junction._winding(mesh, elements, probes),
+         lambda: junction._winding_reference(mesh, elements, probes))
+
+
+def pair(name: str, kernel, reference, repeat: int = 5) -> None:
+    """Alternating timings of ``kernel`` and ``reference`` (after one warm-up call of each):
+    medians with their spread, and the median of the per-pair ratios."""
+    kernel(), reference()
+    tk, tr = [], []
+    for _ in range(repeat):
+        tk += times(kernel, 1)
+        tr += times(reference, 1)
+    ratios = [r / k for k, r in zip(tk, tr)]
+    print(f"{name}_seconds {statistics.median(tk):.4f} s {spread(tk)}")
+    print(f"{name}_reference_seconds {statistics.median(tr):.4f} s {spread(tr)}")
+    print(f"{name}_speedup {statistics.median(ratios):.1f} x {spread(ratios)}")
 
 
 if __name__ == "__main__":

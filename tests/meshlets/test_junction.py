@@ -12,7 +12,7 @@ import trimesh
 
 from wooddecay.meshlets import checks
 from wooddecay.meshlets.branch import OUTSIDE_GAP, _mirrors
-from wooddecay.meshlets.junction import _winding
+from wooddecay.meshlets.junction import _winding, _winding_reference
 from wooddecay.meshlets.sweep import BARK, SIDE, build_meshlets
 from wooddecay.meshlets.visibility import visible_faces
 from wooddecay.model import build_model
@@ -35,8 +35,19 @@ class _Shell:
 def test_winding_number_of_a_cube():
     shell = _Shell(trimesh.creation.box(extents=[1.0, 2.0, 3.0]))
     points = np.array([[0.0, 0.0, 0.0], [0.49, 0.9, -1.4], [0.51, 0.0, 0.0], [3.0, 3.0, 3.0]])
-    w = _winding(shell, np.zeros(len(points), dtype=np.int64), points)
-    assert np.allclose(w, [1.0, 1.0, 0.0, 0.0], atol=1e-9)
+    for winding in (_winding, _winding_reference):
+        w = winding(shell, np.zeros(len(points), dtype=np.int64), points)
+        assert np.allclose(w, [1.0, 1.0, 0.0, 0.0], atol=1e-9)
+
+
+def test_winding_kernel_matches_its_numpy_twin(tiny_model):
+    mesh = build_meshlets(tiny_model)
+    rng = np.random.default_rng(1)
+    elements = rng.integers(0, mesh.count, 400)
+    points = tiny_model.centers[elements] + rng.normal(scale=tiny_model.r_s, size=(400, 3))
+    w = _winding(mesh, elements, points)
+    assert np.allclose(w, _winding_reference(mesh, elements, points), rtol=0, atol=1e-12)
+    assert 50 < np.count_nonzero(w > 0.5) < 350  # points inside and outside their meshlets
 
 
 def test_forked_branch_walls_face_the_other_branch():

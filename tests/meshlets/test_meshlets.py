@@ -204,6 +204,16 @@ def test_skinning_kernel_equals_reference_and_rest():
     assert np.abs(P - P2).max() < 1e-12 and np.abs(Fv - F2).max() < 1e-12
 
 
+def test_rest_skinning_kernel_equals_reference():
+    _, model, mesh = meshed("tiny")
+    w, local, ring = skin.rest_skinning(model, mesh.points, mesh.skin_indptr, mesh.skin_element)
+    w2, local2, ring2 = skin.rest_skinning_reference(model, mesh.points, mesh.skin_indptr, mesh.skin_element)
+    assert np.array_equal(w, w2) and np.array_equal(ring, ring2)  # the same sums in the same order
+    assert np.abs(local - local2).max() < 1e-15  # the rotation's products in another order
+    sums = np.add.reduceat(w, mesh.skin_indptr[:-1])
+    assert np.allclose(sums, 1.0, rtol=0, atol=1e-14)
+
+
 def test_bent_intact_log_has_no_gap_and_a_broken_strand_separates_cleanly():
     scene, model, mesh = meshed("tiny")
     r_s = scene.strands.r_s

@@ -15,8 +15,10 @@ extent.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
+import numba as nb
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -105,7 +107,35 @@ def _at_surface(model, mesh, faces: np.ndarray) -> np.ndarray:
 
 def _winding(mesh, elements: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Winding number of each meshlet ``elements[k]``'s closed shell about ``points[k]``
-    (van Oosterom and Strackee's solid angle per triangle, summed over 4 pi)."""
+    (van Oosterom and Strackee's solid angle per triangle, summed over 4 pi): a numba kernel,
+    parallel over k; :func:`_winding_reference` is its numpy twin."""
+    out = np.empty(len(elements))
+    _winding_kernel(mesh.face_offsets, mesh.faces, mesh.points, np.ascontiguousarray(elements, dtype=np.int64),
+                    np.ascontiguousarray(points, dtype=np.float64), out)
+    return out
+
+
+@nb.njit(parallel=True, cache=True)
+def _winding_kernel(fo, faces, P, elements, points, out):
+    for k in nb.prange(len(elements)):
+        e = elements[k]
+        total = 0.0
+        for f in range(fo[e], fo[e + 1]):
+            ax, ay, az = P[faces[f, 0], 0] - points[k, 0], P[faces[f, 0], 1] - points[k, 1], P[faces[f, 0], 2] - points[k, 2]
+            bx, by, bz = P[faces[f, 1], 0] - points[k, 0], P[faces[f, 1], 1] - points[k, 1], P[faces[f, 1], 2] - points[k, 2]
+            cx, cy, cz = P[faces[f, 2], 0] - points[k, 0], P[faces[f, 2], 1] - points[k, 1], P[faces[f, 2], 2] - points[k, 2]
+            la = math.sqrt(ax * ax + ay * ay + az * az)
+            lb = math.sqrt(bx * bx + by * by + bz * bz)
+            lc = math.sqrt(cx * cx + cy * cy + cz * cz)
+            det = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
+            den = la * lb * lc + (ax * bx + ay * by + az * bz) * lc + (bx * cx + by * cy + bz * cz) * la \
+                + (cx * ax + cy * ay + cz * az) * lb
+            total += 2.0 * math.atan2(det, den)
+        out[k] = total / (4.0 * math.pi)
+
+
+def _winding_reference(mesh, elements: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Plain-numpy twin of :func:`_winding`."""
     fo = mesh.face_offsets
     count = fo[elements + 1] - fo[elements]
     pair = np.repeat(np.arange(len(elements)), count)

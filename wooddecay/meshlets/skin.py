@@ -24,7 +24,8 @@ M, ...) per element are interpolated with the same weights: smooth inside a piec
 across a crack.
 
 :func:`rest_skinning` computes w_c and l_c from the rest partition (again for its bark moved onto
-a source surface, :mod:`wooddecay.meshlets.conform`). :func:`skin` is the numba kernel (parallel
+a source surface, :mod:`wooddecay.meshlets.conform`), a numba kernel with the numpy twin
+:func:`rest_skinning_reference`. :func:`skin` is the numba kernel (parallel
 over vertices, each writes its own rows: race-free and deterministic); :func:`skin_reference` is
 the plain-numpy twin used by the tests. :func:`frame_arrays` skins one
 :class:`~wooddecay.sim.driver.Frame` (points and its six fields), as both exporters do.
@@ -47,7 +48,37 @@ ALWAYS, BY_COMPONENT, STRAND = -1, -2, -3
 def rest_skinning(model, points, skin_indptr, skin_element):
     """Rest skinning of ``points`` over their candidate elements (CSR ``skin_indptr``,
     ``skin_element``): the weights w_c = 1 / (|x_0 - c_c0|^2 + r_s^2) normalised per vertex, the
-    rest local coordinates l_c (module docstring) and the weighted ring age."""
+    rest local coordinates l_c (module docstring) and the weighted ring age. A numba kernel,
+    parallel over vertices (each writes its own rows); :func:`rest_skinning_reference` is its
+    numpy twin (the same weights and ring ages bit for bit, l_c within rounding)."""
+    K = len(skin_element)
+    weight, local, ring = np.empty(K), np.empty((K, 3)), np.empty(len(points))
+    _rest_kernel(skin_indptr, np.ascontiguousarray(points, dtype=np.float64), skin_element, model.centers,
+                 model.rest_quat, model.ring_age, model.r_s * model.r_s, weight, local, ring)
+    return weight, local, ring
+
+
+@nb.njit(parallel=True, cache=True)
+def _rest_kernel(indptr, points, cand, centers, rest_quat, ring_age, r2, weight, local, ring):
+    for v in nb.prange(len(indptr) - 1):
+        wsum = 0.0
+        for k in range(indptr[v], indptr[v + 1]):
+            c = cand[k]
+            rx, ry, rz = points[v, 0] - centers[c, 0], points[v, 1] - centers[c, 1], points[v, 2] - centers[c, 2]
+            w = 1.0 / ((rx * rx + ry * ry + rz * rz) + r2)
+            weight[k] = w
+            wsum += w
+            local[k, 0], local[k, 1], local[k, 2] = rotate(rest_quat[c, 0], -rest_quat[c, 1], -rest_quat[c, 2],
+                                                           -rest_quat[c, 3], rx, ry, rz)
+        acc = 0.0
+        for k in range(indptr[v], indptr[v + 1]):
+            weight[k] = weight[k] / wsum
+            acc += weight[k] * ring_age[cand[k]]
+        ring[v] = acc
+
+
+def rest_skinning_reference(model, points, skin_indptr, skin_element):
+    """Plain-numpy twin of :func:`rest_skinning`."""
     vrow = np.repeat(np.arange(len(points)), np.diff(skin_indptr))
     rel = points[vrow] - model.centers[skin_element]
     w = 1.0 / ((rel * rel).sum(1) + model.r_s * model.r_s)
