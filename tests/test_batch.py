@@ -129,3 +129,38 @@ def test_variants_of_the_same_wood_share_one_built_model_and_bake_the_same(tmp_p
     single = tmp_path / "single"
     assert run("bake", SAMPLES / "tiny.toml", "-o", single, "--days", "3", "--frames", "2").exit_code == 0
     assert run("diff", tmp_path / "tiny__time.days=3" / "tiny.usdc", single / "tiny.usdc").exit_code == 0
+
+
+def test_variants_of_the_same_wood_share_their_meshlets_and_bake_the_same(tmp_path, monkeypatch):
+    """Variants under other climates (another model, the same wood) mesh once on a worker; a
+    variant of another seed (other strands) meshes again; each equals a single bake."""
+    from wooddecay.meshlets import sweep
+
+    meshed = []
+    real = sweep.build_meshlets
+    monkeypatch.setattr(sweep, "build_meshlets", lambda model: meshed.append(model.info.settle_hash) or real(model))
+    monkeypatch.setattr(batch_mod, "_models", {})
+    monkeypatch.setattr(batch_mod, "_meshlets", {})
+    path = tmp_path / "b.toml"
+    path.write_text(f'[batch]\nscenes = ["{SAMPLES / "tiny.toml"}"]\n[batch.set]\n"time.frames" = 2\n"time.days" = 2\n'
+                    '[batch.grid]\n"scene.seed" = [1, 2]\n"climate.preset" = ["temperate", "dry"]\n')
+    rows = [batch_mod.bake_variant(v, str(tmp_path / v.name), 1) for v in batch_mod.load_batch(path)]
+    assert [r["status"] for r in rows] == ["done"] * 4
+    assert len(meshed) == 2 and len(set(meshed)) == 2  # one per seed
+    name = "tiny__scene.seed=2__climate.preset=dry"
+    single = tmp_path / "single"
+    assert run("bake", SAMPLES / "tiny.toml", "-o", single, "--days", "2", "--frames", "2",
+               "--set", "scene.seed=2", "--set", "climate.preset=dry").exit_code == 0
+    assert run("diff", tmp_path / name / "tiny.usdc", single / "tiny.usdc").exit_code == 0
+    assert (tmp_path / name / "tiny.glb").read_bytes() == (single / "tiny.glb").read_bytes()
+
+
+def test_bake_refuses_meshlets_of_another_model(tmp_path, log_model):
+    from wooddecay.bake import bake
+    from wooddecay.meshlets.sweep import build_meshlets
+    from wooddecay.scene import load_scene
+
+    scene = load_scene(SAMPLES / "tiny.toml", overrides={"time.days": 1.0, "time.frames": 2})
+    with pytest.raises(ValueError, match="meshlets given to bake"):
+        bake(scene, tmp_path / "out", meshlets=build_meshlets(log_model))
+    assert not (tmp_path / "out").exists()

@@ -97,7 +97,7 @@ def finished(scene, out) -> dict | None:
 
 
 def bake(scene, out, resume: bool = False, quality: str = "final", progress=None, threads: int | None = None,
-         max_memory: int | None = None, model=None) -> dict:
+         max_memory: int | None = None, model=None, meshlets=None) -> dict:
     """Bake ``scene`` into the folder ``out`` (module docstring); returns the summary.
 
     ``progress(frame, n_frames)`` is called after every simulated frame. ``threads``: the numba
@@ -105,7 +105,9 @@ def bake(scene, out, resume: bool = False, quality: str = "final", progress=None
     (:class:`wooddecay.sim.threads.ThreadChoice`). A scene whose estimated peak memory
     (:func:`wooddecay.budget.check`) exceeds ``max_memory`` bytes, or the memory available, is
     refused before anything is written. ``model``: the scene's built model, if the caller holds it
-    (:func:`wooddecay.model.retimed`; a batch shares one between variants).
+    (:func:`wooddecay.model.retimed`; a batch shares one between variants). ``meshlets``: the
+    model's rest meshlets, if the caller holds them (they depend on the wood alone: a batch worker
+    keeps them for the variants of the same ``Scene.settle_hash``).
     """
 
     if quality not in QUALITIES:
@@ -114,7 +116,7 @@ def bake(scene, out, resume: bool = False, quality: str = "final", progress=None
     out = Path(out)
     created = not out.exists()
     try:
-        return _bake(scene, out, resume, quality, progress, threads, model)
+        return _bake(scene, out, resume, quality, progress, threads, model, meshlets)
     except BaseException:
         # a bake that fails before its first frame leaves nothing; a later failure keeps the frames
         # and the checkpoint for --resume
@@ -123,7 +125,8 @@ def bake(scene, out, resume: bool = False, quality: str = "final", progress=None
         raise
 
 
-def _bake(scene, out: Path, resume: bool, quality: str, progress, threads: int | None, model=None) -> dict:
+def _bake(scene, out: Path, resume: bool, quality: str, progress, threads: int | None, model=None,
+          meshlets=None) -> dict:
     work = out / ".bake"
     try:
         work.mkdir(parents=True, exist_ok=True)
@@ -136,6 +139,8 @@ def _bake(scene, out: Path, resume: bool, quality: str, progress, threads: int |
         model = build_model(scene)
     elif model.info.hash != scene.hash:
         raise ValueError("the model given to bake() is not the scene's")
+    if meshlets is not None and meshlets.count != model.n_elements:
+        raise ValueError("the meshlets given to bake() are not the model's")
     seconds["build"] = time.perf_counter() - t0
     mechanics = quality == "final"
 
@@ -164,7 +169,7 @@ def _bake(scene, out: Path, resume: bool, quality: str, progress, threads: int |
     seconds["simulation"] = before + time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    mesh = build_meshlets(model)
+    mesh = build_meshlets(model) if meshlets is None else meshlets
     seconds["meshing"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()

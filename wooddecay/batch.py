@@ -20,7 +20,9 @@ The engine is a ``dask.distributed`` Client: a LocalCluster of one single-thread
 worker by default (each bake then runs its numba kernels on cores // workers threads, so workers
 do not oversubscribe the machine), or any scheduler by address (a farm, dask-jobqueue, Kubernetes)
 with no other change. A worker keeps the models it built and bakes the next variant of the same
-wood (differing only in [time], [export] or its name) from it, not from a new build. Each variant
+wood (differing only in [time], [export] or its name) from it, not from a new build, and keeps
+the rest meshlets for every variant of the same wood (``Scene.settle_hash``: differing also in
+[climate], [bark] or its inoculations), which depend on the wood alone (14 s of a tree's bake). Each variant
 is one task with retries: a worker that dies mid-bake has its
 variant run again elsewhere, and a bake is deterministic, so the result is the same. ``resume``
 skips variants whose ``summary.json`` exists with the scene hash of the resolved scene. At the
@@ -149,6 +151,23 @@ def _model_for(scene):
     return model
 
 
+#: rest meshlets a worker keeps for the next variants of the same wood (Scene.settle_hash)
+_meshlets: dict[str, Any] = {}
+
+
+def _meshlets_for(scene, model):
+    """The rest meshlets of ``model``: built, or those this worker built for a variant of the
+    same wood."""
+    from .meshlets.sweep import build_meshlets
+
+    key = scene.settle_hash
+    if key not in _meshlets:
+        _meshlets[key] = build_meshlets(model)
+        while len(_meshlets) > MODELS_KEPT:
+            _meshlets.pop(next(iter(_meshlets)))
+    return _meshlets[key]
+
+
 def bake_variant(variant: Variant, out: str, threads: int | None) -> dict:
     """Bake one variant into ``out`` (its folder) and return its row of ``batch.json``; a bad
     scene or a failed bake gives status "failed" with the one-line error. Runs on a worker."""
@@ -159,7 +178,8 @@ def bake_variant(variant: Variant, out: str, threads: int | None) -> dict:
     row = {"scene": variant.scene, "overrides": variant.overrides, "output": out}
     try:
         scene = load_scene(variant.scene, overrides=variant.overrides)
-        summary = bake(scene, out, threads=threads, model=_model_for(scene))
+        model = _model_for(scene)
+        summary = bake(scene, out, threads=threads, model=model, meshlets=_meshlets_for(scene, model))
     except (InputError, ValueError, FloatingPointError, MemoryError) as err:
         return {**row, "status": "failed", "error": str(err).splitlines()[0], "seconds": time.perf_counter() - t0}
     last = summary["frames"][-1]
