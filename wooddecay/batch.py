@@ -144,11 +144,15 @@ def _model_for(scene):
     if key in _models:
         return retimed(_models[key], scene)
     check(scene)  # refuse an oversized scene before building it, as bake() does
-    model = build_model(scene)
-    _models[key] = model
-    while len(_models) > MODELS_KEPT:
-        _models.pop(next(iter(_models)))
-    return model
+    return _keep(_models, key, build_model(scene))
+
+
+def _keep(store: dict, key: str, value):
+    """``value`` kept in ``store`` under ``key``, the oldest entries dropped past MODELS_KEPT."""
+    store[key] = value
+    while len(store) > MODELS_KEPT:
+        store.pop(next(iter(store)))
+    return value
 
 
 #: rest meshlets a worker keeps for the next variants of the same wood (Scene.settle_hash)
@@ -161,11 +165,7 @@ def _meshlets_for(scene, model):
     from .meshlets.sweep import build_meshlets
 
     key = scene.settle_hash
-    if key not in _meshlets:
-        _meshlets[key] = build_meshlets(model)
-        while len(_meshlets) > MODELS_KEPT:
-            _meshlets.pop(next(iter(_meshlets)))
-    return _meshlets[key]
+    return _meshlets[key] if key in _meshlets else _keep(_meshlets, key, build_meshlets(model))
 
 
 def bake_variant(variant: Variant, out: str, threads: int | None) -> dict:

@@ -119,11 +119,13 @@ def _winding(mesh, elements: np.ndarray, points: np.ndarray) -> np.ndarray:
 def _winding_kernel(fo, faces, P, elements, points, out):
     for k in nb.prange(len(elements)):
         e = elements[k]
+        px, py, pz = points[k, 0], points[k, 1], points[k, 2]
         total = 0.0
         for f in range(fo[e], fo[e + 1]):
-            ax, ay, az = P[faces[f, 0], 0] - points[k, 0], P[faces[f, 0], 1] - points[k, 1], P[faces[f, 0], 2] - points[k, 2]
-            bx, by, bz = P[faces[f, 1], 0] - points[k, 0], P[faces[f, 1], 1] - points[k, 1], P[faces[f, 1], 2] - points[k, 2]
-            cx, cy, cz = P[faces[f, 2], 0] - points[k, 0], P[faces[f, 2], 1] - points[k, 1], P[faces[f, 2], 2] - points[k, 2]
+            i, j, m = faces[f, 0], faces[f, 1], faces[f, 2]
+            ax, ay, az = P[i, 0] - px, P[i, 1] - py, P[i, 2] - pz
+            bx, by, bz = P[j, 0] - px, P[j, 1] - py, P[j, 2] - pz
+            cx, cy, cz = P[m, 0] - px, P[m, 1] - py, P[m, 2] - pz
             la = math.sqrt(ax * ax + ay * ay + az * az)
             lb = math.sqrt(bx * bx + by * by + bz * bz)
             lc = math.sqrt(cx * cx + cy * cy + cz * cz)
