@@ -7,6 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from wooddecay.quaternion import conj_np, mul_np, normalize_np, rotate_np
 from wooddecay.sim import failure
 
 from .helpers import perturbed
@@ -118,3 +119,85 @@ def test_decay_below_I_fail_separates_bsp_blocks_or_frays(fungus):
     else:
         assert not ms.edge_ok[:, 0].any()
         assert piece.max() + 1 > 2 * len(np.unique(leaf))
+
+
+def _turn(rho, i, j):
+    """The angle of conj(rho_i) rho_j."""
+    p = mul_np(conj_np(rho[i]), rho[j])
+    return 2.0 * np.arctan2(np.linalg.norm(p[:, 1:], axis=1), np.abs(p[:, 0]))
+
+
+def test_motion_bounds_the_pair_strain_change():
+    """The bounds :func:`failure._flag_moved_edges` skips edges by: after random moves and turns
+    of every element, each edge's bundle strain changed by at most |delta_j - delta_i| / its
+    length and, within the angles where it is used, its bend and twist angles by at most
+    LOG_LIPSCHITZ times the angle of conj(rho_i) rho_j (:func:`failure._motion`); wood shifted and
+    turned as a whole turns no edge and moves its ends only by the turn of their offset; and they are tight enough to skip nearly every edge of
+    wood that moves by microns."""
+    setup, ms = perturbed(seed=11)
+    args = (setup.edges, setup.fp, ms.x, ms.q, ms.rest_offset, setup.edge_length, setup.edge_rest)
+    before, x0, q0 = failure.pair_strains(*args), ms.x.copy(), ms.q.copy()
+    past = failure.epoch(setup, ms)
+    rng = np.random.default_rng(4)
+    i, j = setup.edges[:, 0], setup.edges[:, 1]
+    n = setup.n_elements
+    delta, rho, size = np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 2))
+    for scale, turn, share in ((1e-3, 0.01, 0.5), (1e-6, 1e-6, 0.99)):
+        ms.x[:] = x0 + rng.normal(scale=scale, size=ms.x.shape)
+        ms.q[:] = normalize_np(q0 + rng.normal(scale=turn, size=ms.q.shape))
+        failure._motion(setup.fp, ms.x, ms.q, past.c0, past.q0, delta, rho, size)
+        after = failure.pair_strains(*args)
+        moved = np.linalg.norm(delta[j] - delta[i], axis=1) / setup.edge_length
+        assert np.all(np.abs(after[:, 0] - before[:, 0]) <= moved + 1e-15)
+        assert np.all(moved <= (size[i, 0] + size[j, 0]) / setup.edge_length + 1e-15)
+        angle = _turn(rho, i, j)
+        assert np.all(angle <= size[i, 1] + size[j, 1] + 1e-15)
+        within = (before[:, 1:].max(axis=1) < failure.EPOCH_ANGLE) & (angle <= failure.MOVE_ANGLE)
+        assert within.mean() > share
+        bound = failure.LOG_LIPSCHITZ * angle[within, None]
+        assert np.all(np.abs(after[within, 1:] - before[within, 1:]) <= bound + 1e-15)
+    assert np.mean(moved < 1e-3) > 0.99
+    # a rigid motion: a turn by 0.3 rad about a random axis and a shift by 5 cm
+    axis = rng.normal(size=3)
+    spin = np.concatenate([[np.cos(0.15)], np.sin(0.15) * axis / np.linalg.norm(axis)])
+    ms.x[:] = rotate_np(np.broadcast_to(spin, (len(x0), 4)), x0) + 0.05
+    ms.q[:] = mul_np(np.broadcast_to(spin, q0.shape), q0)
+    failure._motion(setup.fp, ms.x, ms.q, past.c0, past.q0, delta, rho, size)
+    c = 0.5 * (x0[setup.fp] + x0[setup.fp + 1])
+    offset = np.linalg.norm(c[j] - c[i], axis=1)
+    assert np.all(np.linalg.norm(delta[j] - delta[i], axis=1) <= 2.0 * np.sin(0.15) * offset * (1 + 1e-9) + 1e-15)
+    assert np.all(_turn(rho, i, j) < 1e-7)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_moved_edges_flag_as_the_exact_test(seed):
+    """After an epoch, :func:`failure._flag_moved_edges` flags exactly the edges
+    :func:`failure._flag_edges` flags, with limits set within 1e-12 of the moved strains on either
+    side for a third of the edges and far for the rest (so both the skip and the test are taken)."""
+    setup, ms = perturbed(seed=seed)
+    args = (setup.edges, setup.fp, ms.x, ms.q, ms.rest_offset, setup.edge_length, setup.edge_rest)
+    rng = np.random.default_rng(seed)
+    m = len(setup.edges)
+    ms.strain_ref_edge = rng.uniform(-0.01, 0.01, (m, 3))
+    ms.limit_edge = np.full((m, 3), 1.0)
+    x0, q0 = ms.x.copy(), ms.q.copy()
+    x1 = x0 + rng.normal(scale=1e-4, size=ms.x.shape)
+    q1 = normalize_np(q0 + rng.normal(scale=1e-3, size=ms.q.shape))
+    ms.x[:], ms.q[:] = x1, q1
+    near = rng.random(m) < 1 / 3
+    edge = (failure.pair_strains(*args) - ms.strain_ref_edge) * (1.0 + rng.choice([-1e-12, 1e-12], (m, 3)))
+    ms.limit_edge[near] = edge[near]
+    ms.x[:], ms.q[:] = x0, q0
+    past = failure.epoch(setup, ms)
+    ms.x[:], ms.q[:] = x1, q1
+    n = setup.n_elements
+    delta, rho, size = np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 2))
+    failure._motion(setup.fp, ms.x, ms.q, past.c0, past.q0, delta, rho, size)
+    common = (ms.strain_ref_edge, ms.limit_edge, np.ones(m), np.zeros(m))
+    ok_exact, ok_moved = np.ones_like(ms.edge_ok), np.ones_like(ms.edge_ok)
+    new_exact = failure._flag_edges(np.arange(m), *args, *common, ok_exact)
+    new_moved = failure._flag_moved_edges(np.arange(m), *args, *common, ok_moved, delta, rho, size, past.margin_b,
+                                          past.margin_a)
+    np.testing.assert_array_equal(new_moved, new_exact)
+    np.testing.assert_array_equal(ok_moved, ok_exact)
+    assert 0 < np.count_nonzero(new_exact) <= near.sum()

@@ -25,6 +25,11 @@ Strains are measured after every substep, as the change since the settled refere
   lignin loss lowers every pair alike. A crumbled element (consumed, ``ms.crumbled``) fails
   whatever its neighbours, and its pairs and links have integrity 0: it leaves the mechanics.
 
+Within a chunk of substeps (:func:`wooddecay.sim.mechanics._advance`) the first test is exact on
+every edge and records an :class:`Epoch`; the later ones skip the edges whose ends moved and
+turned too little since then to reach their limits (:func:`_flag_moved_edges`), so they flag
+what the exact test flags (docs/decisions.md, "Failure test after an epoch").
+
 Flags never come back. After a substep with a new element or connection failure the connected
 components (strand links of unbroken elements plus intact REG connections) are recomputed;
 labels are numbered in order of each component's smallest element id, so they are
@@ -35,6 +40,7 @@ flagged in one serial pass in element order (the neighbour rule reads the flags 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
@@ -132,38 +138,157 @@ def _flag_elements(idx, strain, limit, link_integrity, I_fail, crumbled, inner, 
     return new
 
 
+@nb.njit(inline="always", cache=True)
+def _flag_edge(k, edges, fp, x, q, rest_offset, edge_length, edge_rest, strain_ref, limit, integrity, I_fail,
+               edge_ok):
+    """The failure test of REG edge k (intact): 0 none, 1 bend / twist only, 2 connection (all
+    flags: over the bundle limit, or decayed below ``I_fail``). The angles 2 atan(v / r0) (v / |v|)
+    are bounded by 2 v / r0 (atan z <= z); where that bound, with a margin far above rounding, is
+    within the limit the edge cannot fail and the atan2 is skipped, so the flags are those of the
+    exact test."""
+    if (integrity[k] < I_fail[k]
+            or _pair_bundle(k, edges, fp, x, rest_offset, edge_length) - strain_ref[k, 0] > limit[k, 0]):
+        edge_ok[k, 0] = edge_ok[k, 1] = edge_ok[k, 2] = False
+        return 2
+    r0, r1, r2, r3 = _pair_rotation(k, edges, q, edge_rest)
+    if r0 > 0.0:
+        g = 2.0 * (1.0 + 1e-9) / r0
+        if (g * math.sqrt(r1 * r1 + r2 * r2) - strain_ref[k, 1] <= limit[k, 1]
+                and g * abs(r3) - strain_ref[k, 2] <= limit[k, 2]):
+            return 0
+    bend, twist = _angles(r0, r1, r2, r3)
+    new = 0
+    if edge_ok[k, 1] and bend - strain_ref[k, 1] > limit[k, 1]:
+        edge_ok[k, 1] = False
+        new = 1
+    if edge_ok[k, 2] and twist - strain_ref[k, 2] > limit[k, 2]:
+        edge_ok[k, 2] = False
+        new = 1
+    return new
+
+
 @nb.njit(parallel=True, cache=True)
 def _flag_edges(idx, edges, fp, x, q, rest_offset, edge_length, edge_rest, strain_ref, limit, integrity, I_fail,
                 edge_ok):
-    """New failures per edge among the edges ``idx``: 0 none, 1 bend / twist only, 2 connection
-    (all flags: over the bundle limit, or decayed below ``I_fail``). The strains
-    (:func:`pair_strains`) are measured on intact edges only, in the same pass as the test. The
-    angles 2 atan(v / r0) (v / |v|) are bounded by 2 v / r0 (atan z <= z); where that bound, with
-    a margin far above rounding, is within the limit the edge cannot fail and the atan2 is
-    skipped, so the flags are those of the exact test."""
+    """New failures per edge among the edges ``idx`` (:func:`_flag_edge`); the strains
+    (:func:`pair_strains`) are measured on intact edges only, in the same pass as the test."""
+    new = np.zeros(len(edge_ok), dtype=np.int8)
+    for t in nb.prange(len(idx)):
+        k = idx[t]
+        if edge_ok[k, 0]:
+            new[k] = _flag_edge(k, edges, fp, x, q, rest_offset, edge_length, edge_rest, strain_ref, limit,
+                                integrity, I_fail, edge_ok)
+    return new
+
+
+class Epoch(NamedTuple):
+    """The element centres and orientations at an exact failure test of every REG edge, and how
+    far each intact edge then was from failing (:func:`epoch`): its bundle strain's margin to its
+    limit, and the smaller of its bend and twist margins (the angles' upper bound 2 v / r0; -1
+    where the relative rotation is past ``EPOCH_ANGLE``: such an edge is always tested)."""
+
+    c0: np.ndarray  # (n, 3)
+    q0: np.ndarray  # (n, 4)
+    margin_b: np.ndarray  # (m,)
+    margin_a: np.ndarray  # (m,)
+
+
+#: an edge's angle margin holds while its relative rotation stays within EPOCH_ANGLE + MOVE_ANGLE
+#: (rad) of none: there the rotation vector (the log map) moves by at most LOG_LIPSCHITZ times the
+#: angle between the rotations, (a / 2) / sin(a / 2) at a = 0.6, rounded up
+EPOCH_ANGLE = 0.5
+MOVE_ANGLE = 0.1
+LOG_LIPSCHITZ = 1.02
+#: absolute slack (strain, rad) on every bound, far above the rounding of the exact test
+BOUND_SLACK = 1e-12
+
+
+def epoch(setup, ms) -> Epoch:
+    """The :class:`Epoch` of the current state (run right after an exact test of every edge)."""
+    fp, m = setup.fp, len(setup.edges)
+    margin_b, margin_a = np.empty(m), np.empty(m)
+    _margins(setup.edges, fp, ms.x, ms.q, ms.rest_offset, setup.edge_length, setup.edge_rest, ms.strain_ref_edge,
+             ms.limit_edge, ms.edge_ok, margin_b, margin_a)
+    return Epoch(0.5 * (ms.x[fp] + ms.x[fp + 1]), ms.q.copy(), margin_b, margin_a)
+
+
+@nb.njit(parallel=True, cache=True)
+def _margins(edges, fp, x, q, rest_offset, edge_length, edge_rest, strain_ref, limit, edge_ok, margin_b, margin_a):
+    """:class:`Epoch`'s margins of every edge (failed ones: -1)."""
+    for k in nb.prange(len(edges)):
+        margin_b[k] = margin_a[k] = -1.0
+        if not edge_ok[k, 0]:
+            continue
+        margin_b[k] = limit[k, 0] - (_pair_bundle(k, edges, fp, x, rest_offset, edge_length) - strain_ref[k, 0])
+        r0, r1, r2, r3 = _pair_rotation(k, edges, q, edge_rest)
+        if r0 <= 0.0:
+            continue
+        g = 2.0 * (1.0 + 1e-9) / r0
+        if g * math.sqrt(r1 * r1 + r2 * r2 + r3 * r3) > EPOCH_ANGLE:
+            continue
+        a = np.inf
+        if edge_ok[k, 1]:
+            a = min(a, limit[k, 1] - (g * math.sqrt(r1 * r1 + r2 * r2) - strain_ref[k, 1]))
+        if edge_ok[k, 2]:
+            a = min(a, limit[k, 2] - (g * abs(r3) - strain_ref[k, 2]))
+        margin_a[k] = a
+
+
+@nb.njit(parallel=True, cache=True)
+def _motion(fp, x, q, c0, q0, delta, rho, size):
+    """Per element, the move of its centre since ``c0``, its turn since ``q0`` as the world
+    rotation rho with q = rho q0, and their sizes: |delta| and an upper bound of rho's angle
+    (2 v / w; infinite past 0.29 rad)."""
+    for e in nb.prange(len(fp)):
+        a = fp[e]
+        for c in range(3):
+            delta[e, c] = 0.5 * (x[a, c] + x[a + 1, c]) - c0[e, c]
+        r = mul(q[e, 0], q[e, 1], q[e, 2], q[e, 3], q0[e, 0], -q0[e, 1], -q0[e, 2], -q0[e, 3])
+        rho[e, 0], rho[e, 1], rho[e, 2], rho[e, 3] = r
+        size[e, 0] = math.sqrt(delta[e, 0] ** 2 + delta[e, 1] ** 2 + delta[e, 2] ** 2)
+        size[e, 1] = _turn_bound(r[0], r[1], r[2], r[3])
+
+
+@nb.njit(inline="always", cache=True)
+def _turn_bound(w, v1, v2, v3):
+    """An upper bound of the angle of the unit quaternion (w, v): 2 |v| / |w| (atan z <= z),
+    infinite where |w| <= 0.99."""
+    w = abs(w)
+    return 2.0 * (1.0 + 1e-9) * math.sqrt(v1 * v1 + v2 * v2 + v3 * v3) / w if w > 0.99 else np.inf
+
+
+@nb.njit(parallel=True, cache=True)
+def _flag_moved_edges(idx, edges, fp, x, q, rest_offset, edge_length, edge_rest, strain_ref, limit, integrity,
+                      I_fail, edge_ok, delta, rho, size, margin_b, margin_a):
+    """:func:`_flag_edges` after an :class:`Epoch`: an edge whose ends moved and turned against
+    each other (``delta``, ``rho``, ``size``: :func:`_motion`) less than its margins allow cannot
+    fail and is not tested. Its bundle strain moves by at most |delta_j - delta_i| / its length
+    (triangle inequality), which is at most (|delta_i| + |delta_j|) / its length; its relative
+    rotation by the angle of conj(rho_i) rho_j (the angle between rotations is bi-invariant), at
+    most the sum of the two turns' angles, and its bend and twist angles by at most LOG_LIPSCHITZ
+    times that. The sums are tried first; a piece that shifts or turns as a whole moves or turns
+    none of its edges by the differences. Integrity, rest data and limits are those of the epoch.
+    So the flags are those of :func:`_flag_edges`."""
     new = np.zeros(len(edge_ok), dtype=np.int8)
     for t in nb.prange(len(idx)):
         k = idx[t]
         if not edge_ok[k, 0]:
             continue
-        if (integrity[k] < I_fail[k]
-                or _pair_bundle(k, edges, fp, x, rest_offset, edge_length) - strain_ref[k, 0] > limit[k, 0]):
-            edge_ok[k, 0] = edge_ok[k, 1] = edge_ok[k, 2] = False
-            new[k] = 2
-            continue
-        r0, r1, r2, r3 = _pair_rotation(k, edges, q, edge_rest)
-        if r0 > 0.0:
-            g = 2.0 * (1.0 + 1e-9) / r0
-            if (g * math.sqrt(r1 * r1 + r2 * r2) - strain_ref[k, 1] <= limit[k, 1]
-                    and g * abs(r3) - strain_ref[k, 2] <= limit[k, 2]):
+        i, j = edges[k, 0], edges[k, 1]
+        reach = (margin_b[k] - BOUND_SLACK) * edge_length[k] / (1.0 + 1e-9)
+        moved = size[i, 0] + size[j, 0] < reach
+        if not moved:
+            dx, dy, dz = delta[j, 0] - delta[i, 0], delta[j, 1] - delta[i, 1], delta[j, 2] - delta[i, 2]
+            moved = math.sqrt(dx * dx + dy * dy + dz * dz) < reach
+        if moved:
+            turn = size[i, 1] + size[j, 1]
+            if turn > MOVE_ANGLE or LOG_LIPSCHITZ * turn + BOUND_SLACK >= margin_a[k]:
+                p = mul(rho[i, 0], -rho[i, 1], -rho[i, 2], -rho[i, 3], rho[j, 0], rho[j, 1], rho[j, 2], rho[j, 3])
+                turn = _turn_bound(p[0], p[1], p[2], p[3])
+            if turn <= MOVE_ANGLE and LOG_LIPSCHITZ * turn + BOUND_SLACK < margin_a[k]:
                 continue
-        bend, twist = _angles(r0, r1, r2, r3)
-        if edge_ok[k, 1] and bend - strain_ref[k, 1] > limit[k, 1]:
-            edge_ok[k, 1] = False
-            new[k] = 1
-        if edge_ok[k, 2] and twist - strain_ref[k, 2] > limit[k, 2]:
-            edge_ok[k, 2] = False
-            new[k] = 1
+        new[k] = _flag_edge(k, edges, fp, x, q, rest_offset, edge_length, edge_rest, strain_ref, limit, integrity,
+                            I_fail, edge_ok)
     return new
 
 
@@ -253,20 +378,32 @@ def pair_strains_reference(edges, fp, x, q, rest_offset, edge_length, edge_rest)
     return np.stack([bundle, f * np.linalg.norm(r[:, 1:3], axis=1), f * np.abs(r[:, 3])], axis=1)
 
 
-def update(setup, ms, tested: tuple | None = None) -> int:
+def update(setup, ms, tested: tuple | None = None, record: bool = False, bounded: bool = False) -> int:
     """Flag the constraints whose strain beyond the settled reference (``ms.strain_ref_*``,
     :func:`mechanics.settle`) exceeds their limit; recompute components if anything separated.
     ``tested``: (elements, edges), increasing indices, to test only those (the rest has been
     tested at its current positions and limits, :func:`mechanics.stiffness`); None: all.
-    Returns the number of new failures (elements plus edges)."""
+    ``bounded``: skip the edges that moved too little since ``ms.fail_epoch`` to fail
+    (:func:`_flag_moved_edges`, the same flags; all tested without an epoch); ``record``: set
+    ``ms.fail_epoch`` to this test (an exact test of every edge). Returns the number of new
+    failures (elements plus edges)."""
     idx_e, idx_k = tested if tested is not None else (setup.all_elements, setup.all_edges)
     elem = np.empty((setup.n_elements, 2))
     _strains_at(idx_e, setup.fp, ms.x, ms.q, ms.rest_length, elem)
     new_e = _flag_elements(idx_e, elem - ms.strain_ref_elem, ms.limit_elem, ms.link_integrity, setup.I_fail_elem,
                            ms.crumbled, setup.inner, ms.element_ok)
-    new_k = _flag_edges(idx_k, setup.edges, setup.fp, ms.x, ms.q, ms.rest_offset, setup.edge_length,
-                        setup.edge_rest, ms.strain_ref_edge, ms.limit_edge, ms.integrity, setup.I_fail_edge,
-                        ms.edge_ok)
+    args = (idx_k, setup.edges, setup.fp, ms.x, ms.q, ms.rest_offset, setup.edge_length, setup.edge_rest,
+            ms.strain_ref_edge, ms.limit_edge, ms.integrity, setup.I_fail_edge, ms.edge_ok)
+    past = ms.fail_epoch
+    if bounded and past is not None:
+        n = setup.n_elements
+        delta, rho, size = np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 2))
+        _motion(setup.fp, ms.x, ms.q, past.c0, past.q0, delta, rho, size)
+        new_k = _flag_moved_edges(*args, delta, rho, size, past.margin_b, past.margin_a)
+    else:
+        new_k = _flag_edges(*args)
+    if record and tested is None:
+        ms.fail_epoch = epoch(setup, ms)
     count_e, count_k = np.count_nonzero(new_e), np.count_nonzero(new_k)
     count = int(count_e + count_k)
     if count_e or (count_k and (new_k == 2).any()):

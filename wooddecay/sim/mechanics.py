@@ -245,6 +245,9 @@ class MechState:
     solved_mass: np.ndarray = field(default_factory=lambda: np.zeros(0))
     solved_day: np.ndarray = field(default_factory=lambda: np.zeros(1))
     quiet: np.ndarray = field(default_factory=lambda: np.zeros(1, dtype=bool))
+    #: the last exact failure test of every REG edge within this :func:`_advance`
+    #: (:class:`failure.Epoch`; not checkpointed: each call starts with an exact test)
+    fail_epoch: failure.Epoch | None = None
 
     def copy(self) -> "MechState":
         return MechState(**{f.name: (getattr(self, f.name).copy() if isinstance(getattr(self, f.name), np.ndarray)
@@ -636,11 +639,13 @@ def substep(model, state, dt: float) -> int:
 
 
 def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: tuple | None = None, lam: dict | None = None,
-             check: bool = True, check_all: bool = True) -> int:
+             check: bool = True, check_all: bool = True, record: bool = False) -> int:
     """:func:`substep`; ``stiff``: :func:`stiffness` of this state, if the caller holds it;
     ``lam``: a dict that receives the substep's multipliers (:func:`strain_excess`); ``check``:
     test for failures (:func:`failure.update`), else return 0; ``check_all``: test every
-    constraint, else only those ``stiff`` names (the rest has not moved since a test of all)."""
+    constraint, else only those ``stiff`` names (the rest has not moved since a test of all),
+    skipping those that moved too little since ``ms.fail_epoch`` to fail; ``record``: make this
+    substep's test of all the epoch (:func:`failure.update`)."""
     x_old, q_old = np.empty_like(ms.x), np.empty_like(ms.q)
     _predict(ms.x, ms.v, ms.q, ms.omega, ms.w_p, ms.w_q, ms.mass_p, ms.force, setup.gravity, ms.torque,
              math.exp(-setup.damping * dt), dt, x_old, q_old)  # libm's, as wooddecay.fmath
@@ -674,7 +679,9 @@ def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: tuple | None = N
     ms.t_seconds += dt
     if not check:
         return 0
-    return failure.update(setup, ms, None if check_all else tested)
+    if check_all:
+        return failure.update(setup, ms, record=record)
+    return failure.update(setup, ms, tested, bounded=True)
 
 
 def strain_excess(setup: MechSetup, ms: MechState) -> float:
@@ -836,10 +843,10 @@ def _advance(setup: MechSetup, ms: MechState, n_sub: int, stiff: tuple | None = 
     as in :func:`_substep`. The first substep tests every constraint for failure, the others
     only those of elements that can move (:func:`stiffness`): still wood keeps its strains and,
     within a call, its limits."""
-    new = 0
+    new, ms.fail_epoch = 0, None
     for i in range(n_sub):
         stiff = stiffness(setup, ms) if stiff is None else stiff
-        count = _substep(setup, ms, setup.dt, stiff, check=check, check_all=i == 0)
+        count = _substep(setup, ms, setup.dt, stiff, check=check, check_all=i == 0, record=i == 0 and n_sub > 1)
         new += count
         if count:  # flags changed
             stiff = None
