@@ -132,8 +132,8 @@ def test_motion_bounds_the_pair_strain_change():
     of every element, each edge's bundle strain changed by at most |delta_j - delta_i| / its
     length and, within the angles where it is used, its bend and twist angles by at most
     LOG_LIPSCHITZ times the angle of conj(rho_i) rho_j (:func:`failure._motion`); wood shifted and
-    turned as a whole turns no edge and moves its ends only by the turn of their offset; and they are tight enough to skip nearly every edge of
-    wood that moves by microns."""
+    turned as a whole turns no edge and moves its ends only by the turn of their offset; and they
+    are tight enough to skip nearly every edge of wood that moves by microns."""
     setup, ms = perturbed(seed=11)
     args = (setup.edges, setup.fp, ms.x, ms.q, ms.rest_offset, setup.edge_length, setup.edge_rest)
     before, x0, q0 = failure.pair_strains(*args), ms.x.copy(), ms.q.copy()

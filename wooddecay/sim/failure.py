@@ -139,22 +139,28 @@ def _flag_elements(idx, strain, limit, link_integrity, I_fail, crumbled, inner, 
 
 
 @nb.njit(inline="always", cache=True)
+def _angle_bounds(r0, r1, r2, r3):
+    """Upper bounds of the bend and twist angles of the rotation (r0 > 0, r1, r2, r3): 2 v / r0
+    per part (atan z <= z), with a margin far above rounding."""
+    g = 2.0 * (1.0 + 1e-9) / r0
+    return g * math.sqrt(r1 * r1 + r2 * r2), g * abs(r3)
+
+
+@nb.njit(inline="always", cache=True)
 def _flag_edge(k, edges, fp, x, q, rest_offset, edge_length, edge_rest, strain_ref, limit, integrity, I_fail,
                edge_ok):
     """The failure test of REG edge k (intact): 0 none, 1 bend / twist only, 2 connection (all
-    flags: over the bundle limit, or decayed below ``I_fail``). The angles 2 atan(v / r0) (v / |v|)
-    are bounded by 2 v / r0 (atan z <= z); where that bound, with a margin far above rounding, is
-    within the limit the edge cannot fail and the atan2 is skipped, so the flags are those of the
-    exact test."""
+    flags: over the bundle limit, or decayed below ``I_fail``). Where the angles' upper bounds
+    (:func:`_angle_bounds`) are within the limits the edge cannot fail and the atan2 is skipped,
+    so the flags are those of the exact test."""
     if (integrity[k] < I_fail[k]
             or _pair_bundle(k, edges, fp, x, rest_offset, edge_length) - strain_ref[k, 0] > limit[k, 0]):
         edge_ok[k, 0] = edge_ok[k, 1] = edge_ok[k, 2] = False
         return 2
     r0, r1, r2, r3 = _pair_rotation(k, edges, q, edge_rest)
     if r0 > 0.0:
-        g = 2.0 * (1.0 + 1e-9) / r0
-        if (g * math.sqrt(r1 * r1 + r2 * r2) - strain_ref[k, 1] <= limit[k, 1]
-                and g * abs(r3) - strain_ref[k, 2] <= limit[k, 2]):
+        bend, twist = _angle_bounds(r0, r1, r2, r3)
+        if bend - strain_ref[k, 1] <= limit[k, 1] and twist - strain_ref[k, 2] <= limit[k, 2]:
             return 0
     bend, twist = _angles(r0, r1, r2, r3)
     new = 0
@@ -228,16 +234,14 @@ def _margins(edges, fp, x, q, rest_offset, edge_length, edge_rest, strain_ref, l
             continue
         margin_b[k] = limit[k, 0] - (_pair_bundle(k, edges, fp, x, rest_offset, edge_length) - strain_ref[k, 0])
         r0, r1, r2, r3 = _pair_rotation(k, edges, q, edge_rest)
-        if r0 <= 0.0:
+        if r0 <= 0.0 or 2.0 * (1.0 + 1e-9) * math.sqrt(r1 * r1 + r2 * r2 + r3 * r3) / r0 > EPOCH_ANGLE:
             continue
-        g = 2.0 * (1.0 + 1e-9) / r0
-        if g * math.sqrt(r1 * r1 + r2 * r2 + r3 * r3) > EPOCH_ANGLE:
-            continue
+        bend, twist = _angle_bounds(r0, r1, r2, r3)
         a = np.inf
         if edge_ok[k, 1]:
-            a = min(a, limit[k, 1] - (g * math.sqrt(r1 * r1 + r2 * r2) - strain_ref[k, 1]))
+            a = min(a, limit[k, 1] - (bend - strain_ref[k, 1]))
         if edge_ok[k, 2]:
-            a = min(a, limit[k, 2] - (g * abs(r3) - strain_ref[k, 2]))
+            a = min(a, limit[k, 2] - (twist - strain_ref[k, 2]))
         margin_a[k] = a
 
 
