@@ -27,14 +27,14 @@ larger than that bound is split into the fewest equal substeps that satisfy it. 
 box remains as a safety net; every change above 1e-12 it makes is counted and reported.
 
 The numba kernel runs every update as a parallel loop over elements, each writing only its own
-entry (a gather over its CSR row): race-free and identical for any thread count. The same code is
-also compiled serially for small models (PARALLEL_MIN_ELEMENTS), where thread synchronisation
-would cost more than the work; both give bit-identical results.
+entry (a gather over its CSR row): race-free and identical for any thread count. A rot field
+that is zero everywhere stays zero, so its update is skipped. There is no serial build: numba's
+parallel build runs the log's substep about twice as fast on one thread as the same code compiled
+without ``parallel`` (docs/decisions.md, "Biology on one build").
 :func:`step_reference` is the plain numpy version of the same step.
 """
 from __future__ import annotations
 
-import types
 from dataclasses import dataclass, replace
 
 import numba as nb
@@ -186,33 +186,37 @@ def _clamp(v, lo, hi, clamp, i):
     return v
 
 
-def _substep_py(h, indptr, indices, weight, volume, tissue, P, wfac, bd, kappa, M12, box_M, w, k_g,
-             R_w, R_b, H_c, H_l, C, M, buf, kappa_M, clamp):
+@nb.njit(parallel=True, cache=True)
+def _substep(h, indptr, indices, weight, volume, tissue, P, wfac, bd, kappa, M12, box_M, w, k_g,
+             R_w, R_b, H_c, H_l, C, M, rotting, buf, kappa_M, clamp):
     """One forward-Euler substep of all six fields in the paper's order (module docstring);
-    ``w``: the climate's (w_in, w_out), ``k_g``: w_ground k_ground g per element. ``buf`` is
-    copied back element by element: a slice assignment compiles numba's shape-error formatting
-    (docs/decisions.md, "Tests on two workers")."""
+    ``w``: the climate's (w_in, w_out), ``k_g``: w_ground k_ground g per element, ``rotting``:
+    whether R_w and R_b hold any fungus (a field that is zero everywhere stays zero, bit for bit,
+    so its update is skipped). ``buf`` is copied back element by element: a slice assignment
+    compiles numba's shape-error formatting (docs/decisions.md, "Tests on two workers")."""
     n = len(R_w)
     kw = kappa[:, 0]
     kb = kappa[:, 1]
     kc = kappa[:, 2]
-    for i in nb.prange(n):  # Eq. 8
-        p = P[tissue[i]]
-        a = _alpha(p[ALPHA_W], M[i], p[M_MIN], p[M_MAX], p[S_T]) * wfac[i]
-        sub = (p[LAMBDA_L] * H_l[i] + p[LAMBDA_C] * H_c[i]) * H_c[i] / (p[K_C] + H_c[i])
-        r = R_w[i]
-        f = a * r * (1.0 - r) * sub - p[BETA_W] * C[i] * r
-        buf[i] = _clamp(r + h * (f + _lap(i, R_w, kw, indptr, indices, weight, volume)), 0.0, 1.0, clamp, i)
-    for i in nb.prange(n):
-        R_w[i] = buf[i]
-    for i in nb.prange(n):  # Eq. 9
-        p = P[tissue[i]]
-        a = _alpha(p[ALPHA_B], M[i], p[M_MIN], p[M_MAX], p[S_T]) * wfac[i]
-        r = R_b[i]
-        f = a * r * (1.0 - r) * H_c[i] - p[BETA_B] * C[i] * r
-        buf[i] = _clamp(r + h * (f + _lap(i, R_b, kb, indptr, indices, weight, volume)), 0.0, 1.0, clamp, i)
-    for i in nb.prange(n):
-        R_b[i] = buf[i]
+    if rotting[0]:
+        for i in nb.prange(n):  # Eq. 8
+            p = P[tissue[i]]
+            a = _alpha(p[ALPHA_W], M[i], p[M_MIN], p[M_MAX], p[S_T]) * wfac[i]
+            sub = (p[LAMBDA_L] * H_l[i] + p[LAMBDA_C] * H_c[i]) * H_c[i] / (p[K_C] + H_c[i])
+            r = R_w[i]
+            f = a * r * (1.0 - r) * sub - p[BETA_W] * C[i] * r
+            buf[i] = _clamp(r + h * (f + _lap(i, R_w, kw, indptr, indices, weight, volume)), 0.0, 1.0, clamp, i)
+        for i in nb.prange(n):
+            R_w[i] = buf[i]
+    if rotting[1]:
+        for i in nb.prange(n):  # Eq. 9
+            p = P[tissue[i]]
+            a = _alpha(p[ALPHA_B], M[i], p[M_MIN], p[M_MAX], p[S_T]) * wfac[i]
+            r = R_b[i]
+            f = a * r * (1.0 - r) * H_c[i] - p[BETA_B] * C[i] * r
+            buf[i] = _clamp(r + h * (f + _lap(i, R_b, kb, indptr, indices, weight, volume)), 0.0, 1.0, clamp, i)
+        for i in nb.prange(n):
+            R_b[i] = buf[i]
     for i in nb.prange(n):  # Eqs. 12, 13 (no transport: pointwise)
         p = P[tissue[i]]
         hc = H_c[i]
@@ -245,23 +249,6 @@ def _substep_py(h, indptr, indices, weight, volume, tissue, P, wfac, bd, kappa, 
         M[i] = buf[i]
 
 
-def _build(parallel: bool):
-    """A separately named copy of :func:`_substep_py` compiled with or without ``parallel``.
-
-    numba's on-disk cache is keyed by the function's qualified name and source line, not by the
-    ``parallel`` flag: two dispatchers of one function would load each other's machine code."""
-    name = "_substep_parallel" if parallel else "_substep_serial"
-    fn = types.FunctionType(_substep_py.__code__, _substep_py.__globals__, name)
-    fn.__qualname__ = name
-    return nb.njit(parallel=parallel, cache=True)(fn)
-
-
-_substep_parallel = _build(parallel=True)
-_substep_serial = _build(parallel=False)
-#: below this many elements the serial build is faster than six parallel regions per substep
-PARALLEL_MIN_ELEMENTS = 20_000
-
-
 def _advance(model, state: SimState, dt: float, n_sub: int, kernel) -> None:
     setup = model.bio
     h = dt / n_sub
@@ -279,10 +266,9 @@ def _numba_kernel(setup: BioSetup, state: SimState, h: float, M12: np.ndarray, w
     op = setup.op
     n = len(state.R_w)
     clamp = np.zeros(n, dtype=np.int64)
-    kernel = _substep_parallel if n >= PARALLEL_MIN_ELEMENTS else _substep_serial
-    kernel(h, op.indptr, op.indices, op.weight, op.volume, setup.tissue, setup.P, setup.wfac,
+    _substep(h, op.indptr, op.indices, op.weight, op.volume, setup.tissue, setup.P, setup.wfac,
              setup.bd, setup.kappa, M12, setup.box_M, w, k_g, state.R_w, state.R_b, state.H_c, state.H_l,
-             state.C, state.M, np.empty(n), np.empty(n), clamp)
+             state.C, state.M, np.array([state.R_w.any(), state.R_b.any()]), np.empty(n), np.empty(n), clamp)
     state.clamp_count += int(clamp.sum())
 
 
@@ -311,7 +297,7 @@ def _clamp_np(v, lo, hi, state: SimState):
 
 def _reference_kernel(setup: BioSetup, s: SimState, h: float, M12: np.ndarray, w_env: np.ndarray,
                       k_g: np.ndarray) -> None:
-    """Plain numpy version of :func:`_substep_py` (same order, same formulas)."""
+    """Plain numpy version of :func:`_substep` (same order, same formulas)."""
     P = setup.P[setup.tissue]
     col = dict(zip(BIO_PARAMS, P.T))
     op, w, bd = setup.op, setup.wfac, setup.bd

@@ -179,8 +179,8 @@ def _couple(M, H_c, H_l, tissue, M12, edges, link_next, M_0, L_knee, s, S_c, res
         M_2 = M12[tissue[e], 1]
         M_k = M_0[e] + L_knee[e] * (M12[tissue[e], 0] - M_0[e])
         f = 1.0 if M[e] >= M_k else (0.0 if M[e] <= M_2 else (M[e] - M_2) / (M_k - M_2))
-        for c in range(5):
-            L[e, c] = L_0[e, c] * f ** p_l[e, c]
+        for c in range(5):  # 1 ** p_l is 1: wood above the knee skips the pow
+            L[e, c] = L_0[e, c] if f == 1.0 else L_0[e, c] * f ** p_l[e, c]
         phi = 1.0 - S_c[e] * (1.0 - H_c[e])
         rest_length[e] = rest_length0[e] * (1.0 - max(M_0[e] - M[e], 0.0) * s[e]) * phi
         radius[e] = radius0[e] * phi

@@ -3,7 +3,9 @@
 * mass loss = 1 - (H_l + k H_c) / (1 + k), k = k_H (2.5), volume-weighted over the wood;
 * moisture content ratio = (M - M_2)(1 + k) l / ((M_1 - M_2)(H_l + k H_c)), l = 1, volume-
   weighted (elements whose remaining mass is below 1e-9 are left out of the ratio);
-* mean of every field per tissue.
+* mean of every field per tissue;
+* of the rods (:func:`mech_diagnostics`): pieces, broken connections and elements, failures and
+  the largest particle speed.
 """
 from __future__ import annotations
 
@@ -84,3 +86,38 @@ def _report(state: SimState, loss: float, ratio: float, volume: np.ndarray, sums
              for t in np.flatnonzero(volume > 0.0)}
     return {"t_days": float(state.t_days), "mass_loss": float(loss), "moisture_content_ratio": float(ratio),
             "clamp_count": int(state.clamp_count), "tissue_means": means}
+
+
+def mech_diagnostics(ms) -> dict:
+    """Crack statistics of the rod state (a :class:`~wooddecay.sim.mechanics.MechState`), in one
+    serial numba pass (:func:`mech_diagnostics_reference` is its numpy twin). Why: the twin's
+    temporaries took 0.1 ms of every macro step of the log (docs/decisions.md, "Biology on one
+    build")."""
+    broken_k, broken_e, v2 = _rod_counts(ms.edge_ok, ms.element_ok, ms.v)
+    return _rod_report(ms, broken_k, broken_e, v2)
+
+
+@nb.njit(cache=True)
+def _rod_counts(edge_ok, element_ok, v):
+    """Broken connections (``edge_ok[:, 0]`` cleared), broken elements and the largest squared
+    particle speed."""
+    broken_k = broken_e = 0
+    for k in range(len(edge_ok)):
+        broken_k += not edge_ok[k, 0]
+    for e in range(len(element_ok)):
+        broken_e += not element_ok[e]
+    v2 = 0.0
+    for p in range(len(v)):
+        v2 = max(v2, v[p, 0] * v[p, 0] + v[p, 1] * v[p, 1] + v[p, 2] * v[p, 2])
+    return broken_k, broken_e, v2
+
+
+def mech_diagnostics_reference(ms) -> dict:
+    """Plain-numpy :func:`mech_diagnostics`."""
+    return _rod_report(ms, np.count_nonzero(~ms.edge_ok[:, 0]), np.count_nonzero(~ms.element_ok),
+                       np.max(np.sum(ms.v**2, axis=1), initial=0.0))
+
+
+def _rod_report(ms, broken_k, broken_e, v2) -> dict:
+    return {"components": int(ms.component.max(initial=-1) + 1), "broken_connections": int(broken_k),
+            "broken_elements": int(broken_e), "failures": int(ms.failures), "max_speed": float(np.sqrt(v2))}

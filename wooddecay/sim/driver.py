@@ -42,7 +42,7 @@ import numpy as np
 from ..atomic import read_archive
 from . import bark, biology, coupling, schedule, settled
 from . import mechanics as mech
-from .diagnostics import diagnostics
+from .diagnostics import diagnostics, mech_diagnostics
 from .signature import signature
 from .state import FIELDS, SimState, initial_state, inoculate
 from .threads import ThreadChoice
@@ -67,15 +67,6 @@ class Frame:
 def frame_times(days: float, frames: int) -> np.ndarray:
     """Frame times in days: evenly spaced over [0, days], or just [days] for one frame."""
     return np.array([days]) if frames == 1 else np.linspace(0.0, days, frames)
-
-
-def mech_diagnostics(ms: mech.MechState) -> dict:
-    """Crack statistics of the rod state."""
-    return {"components": int(ms.component.max(initial=-1) + 1),
-            "broken_connections": int(np.count_nonzero(~ms.edge_ok[:, 0])),
-            "broken_elements": int(np.count_nonzero(~ms.element_ok)),
-            "failures": int(ms.failures),
-            "max_speed": float(np.sqrt(np.max(np.sum(ms.v**2, axis=1), initial=0.0)))}
 
 
 class Simulation:
