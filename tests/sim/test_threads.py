@@ -57,6 +57,24 @@ def test_probes_back_off_while_the_count_holds():
     assert T.REPROBE_MOST == 400 and c.current == 1
 
 
+def test_a_lucky_fast_step_on_a_loaded_machine_does_not_take_all_threads():
+    """Beside a CPU-bound process a step on all threads is sometimes fast (both threads ran) and
+    mostly slow (one waited): the round weighs what the steps cost on average, so one lucky step
+    does not win it (the fastest of them would: 0.6 against 1.0)."""
+    c = T.ThreadChoice(None, available=2)
+    slow = {}
+
+    def seconds(n, k):
+        if n == 1:
+            return 1.0
+        slow[k] = len(slow) % 2 == 1  # 0.6, 5.0, 0.6, 5.0, ...
+        return 5.0 if slow[k] else 0.6
+
+    used = run(c, seconds, 300)
+    assert c.current == 1
+    assert used.count(2) <= T.WARM_UP + T.PROBES * 3
+
+
 def test_a_count_changes_only_past_the_margin():
     # loaded in the first round (two threads 3x slower): one thread; in the next, two threads 5%
     # faster is within the noise and one thread stays, 15% faster takes both

@@ -10,7 +10,10 @@ when a round changes it, since a probe of all threads on a loaded machine costs 
 on one thread to 199 s, docs/decisions.md "Threads"). A round runs the steps
 with each candidate, alternating (1, n, 1, n, ...), and estimates what the round's steps cost with
 each count: per work done with both counts (the caller's ``work`` key: what the step ran), the
-round's steps of that work times the fastest of them with the count (timing noise only adds).
+round's steps of that work times their mean time with the count. The mean, not the fastest: on a
+loaded machine a step on all threads is now and then fast (both threads ran) and mostly slow, and
+the fastest of a round's few took all threads for a short bake it made twice as slow as one
+thread (docs/decisions.md, "Threads").
 The round ends once ``PROBES`` pairs of steps of equal work put all ``n`` threads below ``CLEAR``
 or above ``LOADED`` times one thread, else after ``MAX_PROBE_STEPS`` steps. Then all ``n``
 threads are taken below ``MARGIN`` times one thread, one thread at or above one thread's cost,
@@ -26,6 +29,7 @@ the times of any two steps compare the schedule, not the threads (docs/decisions
 from __future__ import annotations
 
 import os
+import statistics
 import time
 from collections import Counter
 
@@ -116,8 +120,8 @@ class ThreadChoice:
         n = self.available
         both = [w for w, c in self._samples if c == 1 and (w, n) in self._samples]
         pairs = sum(min(len(self._samples[(w, 1)]), len(self._samples[(w, n)])) for w in both)
-        cost = {c: sum((len(self._samples[(w, 1)]) + len(self._samples[(w, n)])) * min(self._samples[(w, c)])
-                       for w in both) for c in (1, n)}
+        cost = {c: sum((len(self._samples[(w, 1)]) + len(self._samples[(w, n)]))
+                       * statistics.fmean(self._samples[(w, c)]) for w in both) for c in (1, n)}
         ratio = cost[n] / cost[1] if both and cost[1] > 0.0 else None
         if (ratio is not None and pairs >= PROBES and not CLEAR <= ratio < LOADED) or j == MAX_PROBE_STEPS - 1:
             before = self.current
