@@ -473,12 +473,14 @@ def _velocities(x, v, q, omega, x_old, q_old, w_p, w_q, dt):
             omega[e, 2] = 2.0 * sgn * d[3] / dt
 
 
-def _multipliers(setup: MechSetup) -> dict[str, np.ndarray]:
-    """XPBD multipliers of one substep: stretch, shear, joints, REG connection and REG
-    bend-twist (these two in colour order, :class:`RegSweep`)."""
+def _multipliers(setup: MechSetup, fresh_reg: bool = False) -> dict[str, np.ndarray]:
+    """XPBD multipliers of one substep, zero: stretch, shear, joints, REG connection and REG
+    bend-twist (these two in colour order, :class:`RegSweep`). ``fresh_reg``: the REG ones
+    uninitialised, for a first sweep that writes them (:func:`rods.reg_pass` ``fresh``)."""
     n, m = setup.n_elements, len(setup.edges)
+    reg = np.empty if fresh_reg else np.zeros
     return {"s": np.zeros(n), "sh": np.zeros((n, 2)), "j": np.zeros((len(setup.joints), 3)),
-            "c": np.zeros(m), "p": np.zeros((m, 3))}
+            "c": reg(m), "p": reg((m, 3))}
 
 
 def _joint_stiffness(setup: MechSetup, ms: MechState) -> tuple[np.ndarray, np.ndarray]:
@@ -487,13 +489,15 @@ def _joint_stiffness(setup: MechSetup, ms: MechState) -> tuple[np.ndarray, np.nd
     return np.where(on, setup.joint_kb, 0.0), np.where(on, setup.joint_kt, 0.0)
 
 
-def _project(setup: MechSetup, ms: MechState, kjoint, plan: "Stage1Plan", kreg, lam: dict, dt: float) -> None:
-    """One sweep of Stage 1 and Stage 2."""
+def _project(setup: MechSetup, ms: MechState, kjoint, plan: "Stage1Plan", kreg, lam: dict, dt: float,
+             fresh: bool = False) -> None:
+    """One sweep of Stage 1 and Stage 2; ``fresh``: the substep's first, which writes the REG
+    multipliers before it reads them (:func:`rods.reg_pass`)."""
     fp, x, q = setup.fp, ms.x, ms.q
     strand_stage(setup, ms, kjoint, plan, lam, dt)
     sw = setup.sweep
     rods.reg_pass(sw.edges, kreg.ptr, kreg.active, fp, x, q, ms.w_p, ms.w_q, kreg.offset, kreg.k_conn, sw.rest,
-                  sw.length, kreg.k_bend, kreg.k_twist, lam["c"], lam["p"], dt)
+                  sw.length, kreg.k_bend, kreg.k_twist, lam["c"], lam["p"], dt, fresh)
 
 
 @dataclass(frozen=True, eq=False)
@@ -650,7 +654,7 @@ def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: tuple | None = N
     _predict(ms.x, ms.v, ms.q, ms.omega, ms.w_p, ms.w_q, ms.mass_p, ms.force, setup.gravity, ms.torque,
              math.exp(-setup.damping * dt), dt, x_old, q_old)  # libm's, as wooddecay.fmath
     kreg, kjoint, plan, tested = stiff or stiffness(setup, ms)
-    fresh = _multipliers(setup)
+    fresh = _multipliers(setup, fresh_reg=True)
     lam = fresh if lam is None else lam
     lam.update(fresh)
     normal_force = np.zeros(setup.n_particles)
@@ -663,8 +667,8 @@ def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: tuple | None = N
     hit_c = np.zeros((setup.n_particles, len(setup.colliders)), dtype=bool)
     hit_p = np.zeros(len(ms.pairs), dtype=bool)
     x_start = np.empty_like(ms.x)
-    for _ in range(setup.iterations):
-        _project(setup, ms, kjoint, plan, kreg, lam, dt)
+    for it in range(setup.iterations):
+        _project(setup, ms, kjoint, plan, kreg, lam, dt, fresh=it == 0)
         x_start[:] = ms.x
         contact.project_colliders(ms.x, ms.w_p, ms.radius_p, setup.colliders, setup.k_col, dt, normal_force,
                                   push, x_old, hit_c, checked=True)
