@@ -101,13 +101,10 @@ def stretch_shear(elems, fp, x, q, w_p, w_q, rest_length, k_stretch, k_shear, el
 
 
 @nb.njit(inline="always", cache=True)
-def _bend_twist_one(i, j, q, w_q, rest, length, kb, kt, lam, k, dt, fresh=False):
-    """Bend-twist constraint between the quaternions of elements i and j (row k of rest / lam).
-    ``fresh``: row k of ``lam`` is taken as zero (the substep's first sweep) and written."""
+def _bend_twist_one(i, j, q, w_q, rest, length, kb, kt, lam, k, dt):
+    """Bend-twist constraint between the quaternions of elements i and j (row k of rest / lam)."""
     wi, wj = w_q[i], w_q[j]
     if wi + wj <= 0.0:
-        if fresh:
-            lam[k, 0] = lam[k, 1] = lam[k, 2] = 0.0
         return
     a0, a1, a2, a3 = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
     b0, b1, b2, b3 = q[j, 0], q[j, 1], q[j, 2], q[j, 3]
@@ -116,13 +113,12 @@ def _bend_twist_one(i, j, q, w_q, rest, length, kb, kt, lam, k, dt, fresh=False)
     s = 1.0 if om[0] * r0 + om[1] * r1 + om[2] * r2 + om[3] * r3 >= 0.0 else -1.0
     f = 2.0 / length
     W = f * f * (wi + wj)
-    l0, l1, l2 = (0.0, 0.0, 0.0) if fresh else (lam[k, 0], lam[k, 1], lam[k, 2])
-    dl0 = _xpbd(f * (om[1] - s * r1), l0, W, kb * length, dt)
-    dl1 = _xpbd(f * (om[2] - s * r2), l1, W, kb * length, dt)
-    dl2 = _xpbd(f * (om[3] - s * r3), l2, W, kt * length, dt)
-    lam[k, 0] = l0 + dl0
-    lam[k, 1] = l1 + dl1
-    lam[k, 2] = l2 + dl2
+    dl0 = _xpbd(f * (om[1] - s * r1), lam[k, 0], W, kb * length, dt)
+    dl1 = _xpbd(f * (om[2] - s * r2), lam[k, 1], W, kb * length, dt)
+    dl2 = _xpbd(f * (om[3] - s * r3), lam[k, 2], W, kt * length, dt)
+    lam[k, 0] += dl0
+    lam[k, 1] += dl1
+    lam[k, 2] += dl2
     # dq_j = w_j f q_i u, dq_i = -w_i f q_j u, u = (0, dlambda)
     uj = mul(a0, a1, a2, a3, 0.0, dl0, dl1, dl2)
     ui = mul(b0, b1, b2, b3, 0.0, dl0, dl1, dl2)
@@ -163,8 +159,8 @@ def reg_pass(edges, ptr, active, fp, x, q, w_p, w_q, rest_offset, k_conn, rest, 
     it holds. One call per sweep: a call per class (41 per substep on the log) cost 9% of Stage 2;
     a failed edge costs nothing (docs/decisions.md, "One call per Stage 2 sweep"). Classes under
     ``PARALLEL_MIN`` edges run serially: the edges of a class are independent, so the bits are the
-    same. ``fresh``: the multipliers of the swept edges are taken as zero and written, every entry
-    of a swept edge (the substep's first sweep: ``lam_c`` and ``lam_bt`` need not be zeroed, which
+    same. ``fresh``: each swept edge's multipliers are set to zero before its projection (the
+    substep's first sweep: ``lam_c`` and ``lam_bt`` need not be zeroed beforehand, which
     cost 4.5% of the tree's substep; docs/decisions.md, "Multipliers written, not zeroed")."""
     for c in range(len(ptr) - 1):
         if ptr[c + 1] - ptr[c] < PARALLEL_MIN:
@@ -185,8 +181,8 @@ def _reg_edge(k, edges, fp, x, q, w_p, w_q, rest_offset, k_conn, rest, length, k
     ai, aj = fp[i], fp[j]
     bi, bj = ai + 1, aj + 1
     W = 0.25 * (w_p[ai] + w_p[bi] + w_p[aj] + w_p[bj])
-    if fresh:
-        lam_c[k] = 0.0
+    if fresh:  # the substep's first sweep: this edge's multipliers start at zero
+        lam_c[k] = lam_bt[k, 0] = lam_bt[k, 1] = lam_bt[k, 2] = 0.0
     if k_conn[k] > 0.0 and W > 0.0:
         dx = 0.5 * (x[aj, 0] + x[bj, 0] - x[ai, 0] - x[bi, 0])
         dy = 0.5 * (x[aj, 1] + x[bj, 1] - x[ai, 1] - x[bi, 1])
@@ -202,9 +198,7 @@ def _reg_edge(k, edges, fp, x, q, w_p, w_q, rest_offset, k_conn, rest, length, k
                 x[aj, cc] += w_p[aj] * h * dc
                 x[bj, cc] += w_p[bj] * h * dc
     if k_bend[k] > 0.0 or k_twist[k] > 0.0:
-        _bend_twist_one(i, j, q, w_q, rest, length[k], k_bend[k], k_twist[k], lam_bt, k, dt, fresh)
-    elif fresh:
-        lam_bt[k, 0] = lam_bt[k, 1] = lam_bt[k, 2] = 0.0
+        _bend_twist_one(i, j, q, w_q, rest, length[k], k_bend[k], k_twist[k], lam_bt, k, dt)
 
 
 def active_edges(ptr: np.ndarray, k_conn: np.ndarray, k_bend: np.ndarray, k_twist: np.ndarray
