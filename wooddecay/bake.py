@@ -134,6 +134,7 @@ def _bake(scene, out: Path, resume: bool, quality: str, progress, threads: int |
         raise InputError(str(out), "", f"cannot create the output folder: {err}") from None
     ckpt = work / "checkpoint.npz"
     seconds = {}
+    choice = ThreadChoice(threads)  # before the build: its load monitor's first window
     t0 = time.perf_counter()
     if model is None:
         model = build_model(scene)
@@ -146,7 +147,6 @@ def _bake(scene, out: Path, resume: bool, quality: str, progress, threads: int |
 
     t0 = time.perf_counter()
     frames: list[Frame] = []
-    choice = ThreadChoice(threads)
     if resume and ckpt.exists():
         try:
             sim = Simulation.resume(model, ckpt, threads=choice)

@@ -2,10 +2,19 @@
 own macro-step times, and the parsing of --threads / $WOODDECAY_THREADS."""
 from __future__ import annotations
 
+import subprocess
+import sys
+import time
+
 import pytest
 
 from wooddecay.errors import InputError
 from wooddecay.sim import threads as T
+
+
+def idle():
+    """No other process on the machine (:class:`wooddecay.sim.threads.LoadMonitor`'s reading)."""
+    return 0.0
 
 
 def run(choice, seconds_of, steps, work_of=lambda k: None):
@@ -24,11 +33,12 @@ def test_fixed_count_never_probes_and_is_capped():
     assert run(c, lambda n, k: 1.0, 120) == [1] * 120
     c = T.ThreadChoice(8, available=2)
     assert set(run(c, lambda n, k: 1.0, 10)) == {2}
-    assert c.summary() == {"requested": 8, "available": 2, "steps": {"2": 10}, "current": 2}
+    assert c.summary() == {"requested": 8, "available": 2, "steps": {"2": 10}, "held_by_load": 0,
+                           "current": 2}
 
 
 def test_auto_keeps_all_threads_on_an_idle_machine():
-    c = T.ThreadChoice(None, available=2)
+    c = T.ThreadChoice(None, available=2, load=idle)
     used = run(c, lambda n, k: 1.0 / n, 200)
     probes = T.PROBES * 2
     assert used[:T.WARM_UP] == [2] * T.WARM_UP
@@ -39,7 +49,7 @@ def test_auto_keeps_all_threads_on_an_idle_machine():
 
 def test_auto_drops_to_one_thread_when_threads_wait_and_comes_back_when_idle():
     busy_until = 120
-    c = T.ThreadChoice(None, available=2)
+    c = T.ThreadChoice(None, available=2, load=idle)
     used = run(c, lambda n, k: (3.0 if n == 2 else 1.0) if k < busy_until else 1.0 / n, 300)
     first = T.WARM_UP + T.PROBES * 2
     assert set(used[first:T.WARM_UP + T.REPROBE_EVERY]) == {1}        # loaded: one thread
@@ -50,7 +60,7 @@ def test_auto_drops_to_one_thread_when_threads_wait_and_comes_back_when_idle():
 def test_probes_back_off_while_the_count_holds():
     """On a machine loaded throughout, the rounds after the one that dropped to one thread come
     at doubling intervals up to REPROBE_MOST, each probing all threads PROBES times."""
-    c = T.ThreadChoice(None, available=2)
+    c = T.ThreadChoice(None, available=2, load=idle)
     used = run(c, lambda n, k: 3.0 if n == 2 else 1.0, 2000)
     starts = [1, 51, 151, 351, 751, 1151, 1551, 1951]
     assert [k for k, n in enumerate(used) if n == 2 and k >= T.WARM_UP] == [s + d for s in starts for d in (1, 3)]
@@ -61,7 +71,7 @@ def test_a_lucky_fast_step_on_a_loaded_machine_does_not_take_all_threads():
     """Beside a CPU-bound process a step on all threads is sometimes fast (both threads ran) and
     mostly slow (one waited): the round weighs what the steps cost on average, so one lucky step
     does not win it (the fastest of them would: 0.6 against 1.0)."""
-    c = T.ThreadChoice(None, available=2)
+    c = T.ThreadChoice(None, available=2, load=idle)
     slow = {}
 
     def seconds(n, k):
@@ -80,14 +90,14 @@ def test_a_count_changes_only_past_the_margin():
     # faster is within the noise and one thread stays, 15% faster takes both
     steps = T.REPROBE_EVERY + T.WARM_UP + T.MAX_PROBE_STEPS
     for later, expected in ((0.95, 1), (0.85, 2)):
-        c = T.ThreadChoice(None, available=2)
+        c = T.ThreadChoice(None, available=2, load=idle)
         run(c, lambda n, k: (3.0 if n == 2 else 1.0) if k < T.REPROBE_EVERY else (1.0 if n == 1 else later), steps)
         assert c.current == expected
     # and all threads stay while they are not slower than one
-    c = T.ThreadChoice(None, available=2)
+    c = T.ThreadChoice(None, available=2, load=idle)
     run(c, lambda n, k: 1.0 if n == 1 else 0.95, T.WARM_UP + T.MAX_PROBE_STEPS)
     assert c.current == 2
-    c = T.ThreadChoice(None, available=2)
+    c = T.ThreadChoice(None, available=2, load=idle)
     run(c, lambda n, k: 1.0 if n == 1 else 1.05, T.WARM_UP + T.MAX_PROBE_STEPS)
     assert c.current == 1
 
@@ -97,7 +107,7 @@ def test_auto_compares_steps_of_the_same_work():
     # round's two-thread probes meet its solves: the medians of any two steps per count (1.0
     # against 3.7) would keep one thread, those of the quiet steps keep both
     heavy = lambda k: k % 4 == 2  # noqa: E731
-    c = T.ThreadChoice(None, available=2)
+    c = T.ThreadChoice(None, available=2, load=idle)
     used = run(c, lambda n, k: (10.0 if heavy(k) else 1.0) / (1.5 if n == 2 else 1.0), T.REPROBE_EVERY, heavy)
     assert c.current == 2
     assert used[T.WARM_UP:T.WARM_UP + 8] == [1, 2] * 4 and set(used[T.WARM_UP + 8:]) == {2}
@@ -107,23 +117,54 @@ def test_auto_weighs_each_work_by_its_time():
     # quiet steps gain 5% from the second thread, solves 40%; the round's first four steps are
     # quiet, its next two solve: the solves' time decides (24 against 15.8)
     heavy = lambda k: k % 8 in (5, 6)  # noqa: E731
-    c = T.ThreadChoice(None, available=2)
+    c = T.ThreadChoice(None, available=2, load=idle)
     used = run(c, lambda n, k: (10.0 if n == 1 else 6.0) if heavy(k) else (1.0 if n == 1 else 0.95), 7, heavy)
     assert used[T.WARM_UP:] == [1, 2, 1, 2, 1, 2] and c.current == 2
     assert c.next() == 2                  # the round ended with the solves
 
 
 def test_a_round_without_equal_work_keeps_the_count_and_ends():
-    c = T.ThreadChoice(None, available=2)
+    c = T.ThreadChoice(None, available=2, load=idle)
     used = run(c, lambda n, k: 1.0 if n == 2 else 0.1, T.REPROBE_EVERY, lambda k: k)
     assert c.current == 2
     assert used[T.WARM_UP:T.WARM_UP + T.MAX_PROBE_STEPS] == [1, 2] * (T.MAX_PROBE_STEPS // 2)
     assert set(used[T.WARM_UP + T.MAX_PROBE_STEPS:]) == {2}
     # a work done alike by both counts only once decides at the round's end
-    c = T.ThreadChoice(None, available=2)
+    c = T.ThreadChoice(None, available=2, load=idle)
     used = run(c, lambda n, k: 1.0 if n == 2 else 0.1, T.REPROBE_EVERY, lambda k: "x" if k in (3, 4) else k)
     assert used[3:5] == [1, 2] and c.current == 1
     assert set(used[T.WARM_UP + T.MAX_PROBE_STEPS:]) == {1}
+
+
+def test_a_busy_core_holds_auto_to_the_cores_left_and_probes_nothing():
+    """Beside a CPU-bound process (one of two cores busy) auto runs one thread from the first step,
+    even where two would time faster, and takes both again when the load goes; a fixed count is
+    never held."""
+    busy = {"cores": 1.0}
+    c = T.ThreadChoice(None, available=2, load=lambda: busy["cores"])
+    used = run(c, lambda n, k: 1.0 / n, 120)
+    # every step but the one-thread probes of the rounds at steps 1 and 51 wanted two
+    assert used == [1] * 120 and c.summary()["held_by_load"] == 120 - T.MAX_PROBE_STEPS
+    busy["cores"] = 0.3
+    assert run(c, lambda n, k: 1.0 / n, 60)[-1] == 2
+    c = T.ThreadChoice(8, available=4, load=lambda: 3.0)
+    assert set(run(c, lambda n, k: 1.0, 5)) == {4}
+    many = T.ThreadChoice(None, available=16, load=lambda: 2.6)
+    assert run(many, lambda n, k: 1.0 / n, T.WARM_UP) == [13]
+
+
+def test_load_monitor_sees_a_busy_process():
+    spin = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        monitor = T.LoadMonitor(window=0.3)
+        deadline = time.perf_counter() + 5.0
+        while time.perf_counter() < 1.0 + deadline - 5.0 or (monitor() < 0.5 and time.perf_counter() < deadline):
+            time.sleep(0.05)
+            monitor()
+        assert monitor() >= 0.5
+    finally:
+        spin.kill()
+        spin.wait()
 
 
 def test_one_thread_machine_has_one_candidate():

@@ -1,5 +1,14 @@
-"""How many threads the numba kernels use in a run: a fixed count, or ``auto``, the faster of one
-thread and all threads measured on the run's own macro steps.
+"""How many threads the numba kernels use in a run: a fixed count, or ``auto``: all threads only
+while the other processes leave them their cores, and then the faster of one thread and all
+threads measured on the run's own macro steps.
+
+The cores other processes use (:class:`LoadMonitor`: the busy time of the CPUs this process may
+run on, less this process's own CPU time, over windows of ``WINDOW`` seconds) cap the count at the
+cores they leave free, rounded: on 2 cores beside a CPU-bound process ``auto`` runs one thread
+and never probes two. Why: there a step on two threads waits in every parallel region for the
+descheduled thread, and the probes' few steps did not tell it reliably: a year of the log beside a
+busy loop ran 1.4-6.7x as long as on one thread with the timing alone (bakes of each,
+alternating, 2026-12-04; docs/decisions.md, "Threads").
 
 Results are bit-identical for any count (SPEC §4), so the count may change between macro steps
 without changing a bake. ``auto`` probes in rounds: from the macro step after the warm-up ones,
@@ -28,12 +37,14 @@ the times of any two steps compare the schedule, not the threads (docs/decisions
 """
 from __future__ import annotations
 
+import math
 import os
 import statistics
 import time
 from collections import Counter
 
 import numba
+import psutil
 
 from ..errors import InputError
 
@@ -52,6 +63,10 @@ REPROBE_MOST = 8 * REPROBE_EVERY
 MARGIN = 0.9
 #: macro steps that compile or load the kernels before any is timed
 WARM_UP = 1
+#: seconds of wall time over which the other processes' load is measured
+WINDOW = 0.25
+#: the shortest window of the first reading (CPU times tick every 10 ms)
+FIRST_WINDOW = 0.1
 #: environment variable with the default of ``wooddecay bake --threads``
 ENV = "WOODDECAY_THREADS"
 
@@ -76,13 +91,53 @@ def requested_threads(option: str | None) -> int | None:
     return parse_threads(os.environ.get(ENV), f"${ENV}")
 
 
+class LoadMonitor:
+    """The cores other processes keep busy on the CPUs this process may run on: their busy time
+    (all but idle and iowait) less this process's own CPU time, per second of wall time, over the
+    last complete window of at least ``window`` seconds (psutil). The first reading waits until
+    ``first`` seconds have passed since the monitor started, if they have not."""
+
+    def __init__(self, window: float = WINDOW, first: float = FIRST_WINDOW):
+        self.window, self.first = window, first
+        self._process = psutil.Process()
+        try:
+            self.cpus = sorted(self._process.cpu_affinity())
+        except (AttributeError, psutil.Error):  # no affinity API (macOS): every CPU
+            self.cpus = list(range(psutil.cpu_count() or 1))
+        self.other = None
+        self._last = self._sample()
+
+    def _sample(self) -> tuple[float, float, float]:
+        per_cpu = psutil.cpu_times(percpu=True)
+        busy = 0.0
+        for c in self.cpus:
+            if c < len(per_cpu):
+                t = per_cpu[c]
+                busy += sum(t) - t.idle - getattr(t, "iowait", 0.0)
+        own = self._process.cpu_times()
+        return time.perf_counter(), busy, own.user + own.system
+
+    def __call__(self) -> float:
+        """The other processes' cores, updated when a window has passed."""
+        if self.other is None:
+            time.sleep(max(0.0, self._last[0] + self.first - time.perf_counter()))
+        now = self._sample()
+        wall = now[0] - self._last[0]
+        if wall >= self.window or self.other is None:
+            self.other = max(0.0, ((now[1] - self._last[1]) - (now[2] - self._last[2])) / wall)
+            self._last = now
+        return self.other
+
+
 class ThreadChoice:
     """The thread count of each macro step: :meth:`next` before it, :meth:`record` after it.
 
-    ``requested``: a fixed count (capped at the threads numba has) or None for ``auto``."""
+    ``requested``: a fixed count (capped at the threads numba has) or None for ``auto``; ``load``:
+    the other processes' cores (a :class:`LoadMonitor` for ``auto`` unless given)."""
 
-    def __init__(self, requested: int | None = None, available: int | None = None):
+    def __init__(self, requested: int | None = None, available: int | None = None, load=None):
         self.available = int(numba.config.NUMBA_NUM_THREADS if available is None else available)
+        self.load = None if requested is not None else load if load is not None else LoadMonitor()
         self.requested = requested
         if requested is not None:
             self.candidates = (min(int(requested), self.available),)
@@ -94,6 +149,8 @@ class ThreadChoice:
         self._samples: dict[tuple, list[float]] = {}  # (work, count) -> seconds in this round
         self._start = WARM_UP  # the first macro step of the current or next probe round
         self._every = REPROBE_EVERY  # macro steps from its start to the next round's
+        self.capped = 0  # macro steps the other processes' load held to fewer threads
+        self._held = False  # whether the count :meth:`next` gave last was held down by the load
 
     def _probe(self, k: int) -> int | None:
         """The candidate macro step ``k`` probes, or None outside a probe round."""
@@ -102,10 +159,20 @@ class ThreadChoice:
             return None
         return self.candidates[j % len(self.candidates)]
 
+    def cap(self) -> int:
+        """The most threads the cores the other processes leave free run (module docstring)."""
+        if self.load is None:
+            return self.available
+        cores = len(getattr(self.load, "cpus", ())) or self.available
+        return max(1, min(self.available, math.floor(cores - self.load() + 0.5)))
+
     def next(self) -> int:
         """The count for the next macro step (set it with :func:`numba.set_num_threads`)."""
         probe = self._probe(self.steps)
-        return self.current if probe is None else probe
+        want = self.current if probe is None else probe
+        count = min(want, self.cap()) if want > 1 else want
+        self._held = count < want
+        return count
 
     def record(self, count: int, seconds: float, work=None) -> None:
         """The macro step just run used ``count`` threads, took ``seconds`` and did ``work`` (a
@@ -113,6 +180,8 @@ class ThreadChoice:
         k = self.steps
         self.steps += 1
         self.used[count] += 1
+        self.capped += self._held
+        self._held = False
         if self._probe(k) is None:
             return
         self._samples.setdefault((work, count), []).append(seconds)
@@ -148,7 +217,8 @@ class ThreadChoice:
 
     def summary(self) -> dict:
         """What ``summary.json`` records: the request, the threads numba has, the macro steps run
-        with each count (macro steps and settling chunks) and the count in use at the end."""
+        with each count (macro steps and settling chunks), those the other processes' load held to
+        fewer threads than the choice, and the count in use at the end."""
         return {"requested": "auto" if self.requested is None else self.requested,
                 "available": self.available, "steps": {str(k): v for k, v in sorted(self.used.items())},
-                "current": self.current}
+                "held_by_load": self.capped, "current": self.current}
