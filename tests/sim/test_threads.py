@@ -168,6 +168,20 @@ def test_load_monitor_sees_a_busy_process():
         spin.wait()
 
 
+def test_load_monitor_without_cpu_times_caps_nothing(monkeypatch):
+    """Where the CPU times cannot be read (a locked-down /proc) the monitor reads no load, at
+    once or later, and auto's timing decides alone."""
+    def refuse(*args, **kwargs):
+        raise PermissionError("/proc/stat")
+
+    monitor = T.LoadMonitor()
+    monkeypatch.setattr(T.psutil, "cpu_times", refuse)
+    assert monitor() == 0.0 and monitor() == 0.0
+    c = T.ThreadChoice(None, available=2)
+    assert c.load() == 0.0
+    assert run(c, lambda n, k: 1.0 / n, 20)[-1] == 2
+
+
 def test_one_thread_machine_has_one_candidate():
     c = T.ThreadChoice(None, available=1)
     assert run(c, lambda n, k: 1.0, 60) == [1] * 60

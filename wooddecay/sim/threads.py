@@ -93,19 +93,24 @@ def requested_threads(option: str | None) -> int | None:
 
 class LoadMonitor:
     """The cores other processes keep busy on the CPUs this process may run on: their busy time
-    (all but idle and iowait) less this process's own CPU time, per second of wall time, over the
-    last complete window of at least ``window`` seconds (psutil). The first reading waits until
-    ``first`` seconds have passed since the monitor started, if they have not."""
+    (all but idle and iowait; Linux's guest time is already in its user time) less this process's
+    own CPU time, per second of wall time, over the last complete window of at least ``window``
+    seconds (psutil). The first reading waits until ``first`` seconds have passed since the
+    monitor started, if they have not. Where the CPU times cannot be read it reads 0.0 (no cap:
+    the timing decides alone)."""
 
     def __init__(self, window: float = WINDOW, first: float = FIRST_WINDOW):
         self.window, self.first = window, first
-        self._process = psutil.Process()
-        try:
-            self.cpus = sorted(self._process.cpu_affinity())
-        except (AttributeError, psutil.Error):  # no affinity API (macOS): every CPU
-            self.cpus = list(range(psutil.cpu_count() or 1))
         self.other = None
-        self._last = self._sample()
+        try:
+            self._process = psutil.Process()
+            try:
+                self.cpus = sorted(self._process.cpu_affinity())
+            except (AttributeError, psutil.Error):  # no affinity API (macOS): every CPU
+                self.cpus = list(range(psutil.cpu_count() or 1))
+            self._last = self._sample()
+        except (OSError, RuntimeError, psutil.Error):
+            self.other, self._last = 0.0, None
 
     def _sample(self) -> tuple[float, float, float]:
         per_cpu = psutil.cpu_times(percpu=True)
@@ -113,15 +118,22 @@ class LoadMonitor:
         for c in self.cpus:
             if c < len(per_cpu):
                 t = per_cpu[c]
-                busy += sum(t) - t.idle - getattr(t, "iowait", 0.0)
+                busy += (sum(t) - t.idle - getattr(t, "iowait", 0.0) - getattr(t, "guest", 0.0)
+                         - getattr(t, "guest_nice", 0.0))
         own = self._process.cpu_times()
         return time.perf_counter(), busy, own.user + own.system
 
     def __call__(self) -> float:
         """The other processes' cores, updated when a window has passed."""
+        if self._last is None:
+            return self.other
         if self.other is None:
             time.sleep(max(0.0, self._last[0] + self.first - time.perf_counter()))
-        now = self._sample()
+        try:
+            now = self._sample()
+        except (OSError, RuntimeError, psutil.Error):
+            self.other, self._last = 0.0, None
+            return self.other
         wall = now[0] - self._last[0]
         if wall >= self.window or self.other is None:
             self.other = max(0.0, ((now[1] - self._last[1]) - (now[2] - self._last[2])) / wall)
