@@ -12,6 +12,7 @@ import pytest
 from click.testing import CliRunner
 
 from wooddecay.cli import main
+from wooddecay.sim.threads import LoadMonitor
 
 from .conftest import ROOT, SAMPLES
 
@@ -156,6 +157,17 @@ def test_golden_tiny_bake(tmp_path):
     assert res.exit_code == 0, res.output
     diff = run("diff", GOLDEN, tmp_path / "tiny.usdc", "--rtol", "1e-4", "--atol", "1e-5")
     assert diff.exit_code == 0, diff.output
+
+
+def test_auto_beside_busy_cores_runs_one_thread_and_says_why(tmp_path, monkeypatch):
+    """With every core of the process read as busy with other work, ``auto`` runs every step on
+    one thread, and the bake's summary and its threads line say the load held them."""
+    monkeypatch.setattr(LoadMonitor, "__call__", lambda self: float(len(self.cpus)))
+    res = run("bake", TINY, "-o", tmp_path / "busy", *SHORT, "--threads", "auto")
+    assert res.exit_code == 0, res.output
+    used = json.loads((tmp_path / "busy" / "summary.json").read_text())["threads"]
+    assert set(used["steps"]) == {"1"} and used["held_by_load"] > 0
+    assert f"({used['held_by_load']} held to fewer threads by other processes' load)" in res.output
 
 
 def test_any_thread_count_bakes_the_same_stage_and_the_summary_says_which(tmp_path):

@@ -329,8 +329,9 @@ def bake(scene_path: str, out: str | None, days: float | None, years: float | No
         click.echo(f"wrote {o['path']}  ({o['bytes'] / 2**20:.1f} MB)")
     click.echo(f"wrote {out_dir / 'summary.json'}")
     click.echo("seconds: " + ", ".join(f"{k} {v:.2f}" for k, v in sec.items()))
-    used = summary["threads"]["steps"]
-    click.echo("threads: " + ", ".join(f"{k} for {v} steps" for k, v in used.items()))
+    used, held = summary["threads"]["steps"], summary["threads"].get("held_by_load", 0)
+    click.echo("threads: " + ", ".join(f"{k} for {v} steps" for k, v in used.items())
+               + (f" ({held} held to fewer threads by other processes' load)" if held else ""))
     for note in summary["notes"]:
         click.echo(f"note: {note}", err=True)
     conv = summary["convergence"]
