@@ -234,9 +234,11 @@ def _margins(edges, fp, x, q, rest_offset, edge_length, edge_rest, strain_ref, l
             continue
         margin_b[k] = limit[k, 0] - (_pair_bundle(k, edges, fp, x, rest_offset, edge_length) - strain_ref[k, 0])
         r0, r1, r2, r3 = _pair_rotation(k, edges, q, edge_rest)
-        if r0 <= 0.0 or 2.0 * (1.0 + 1e-9) * math.sqrt(r1 * r1 + r2 * r2 + r3 * r3) / r0 > EPOCH_ANGLE:
+        if r0 <= 0.0:
             continue
         bend, twist = _angle_bounds(r0, r1, r2, r3)
+        if bend * bend + twist * twist > EPOCH_ANGLE * EPOCH_ANGLE:
+            continue
         a = np.inf
         if edge_ok[k, 1]:
             a = min(a, limit[k, 1] - (bend - strain_ref[k, 1]))

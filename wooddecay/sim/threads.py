@@ -102,25 +102,33 @@ class LoadMonitor:
     def __init__(self, window: float = WINDOW, first: float = FIRST_WINDOW):
         self.window, self.first = window, first
         self.other = None
+        self.cpus: list[int] = []
         try:
             self._process = psutil.Process()
             try:
                 self.cpus = sorted(self._process.cpu_affinity())
             except (AttributeError, psutil.Error):  # no affinity API (macOS): every CPU
                 self.cpus = list(range(psutil.cpu_count() or 1))
-            self._last = self._sample()
         except (OSError, RuntimeError, psutil.Error):
-            self.other, self._last = 0.0, None
+            pass
+        self._last = self._sample() if self.cpus else None
+        if self._last is None:
+            self.other = 0.0
 
-    def _sample(self) -> tuple[float, float, float]:
-        per_cpu = psutil.cpu_times(percpu=True)
+    def _sample(self) -> tuple[float, float, float] | None:
+        """(wall clock, the CPUs' busy seconds, this process's CPU seconds), or None where they
+        cannot be read."""
+        try:
+            per_cpu = psutil.cpu_times(percpu=True)
+            own = self._process.cpu_times()
+        except (OSError, RuntimeError, psutil.Error):
+            return None
         busy = 0.0
         for c in self.cpus:
             if c < len(per_cpu):
                 t = per_cpu[c]
                 busy += (sum(t) - t.idle - getattr(t, "iowait", 0.0) - getattr(t, "guest", 0.0)
                          - getattr(t, "guest_nice", 0.0))
-        own = self._process.cpu_times()
         return time.perf_counter(), busy, own.user + own.system
 
     def __call__(self) -> float:
@@ -129,9 +137,8 @@ class LoadMonitor:
             return self.other
         if self.other is None:
             time.sleep(max(0.0, self._last[0] + self.first - time.perf_counter()))
-        try:
-            now = self._sample()
-        except (OSError, RuntimeError, psutil.Error):
+        now = self._sample()
+        if now is None:
             self.other, self._last = 0.0, None
             return self.other
         wall = now[0] - self._last[0]
@@ -161,7 +168,7 @@ class ThreadChoice:
         self._samples: dict[tuple, list[float]] = {}  # (work, count) -> seconds in this round
         self._start = WARM_UP  # the first macro step of the current or next probe round
         self._every = REPROBE_EVERY  # macro steps from its start to the next round's
-        self.capped = 0  # macro steps the other processes' load held to fewer threads
+        self.held_by_load = 0  # macro steps the other processes' load held to fewer threads
         self._held = False  # whether the count :meth:`next` gave last was held down by the load
 
     def _probe(self, k: int) -> int | None:
@@ -192,7 +199,7 @@ class ThreadChoice:
         k = self.steps
         self.steps += 1
         self.used[count] += 1
-        self.capped += self._held
+        self.held_by_load += self._held
         self._held = False
         if self._probe(k) is None:
             return
@@ -233,4 +240,4 @@ class ThreadChoice:
         fewer threads than the choice, and the count in use at the end."""
         return {"requested": "auto" if self.requested is None else self.requested,
                 "available": self.available, "steps": {str(k): v for k, v in sorted(self.used.items())},
-                "held_by_load": self.capped, "current": self.current}
+                "held_by_load": self.held_by_load, "current": self.current}
