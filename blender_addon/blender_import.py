@@ -100,7 +100,7 @@ def import_bake(filepath: str, assign_material: bool = True) -> dict:
     report = {"format": fmt, "objects": [ob.name for ob in meshes], "material": None,
               "attributes": sorted(n for n in names if n in {s.attribute for s in DATA})}
     if assign_material and meshes:
-        crack_map = os.path.splitext(filepath)[0] + "_bark.png"
+        crack_map = os.path.splitext(filepath)[0] + f"_bark.{material.UDIM_FIRST}.png"
         names.update(uv.name for ob in meshes for uv in ob.data.uv_layers)
         mat = material.build_material(names, crack_map=crack_map if os.path.exists(crack_map) else None)
         for data in {ob.data for ob in meshes}:

@@ -22,6 +22,8 @@ GROUP_TAG = "wooddecay_group"
 GROUP_VERSION = 2  # 2: bark cracks (an older group is rebuilt, see group_ok)
 #: the UV map of the bake's crack map (wooddecay.bark.texture)
 CRACK_UV = "barkUV"
+#: UDIM number of the crack map's tile of frame 0
+UDIM_FIRST = 1001
 #: strength of the procedural furrows where the crack map draws the simulated cracks
 CRACK_MAP_FURROWS = 0.25
 
@@ -133,7 +135,7 @@ def ensure_group():
 def build_material(attributes, name: str = MATERIAL_NAME, crack_map: str | None = None):
     """A material whose "Wood Decay" group node reads the mesh attributes in ``attributes``
     (names); data inputs whose attribute is missing keep their defaults (sound, dry wood, no
-    bark). With ``crack_map`` (the bake's ``<stem>_bark.png``) and the ``barkUV`` map, the
+    bark). With ``crack_map`` (the first tile of the bake's ``<stem>_bark.<UDIM>.png``) and the ``barkUV`` map, the
     group's Bark Crack input comes from it (:func:`crack_map_nodes`) instead of the coarser
     per-vertex ``bark_crack``."""
     mat = bpy.data.materials.new(name)
@@ -168,44 +170,53 @@ def build_material(attributes, name: str = MATERIAL_NAME, crack_map: str | None 
 
 
 def crack_map_nodes(tree, path: str):
-    """Nodes reading the crack map (wooddecay.bark.texture) at ``barkUV``: G (the crack's
-    V-profile, linear) where R (the frame the crack opened, closest texel, x 65535) is at most the
-    current frame (a Value node driven by ``frame``). Returns the output socket."""
+    """Nodes reading the crack map (wooddecay.bark.texture): ``path`` is its first UDIM tile
+    (``<stem>_bark.1001.png``), frame k's map is tile 1001 + k. The V-profile is read at
+    ``barkUV`` moved into the tile of the current frame (a Value node driven by ``frame``, held to
+    the first and last tile): u' = fract(u) + k mod 10, v' = v + floor(k / 10). Returns the output
+    socket."""
     img = bpy.data.images.load(path, check_existing=True)
+    img.source = "TILED"  # finds the set's other tiles on disk
     img.colorspace_settings.name = "Non-Color"
+    last = max(t.number for t in img.tiles) - UDIM_FIRST
     uv = tree.nodes.new("ShaderNodeUVMap")
     uv.uv_map = CRACK_UV
-    uv.location = (-900.0, 300.0)
-    tex = {}
-    for k, interp in enumerate(("Closest", "Linear")):
-        t = tree.nodes.new("ShaderNodeTexImage")
-        t.image, t.interpolation, t.extension = img, interp, "REPEAT"
-        t.location = (-700.0, 300.0 - 280.0 * k)
-        tree.links.new(uv.outputs["UV"], t.inputs["Vector"])
-        sep = tree.nodes.new("ShaderNodeSeparateColor")
-        sep.location = (-420.0, 300.0 - 280.0 * k)
-        tree.links.new(t.outputs["Color"], sep.inputs["Color"])
-        tex[interp] = sep
+    uv.location = (-1300.0, 300.0)
+    xyz = tree.nodes.new("ShaderNodeSeparateXYZ")
+    xyz.location = (-1120.0, 300.0)
+    tree.links.new(uv.outputs["UV"], xyz.inputs["Vector"])
     frame = tree.nodes.new("ShaderNodeValue")
     frame.label = "frame"
-    frame.location = (-420.0, 520.0)
+    frame.location = (-1300.0, 520.0)
     fc = frame.outputs[0].driver_add("default_value")
     fc.driver.expression = "frame"
+    at = [-940.0]
 
-    def math(op, a, b, x):
+    def math(op, a, b=None):
         m = tree.nodes.new("ShaderNodeMath")
         m.operation = op
-        m.location = (x, 420.0)
+        m.location = (at[0], 420.0)
+        at[0] += 140.0
         for sock, v in zip(m.inputs, (a, b)):
             if isinstance(v, (int, float)):
                 sock.default_value = v
-            else:
+            elif v is not None:
                 tree.links.new(v, sock)
         return m.outputs[0]
 
-    opened = math("MULTIPLY", tex["Closest"].outputs["Red"], 65535.0, -260.0)
-    shown = math("LESS_THAN", opened, math("ADD", frame.outputs[0], 0.5, -260.0), -120.0)
-    return math("MULTIPLY", shown, tex["Linear"].outputs["Green"], 20.0)
+    k = math("MINIMUM", math("MAXIMUM", math("ROUND", frame.outputs[0]), 0.0), float(last))
+    move = tree.nodes.new("ShaderNodeCombineXYZ")
+    move.location = (at[0], 300.0)
+    tree.links.new(math("ADD", math("FRACT", xyz.outputs["X"]), math("MODULO", k, 10.0)), move.inputs["X"])
+    tree.links.new(math("ADD", xyz.outputs["Y"], math("FLOOR", math("DIVIDE", k, 10.0))), move.inputs["Y"])
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image, tex.interpolation, tex.extension = img, "Linear", "EXTEND"
+    tex.location = (at[0] + 180.0, 300.0)
+    tree.links.new(move.outputs["Vector"], tex.inputs["Vector"])
+    sep = tree.nodes.new("ShaderNodeSeparateColor")
+    sep.location = (at[0] + 460.0, 300.0)
+    tree.links.new(tex.outputs["Color"], sep.inputs["Color"])
+    return sep.outputs["Red"]
 
 
 def group_node(mat):

@@ -201,7 +201,8 @@ def describe(mat):
         d["surface"] = any(l.from_node == group and l.to_node.bl_idname == "ShaderNodeOutputMaterial"
                            for l in mat.node_tree.links)
         images = [n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage"]
-        d["crack_map"] = sorted({(os.path.basename(n.image.filepath), n.interpolation) for n in images if n.image})
+        d["crack_map"] = sorted({(os.path.basename(n.image.filepath), n.interpolation, n.image.source,
+                                  tuple(t.number for t in n.image.tiles)) for n in images if n.image})
         d["crack_map_uv"] = sorted({n.uv_map for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeUVMap"})
         d["frame_driver"] = [fc.driver.expression for fc in (mat.node_tree.animation_data.drivers
                              if mat.node_tree.animation_data else [])]
@@ -627,13 +628,14 @@ def test_material_has_wood_decay_group(imported, bake, fmt):
         assert d["surface"]
         linked = {"H_c": "H_c", "H_l": "H_l", "M": "M", "Wood": "wood", "Ring": "ring", "Face Kind": "faceKind"}
         # the bark crack inputs read their attributes where the bake has them; a USD bake's Bark
-        # Crack comes from its crack map instead (barkUV, R closest and G linear, the frame driver)
+        # Crack comes from its crack map instead (barkUV into the UDIM tile of the current frame,
+        # one tile per frame of the bake, by the frame driver)
         linked |= {k: a for k, a in (("Bark Crack", "bark_crack"), ("Crack Depth", "bark_crack_depth"))
                    if a in attributes}
         if fmt == "usd":
             linked.pop("Bark Crack")
-            png = Path(bake["usd"]).stem + "_bark.png"
-            assert d["crack_map"] == [[png, "Closest"], [png, "Linear"]]
+            png = Path(bake["usd"]).stem + "_bark.<UDIM>.png"
+            assert d["crack_map"] == [[png, "Linear", "TILED", [1001 + k for k in range(len(bake["frames"]))]]]
             assert d["crack_map_uv"] == ["barkUV"] and d["frame_driver"] == ["frame"]
             assert d["bark_furrows"] < 1.0
         else:

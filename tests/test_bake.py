@@ -37,13 +37,27 @@ def baked(tmp_path_factory):
 
 def test_bake_writes_usd_glb_and_summary(baked):
     names = sorted(p.name for p in baked.iterdir() if not p.name.startswith("."))
-    assert names == ["summary.json", "tiny.glb", "tiny.usdc", "tiny_bark.png"]
+    assert names == ["summary.json", "tiny.glb", "tiny.usdc", "tiny_bark.1001.png", "tiny_bark.1002.png",
+                     "tiny_bark.1003.png"]  # the crack map: a UDIM tile per frame
     s = json.loads((baked / "summary.json").read_text())
     assert s["counts"]["frames"] == 3 and s["counts"]["meshlets"] == s["counts"]["elements"]
     assert set(s["seconds"]) == {"build", "simulation", "meshing", "export"}
     assert [f["frame"] for f in s["frames"]] == [0, 1, 2]
     assert all("broken_connections" in f and "mass_loss" in f for f in s["frames"])
     assert s["outputs"]["tiny.usdc"]["bytes"] == (baked / "tiny.usdc").stat().st_size
+
+
+def test_bake_replaces_an_earlier_crack_map(tmp_path):
+    """A bake into a folder that holds an earlier bake's crack map (more frames' tiles, or the
+    single image of older versions) leaves only its own tiles: the add-on reads every tile of the
+    set as a frame."""
+    for name in ("tiny_bark.1001.png", "tiny_bark.1009.png", "tiny_bark.png", "tiny_bark.notes.png"):
+        (tmp_path / name).write_bytes(b"old")
+    res = run("bake", TINY, "-o", tmp_path, "--days", "2", "--frames", "2")
+    assert res.exit_code == 0, res.output
+    names = sorted(p.name for p in tmp_path.glob("tiny_bark*"))
+    assert names == ["tiny_bark.1001.png", "tiny_bark.1002.png", "tiny_bark.notes.png"]
+    assert (tmp_path / "tiny_bark.1001.png").read_bytes().startswith(b"\x89PNG")
 
 
 def test_bake_reports_under_converged_mechanics_with_its_remedy(tmp_path):

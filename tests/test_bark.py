@@ -364,8 +364,12 @@ def test_bake_exports_crack_primvars_and_signature(tmp_path):
     uv = pv.GetPrimvar("barkUV")
     assert uv.GetInterpolation() == UsdGeom.Tokens.faceVarying
     assert len(uv.Get()) == 3 * len(mesh.GetFaceVertexCountsAttr().Get())
-    png = tmp_path / stage.GetRootLayer().customLayerData["bark_texture"]
-    assert png.name == "tiny_bark.png" and (_decode_png16(png.read_bytes())[..., 0] == 0).any()
+    assert stage.GetRootLayer().customLayerData["bark_texture"] == "tiny_bark.<UDIM>.png"
+    tiles = sorted(p.name for p in tmp_path.glob("tiny_bark*"))
+    assert tiles == ["tiny_bark.1001.png", "tiny_bark.1002.png"]  # one per frame
+    last = _decode_png16((tmp_path / tiles[-1]).read_bytes())
+    assert last.ndim == 2 and last.max() > 32768 and (last == 0).any()
+    assert set(summary["outputs"]) >= set(tiles)
     import json
     import struct
 
@@ -386,62 +390,73 @@ def _decode_png16(data: bytes) -> np.ndarray:
         if data[i + 4:i + 8] == b"IDAT":
             idat += data[i + 8:i + 8 + n]
         i += 12 + n
-    rows = np.frombuffer(zlib.decompress(idat), dtype=np.uint8).reshape(h, 1 + 6 * w)
+    channels = {0: 1, 2: 3}[data[25]]  # IHDR colour type: grey or RGB
+    rows = np.frombuffer(zlib.decompress(idat), dtype=np.uint8).reshape(h, 1 + 2 * channels * w)
     assert (rows[:, 0] == 0).all()
-    return rows[:, 1:].copy().view(">u2").reshape(h, w, 3).astype(np.uint16)
+    image = rows[:, 1:].copy().view(">u2").astype(np.uint16)
+    return image.reshape(h, w) if channels == 1 else image.reshape(h, w, 3)
 
 
-def test_png16_round_trip():
-    rgb = np.random.default_rng(5).integers(0, 65536, (7, 9, 3)).astype(np.uint16)
-    assert np.array_equal(_decode_png16(png16(rgb)), rgb)
+@pytest.mark.parametrize("shape", [(7, 9, 3), (7, 9)])
+def test_png16_round_trip(shape):
+    image = np.random.default_rng(5).integers(0, 65536, shape).astype(np.uint16)
+    assert np.array_equal(_decode_png16(png16(image)), image)
 
 
-def test_crack_map_shows_each_crack_from_its_frame(tiny_bark):
+def test_crack_maps_show_each_frame_its_own_cracks(tiny_bark):
     from types import SimpleNamespace
 
     sheet = tiny_bark.bark
     st = cracks.CrackState.empty(sheet)
-    first = np.zeros(len(sheet.edges), dtype=bool)
     _load(sheet, st, np.full(sheet.n_faces, 0.05))
-    first[:] = st.cracked
+    first = st.cracked.copy()
     _load(sheet, st, np.full(sheet.n_faces, 0.1))
-    frames = [SimpleNamespace(index=k, bark={"cracked": c}) for k, c in enumerate((first * False, first, st.cracked))]
-    rgb = texture.crack_map(tiny_bark, frames)
-    opened, g = rgb[..., 0], rgb[..., 1]
-    assert set(np.unique(opened)) == {1, 2, texture.NEVER}
-    assert (g[opened == texture.NEVER] == 0).all() and (g[opened < texture.NEVER] > 0).all()
-    # the share of texels in a crack follows its length: more cracks by frame 2 than by 1
-    assert (opened == 2).sum() > 0 and (opened == 1).sum() > 0
+    cracked = (first * False, first, first, st.cracked)
+    frames = [SimpleNamespace(index=k, bark={"cracked": c}) for k, c in enumerate(cracked)]
+    tiles = texture.crack_maps(tiny_bark, frames)
+    assert len(tiles) == 4 and (tiles[0] == 0).all() and np.array_equal(tiles[1], tiles[2])
+    # more cracks by frame 3 than by 1; a frame's tile does not depend on the frames after it
+    assert 0 < (tiles[1] > 0).sum() < (tiles[3] > 0).sum()
+    assert np.array_equal(texture.crack_maps(tiny_bark, frames[:2])[1], tiles[1])
+    assert texture.crack_maps(tiny_bark, [SimpleNamespace(index=0, bark={})]) is None
     # the atlas spans the sheet: one texel per h / TEXELS_PER_EDGE around and along
     texel = sheet.h / texture.TEXELS_PER_EDGE
-    assert rgb.shape[1] == int(np.ceil(sheet.period.max() / texel))
-    assert abs(rgb.shape[0] * texel - np.ptp(sheet.s)) < 2 * texel
-    # 1,000 texels in a crack on the map and 1,000 others, against every crack sample (periodic
-    # around the branch): the map's KD query, bounded by the widest crack, gives the nearest
-    # crack's frame and profile
+    assert tiles[3].shape[1] == int(np.ceil(sheet.period.max() / texel))
+    assert abs(tiles[3].shape[0] * texel - np.ptp(sheet.s)) < 2 * texel
+    # 1,000 texels in a crack on each frame's map and 1,000 others, against every crack sample of
+    # that frame (periodic around the branch, widths of that frame's cracks): the map's KD query,
+    # bounded by the widest crack, gives the nearest crack's profile
     s0, first_row, count = texture._tiles(sheet, texel)
-    w_v = cracks.widths(sheet, st.cracked, float(tiny_bark.bark_setup["crack_width"]))
-    pts, br, w = surface.crack_samples(sheet, st.cracked, w_v)
-    frame = np.where(first, 1, 2)[np.repeat(np.flatnonzero(st.cracked), surface.SAMPLES)]
-    for b in np.unique(br):
-        on = br == b
-        P, W = sheet.period[b], rgb.shape[1]
-        tile = rgb[first_row[b]:first_row[b] + count[b]].reshape(-1, 3)
-        rng = np.random.default_rng(int(b))
-        sel = np.union1d(*(rng.choice(k, min(len(k), 1000), replace=False)
-                           for k in (np.flatnonzero(tile[:, 1] > 0), np.flatnonzero(tile[:, 1] == 0))))
-        tile = tile[sel]
-        r, c = np.divmod(sel, W)
-        q = np.stack([(c + 0.5) / W * P, s0[b] + r * texel], 1)
-        dx = np.abs(q[:, None, 0] - pts[on][None, :, 0] % P)
-        d = np.hypot(np.minimum(dx, P - dx), np.clip(q[:, None, 1], pts[on, 1].min(), None) - pts[on][None, :, 1])
-        k = d.argmin(1)
-        g_ref = np.clip(1.0 - d[np.arange(len(q)), k] / np.maximum(w[on][k], 1e-12), 0.0, 1.0)
-        assert (g_ref > 0).sum() > 100
-        np.testing.assert_array_equal(tile[:, 1], np.round(g_ref * texture.NEVER).astype(np.uint16))
-        # the frame of a nearest sample (where cracks meet, the samples of both at a vertex tie)
-        nearest = d <= d[np.arange(len(q)), k][:, None]
-        assert (nearest & (frame[on][None, :] == tile[:, :1]))[g_ref > 0].any(1).all()
+    for k in (1, 3):
+        w_v = cracks.widths(sheet, cracked[k], float(tiny_bark.bark_setup["crack_width"]))
+        pts, br, w = surface.crack_samples(sheet, cracked[k], w_v)
+        for b in np.unique(br):
+            on = br == b
+            P, W = sheet.period[b], tiles[k].shape[1]
+            tile = tiles[k][first_row[b]:first_row[b] + count[b]].ravel()
+            rng = np.random.default_rng(int(b))
+            sel = np.union1d(*(rng.choice(i, min(len(i), 1000), replace=False)
+                               for i in (np.flatnonzero(tile > 0), np.flatnonzero(tile == 0))))
+            r, c = np.divmod(sel, W)
+            q = np.stack([(c + 0.5) / W * P, s0[b] + r * texel], 1)
+            dx = np.abs(q[:, None, 0] - pts[on][None, :, 0] % P)
+            d = np.hypot(np.minimum(dx, P - dx), np.clip(q[:, None, 1], pts[on, 1].min(), None) - pts[on][None, :, 1])
+            i = d.argmin(1)
+            g_ref = np.clip(1.0 - d[np.arange(len(q)), i] / np.maximum(w[on][i], 1e-12), 0.0, 1.0)
+            assert (g_ref > 0).sum() > 100
+            np.testing.assert_array_equal(tile[sel], np.round(g_ref * 65535.0).astype(np.uint16))
+
+
+def test_crack_maps_keep_the_last_frame_past_udim(tiny_bark, monkeypatch):
+    from types import SimpleNamespace
+
+    sheet = tiny_bark.bark
+    st = cracks.CrackState.empty(sheet)
+    _load(sheet, st, np.full(sheet.n_faces, 0.1))
+    frames = [SimpleNamespace(index=k, bark={"cracked": st.cracked * (k == 4)}) for k in range(5)]
+    monkeypatch.setattr(texture, "MAX_TILES", 3)
+    tiles = texture.crack_maps(tiny_bark, frames)
+    assert len(tiles) == 3 and (tiles[1] == 0).all() and tiles[2].max() > 0
 
 
 def test_bark_uv_unwraps_faces_across_the_seam(tiny_bark):

@@ -5,7 +5,8 @@ the rest meshlets (:func:`wooddecay.meshlets.sweep.build_meshlets`) and the expo
 into ``out``:
 
 * ``<name>.usdc`` (:func:`wooddecay.export.usd.export_usd`) with the bark's crack map
-  ``<name>_bark.png`` beside it (:mod:`wooddecay.bark.texture`), ``<name>.glb`` (the last frame,
+  ``<name>_bark.<UDIM>.png`` beside it, a tile per frame (:mod:`wooddecay.bark.texture`),
+  ``<name>.glb`` (the last frame,
   :func:`wooddecay.export.gltf.export_gltf`) and ``summary.json`` (counts, seconds per stage (the
   simulation's summed over the runs a resumed bake continues), threads,
   the schedule's macro steps, mechanics solves and seconds (:meth:`Simulation.schedule_summary`)
@@ -36,7 +37,7 @@ from . import __version__, budget
 from .atomic import write_bytes
 from .errors import InputError
 from .export.gltf import export_gltf
-from .export.usd import export_usd
+from .export.usd import crack_map_files, export_usd
 from .meshlets.sweep import build_meshlets
 from .model import build_model
 from .sim import settled
@@ -185,7 +186,7 @@ def _bake(scene, out: Path, resume: bool, quality: str, progress, threads: int |
                    "meshlets": mesh.count, "meshlet_faces": mesh.n_faces, "frames": len(frames)},
         "seconds": {k: round(v, 3) for k, v in seconds.items()},
         "outputs": {p.name: {"path": str(p), "bytes": p.stat().st_size}
-                    for p in (usd, glb, usd.with_name(f"{usd.stem}_bark.png")) if p.exists()},
+                    for p in (usd, glb, *crack_map_files(usd)) if p.exists()},
         "frames": [frame_summary(f) for f in frames],
         "notes": list(model.notes),
     }

@@ -1,17 +1,20 @@
-"""The crack map: the bark's cracks at texel resolution for the shader (woodification §5).
+"""The crack map: the bark's cracks at texel resolution for the shader (woodification §5), one
+tile per frame.
 
 The meshlets' bark vertices lie a strand diameter apart around the wood and up to a rod element
 apart along it, so per-vertex crack values (:mod:`.surface`) blur a crack a few millimetres wide
 into a smudge. The crack map samples the cracks every ``h / TEXELS_PER_EDGE`` of the bark instead:
 an atlas with one tile of rows per branch (row = s, column = phi; every tile spans the full width,
-so phi wraps with the texture's repeat), each texel
+so phi wraps around the branch), each texel the V-profile 1 - d / w of the nearest crack open at
+that frame (d the distance to its centre line, w its width there,
+:func:`wooddecay.bark.cracks.widths` of the frame's cracks): above 1/2 inside the crack, as
+``bark_crack`` is (the shader draws the crack floor from there), 0 off every crack.
 
-* R: the frame at which the nearest crack opened there (frame index / 65535; 1 where no crack
-  is): the shader shows it from that frame on, so one image serves the whole animation;
-* G: the V-profile 1 - d / w of that crack (d the distance to its centre line, w its width there,
-  :func:`wooddecay.bark.cracks.widths` of the last frame): above 1/2 inside the crack, as
-  ``bark_crack`` is (the shader draws the crack floor from there);
-* B: 0 (reserved).
+Frame k's atlas is UDIM tile 1001 + k (``<stem>_bark.<UDIM>.png``; the shader reads tile k at
+frame k), so a frame shows the cracks and widths of that frame alone, whatever the bake's length:
+a crack's ends taper while it grows and a crack that opens later does not hide an earlier one
+nearby. UDIM numbers :data:`MAX_TILES` tiles; a bake of more frames keeps the first
+``MAX_TILES - 1`` and its last in the last tile.
 
 ``bark_uv`` gives every face corner its (u, v) in the atlas: u = phi / (2 pi), unwrapped from the
 face's first corner so a face across phi = +-pi does not stretch over the whole width, and v the
@@ -24,11 +27,20 @@ import numpy as np
 
 from .cracks import widths
 from .sheet import branch_trees
-from .surface import SAMPLES, crack_samples
+from .surface import crack_samples
 
 #: texels per sheet edge length
 TEXELS_PER_EDGE = 4
-NEVER = 65535
+#: UDIM tiles 1001-2000
+MAX_TILES = 1000
+#: UDIM number of frame 0's tile
+FIRST_TILE = 1001
+
+
+def file_name(stem: str, tile: int | None = None) -> str:
+    """The crack map's file beside ``<stem>.usdc``: tile ``tile`` (frame ``tile``'s), or with
+    ``tile`` None the UDIM pattern (``<stem>_bark.<UDIM>.png``, as USD and Blender name a set)."""
+    return f"{stem}_bark.{'<UDIM>' if tile is None else FIRST_TILE + tile}.png"
 
 
 def _tiles(sheet, texel: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -43,39 +55,35 @@ def _tiles(sheet, texel: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return s0, np.concatenate([[0], np.cumsum(count)[:-1]]), count
 
 
-def open_frames(frames) -> np.ndarray | None:
-    """(E,) first frame index at which each sheet edge is cracked (NEVER if never)."""
-    out = None
-    for fr in frames:
-        cracked = fr.bark.get("cracked")
-        if cracked is None:
-            return None
-        if out is None:
-            out = np.full(len(cracked), NEVER, dtype=np.int64)
-        out[(out == NEVER) & cracked] = fr.index
-    return out
-
-
-def crack_map(model, frames) -> np.ndarray | None:
-    """(H, W, 3) uint16 crack map of the bake's ``frames`` (module docstring); None without a
-    bark sheet."""
+def crack_maps(model, frames) -> list[np.ndarray] | None:
+    """Per frame of ``frames`` (at most :data:`MAX_TILES`: module docstring) the (H, W) uint16
+    crack map (the V-profile x 65535); None without a bark sheet or without the frames' cracks."""
     sheet = model.bark
-    opened = open_frames(frames) if sheet is not None else None
-    if opened is None:
+    cracked = [fr.bark.get("cracked") for fr in frames] if sheet is not None else [None]
+    if any(c is None for c in cracked):
         return None
+    if len(cracked) > MAX_TILES:
+        cracked = cracked[:MAX_TILES - 1] + cracked[-1:]
     texel = sheet.h / TEXELS_PER_EDGE
+    tiles, last = [], None
+    for c in cracked:
+        if last is None or not np.array_equal(c, last[0]):
+            last = (c, _profile(model, c, texel))
+        tiles.append(last[1])
+    return tiles
+
+
+def _profile(model, cracked: np.ndarray, texel: float) -> np.ndarray:
+    """(H, W) uint16 V-profile of the nearest of the cracked sheet edges ``cracked`` per texel."""
+    sheet = model.bark
     s0, first, count = _tiles(sheet, texel)
     H, W = int(count.sum()), int(np.ceil(sheet.period.max() / texel))
-    out = np.zeros((H, W, 3), dtype=np.uint16)
-    out[..., 0] = NEVER
-    cracked = opened < NEVER
+    out = np.zeros((H, W), dtype=np.uint16)
     if not cracked.any():
         return out
     w_v = widths(sheet, cracked, float(model.bark_setup["crack_width"]))
     pts, br, w = crack_samples(sheet, cracked, w_v)
-    edge = np.repeat(np.flatnonzero(cracked), SAMPLES)
-    trees = branch_trees(sheet.period, br, pts)
-    for b, (tree, rows, y0) in trees.items():
+    for b, (tree, rows, y0) in branch_trees(sheet.period, br, pts).items():
         nrow = int(count[b])
         r, c = np.meshgrid(np.arange(nrow), np.arange(W), indexing="ij")
         P = sheet.period[b]
@@ -86,10 +94,7 @@ def crack_map(model, frames) -> np.ndarray | None:
         near = k < len(rows)
         g = np.zeros(len(q))
         g[near] = np.clip(1.0 - d[near] / np.maximum(w[rows[k[near]]], 1e-12), 0.0, 1.0)
-        tile = out[first[b]:first[b] + nrow].reshape(-1, 3)
-        inside = g > 0.0
-        tile[inside, 0] = opened[edge[rows[k[inside]]]]
-        tile[:, 1] = np.round(g * NEVER).astype(np.uint16)
+        out[first[b]:first[b] + nrow] = np.round(g * 65535.0).astype(np.uint16).reshape(nrow, W)
     return out
 
 

@@ -10,8 +10,9 @@
   meshlets of :mod:`wooddecay.meshlets.skin`); vertex primvars H_c, H_l, M, R_w, R_b, C
   (time-sampled, interpolated with the skinning weights), ``bark_crack`` and ``bark_crack_depth``
   (time-sampled, :mod:`wooddecay.bark.surface`; the bark's grooves are in ``points``), the
-  face-varying ``barkUV`` into the crack map ``<stem>_bark.png`` written beside the stage
-  (:mod:`wooddecay.bark.texture`; customLayerData ``bark_texture`` names it) and ``displayColor`` (a rot preview, see
+  face-varying ``barkUV`` into the crack map, one UDIM tile per frame ``<stem>_bark.<UDIM>.png``
+  written beside the stage (:mod:`wooddecay.bark.texture`; customLayerData ``bark_texture`` names
+  the set, tiles of an earlier bake there are removed) and ``displayColor`` (a rot preview, see
   :func:`wooddecay.export.colors.rot_color`); static ``wood`` (float3 rest wood-local r, phi, s)
   and ``ring``; uniform int ``element``, ``tissue``, ``faceKind`` (0 bark, 1 side, 2 cap) and
   time-sampled ``piece`` (the connected component of the face's element);
@@ -41,6 +42,19 @@ from .png import write_png16
 
 #: the bark's vertex primvars (:mod:`wooddecay.bark.surface`)
 BARK_PRIMVARS = ("bark_crack", "bark_crack_depth")
+
+
+def crack_map_files(path) -> list[Path]:
+    """The crack map's files beside the stage ``path`` (its UDIM tiles, :func:`texture.file_name`,
+    and the single image older bakes wrote), in tile order."""
+    path = Path(path)
+    if not path.parent.is_dir():
+        return []
+    prefix = f"{path.stem}_bark."
+    tiles = [p for p in path.parent.iterdir() if p.name.startswith(prefix) and p.name.endswith(".png")
+             and p.name[len(prefix):-4].isdigit()]
+    single = path.with_name(f"{path.stem}_bark.png")
+    return sorted(tiles, key=lambda p: int(p.name[len(prefix):-4])) + ([single] if single.exists() else [])
 
 
 def export_usd(path, model, mesh, frames, version: str = "") -> Path:
@@ -79,11 +93,14 @@ def export_usd(path, model, mesh, frames, version: str = "") -> Path:
         Vt.Vec3fArray.FromNumpy(mesh.wood[used].astype(np.float32)))
     pv.CreatePrimvar("ring", T.FloatArray, UsdGeom.Tokens.vertex).Set(
         Vt.FloatArray.FromNumpy(mesh.ring[used].astype(np.float32)))
-    rgb = texture.crack_map(model, frames)
-    if rgb is not None:
-        png = path.with_name(f"{path.stem}_bark.png")
-        write_png16(png, rgb, "bark crack map")
-        stage.GetRootLayer().customLayerData = {**stage.GetRootLayer().customLayerData, "bark_texture": png.name}
+    for old in crack_map_files(path):
+        old.unlink()
+    tiles = texture.crack_maps(model, frames)
+    if tiles is not None:
+        for k, tile in enumerate(tiles):
+            write_png16(path.with_name(texture.file_name(path.stem, k)), tile, "bark crack map")
+        stage.GetRootLayer().customLayerData = {**stage.GetRootLayer().customLayerData,
+                                                "bark_texture": texture.file_name(path.stem)}
         pv.CreatePrimvar("barkUV", T.TexCoord2fArray, UsdGeom.Tokens.faceVarying).Set(
             Vt.Vec2fArray.FromNumpy(texture.bark_uv(model, mesh, mesh.faces[keep]).astype(np.float32)))
     for name, values in (("element", fe), ("tissue", model.tissue[fe]), ("faceKind", mesh.face_kind[keep])):
