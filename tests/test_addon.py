@@ -303,6 +303,26 @@ finish(0)
 '''
 
 
+CRACK_MAP_RENDER = PRELUDE + r'''
+    tiles, png_dir = sys.argv[2], sys.argv[3]
+    samples, threads = int(sys.argv[4]), int(sys.argv[5])
+    enable()
+    obs = import_file(tiles)[0]
+    res["material"] = describe(obs[0].material_slots[0].material)
+    setup_render(samples, threads, (0.0, 0.0, 1.0), (0.0, 0.0, 0.0), 0.26, (128, 64))  # from above
+    for frame in (0, 1, 3):
+        bpy.context.scene.frame_set(frame)
+        px, _ = render_still(os.path.join(png_dir, f"frame{frame}.png"), obs)
+        x0, x1 = covered_columns(px)
+        mid = (x0 + x1) // 2
+        res[frame] = column_means(px, {"left": (0, mid - 2), "right": (mid + 2, px.shape[1])})
+except Exception:
+    res["error"] = traceback.format_exc()
+    finish(1)
+finish(0)
+'''
+
+
 # ----------------------------------------------------------------------------- fixtures
 
 @pytest.fixture(scope="module")
@@ -360,12 +380,14 @@ def rot_usd(tmp_path_factory) -> Path:
     return Path(export_usd(out / "rot.usdc", model, mesh, frames))
 
 
-def bark_patches_usd(path: Path, crack: bool) -> Path:
+def bark_patches_usd(path: Path, crack: bool, bark_uv: bool = False) -> Path:
     """Two flat 10 x 10 cm patches of bark in the z = 0 plane, side by side along x, 1 cm apart,
     as a bake's ``/World/<scene>/Wood`` mesh (quads; faceKind 0; H_c, H_l, M = 1, 1, 0.3 and,
     with ``crack``, bark_crack and bark_crack_depth time-sampled at frames 0 and 1). Both patches
     have the same wood coordinates (the same bark texture); with ``crack`` the right one lies in
-    a crack (bark_crack 1, depth 5 mm), the left one does not (0)."""
+    a crack (bark_crack 1, depth 5 mm), the left one does not (0). With ``bark_uv`` the faces
+    carry a face-varying ``barkUV``: the left patch in u 0.05-0.45, the right in 0.55-0.95 of the
+    crack map, v 0.1-0.9."""
     from pxr import Sdf, UsdGeom, Vt
 
     from wooddecay.export import stage as stage_mod
@@ -399,6 +421,11 @@ def bark_patches_usd(path: Path, crack: bool) -> Path:
     fields = {"H_c": np.ones_like(side), "H_l": np.ones_like(side), "M": np.full_like(side, 0.3)}
     if crack:
         fields |= {"bark_crack": side, "bark_crack_depth": 0.005 * side}
+    if bark_uv:
+        uv = np.stack([np.concatenate([0.05 + 0.4 * X / size, 0.55 + 0.4 * X / size]),
+                       np.tile(0.1 + 0.8 * (Y + size / 2) / size, 2)], 1)
+        pv.CreatePrimvar("barkUV", T.TexCoord2fArray, UsdGeom.Tokens.faceVarying).Set(
+            Vt.Vec2fArray.FromNumpy(uv[faces.ravel()].astype(np.float32)))
     for name, values in fields.items():
         primvar = pv.CreatePrimvar(name, T.FloatArray, UsdGeom.Tokens.vertex)
         for frame in (0.0, 1.0):
@@ -702,6 +729,31 @@ def test_render_bark_cracks_are_darker(blender_user, bark_patches, tmp_path):
     assert darker > CRACK_DARKER, (darker, crack)
     assert same <= SAME, (same, crack, plain)
     assert abs(sides) < CRACK_DARKER / 4, (sides, plain)
+
+
+@pytest.mark.slow
+def test_render_crack_map_tile_of_each_frame(blender_user, tmp_path):
+    """128x64 Cycles render from above of two patches of bark (no per-vertex crack attributes)
+    whose barkUV puts the left one on the left half of the crack map and the right one on its
+    right half; tile 1001 (frame 0) has no crack, tile 1002 (frame 1) a crack over its right half.
+    Frame 0 renders both patches alike, frame 1 the right one darker by more than CRACK_DARKER,
+    and frame 3, past the last tile, as frame 1."""
+    from wooddecay.export.png import write_png16
+
+    usd = bark_patches_usd(tmp_path / "tiles.usda", crack=False, bark_uv=True)
+    cracked = np.zeros((16, 32), np.uint16)
+    cracked[:, 16:] = 65535
+    write_png16(tmp_path / "tiles_bark.1001.png", np.zeros_like(cracked))
+    write_png16(tmp_path / "tiles_bark.1002.png", cracked)
+    res = run_blender(CRACK_MAP_RENDER, usd, tmp_path, 16, 2, user=blender_user)
+    assert res["material"]["crack_map"] == [["tiles_bark.<UDIM>.png", "Linear", "TILED", [1001, 1002]]]
+    luma = np.array([0.2126, 0.7152, 0.0722])
+    darker = {f: float(luma @ np.subtract(res[str(f)]["left"], res[str(f)]["right"])) for f in (0, 1, 3)}
+    held = float(np.abs(np.subtract(res["1"]["right"], res["3"]["right"])).max())
+    print(f"right patch darker than the left by {darker} (sRGB luminance) at frames 0, 1, 3; frame 3 against 1 {held:.4f}")
+    assert abs(darker[0]) < CRACK_DARKER / 4, darker
+    assert darker[1] > CRACK_DARKER and darker[3] > CRACK_DARKER, darker
+    assert held <= SAME, held
 
 
 @pytest.mark.slow
