@@ -426,7 +426,7 @@ def test_crack_maps_show_each_frame_its_own_cracks(tiny_bark):
     # 1,000 texels in a crack on each frame's map and 1,000 others, against every crack sample of
     # that frame (periodic around the branch, widths of that frame's cracks): the map's KD query,
     # bounded by the widest crack, gives the nearest crack's profile
-    s0, first_row, count = texture._tiles(sheet, texel)
+    s0, first_row, count = texture._branch_rows(sheet, texel)
     for k in (1, 3):
         w_v = cracks.widths(sheet, cracked[k], float(tiny_bark.bark_setup["crack_width"]))
         pts, br, w = surface.crack_samples(sheet, cracked[k], w_v)

@@ -4,7 +4,7 @@ tile per frame.
 The meshlets' bark vertices lie a strand diameter apart around the wood and up to a rod element
 apart along it, so per-vertex crack values (:mod:`.surface`) blur a crack a few millimetres wide
 into a smudge. The crack map samples the cracks every ``h / TEXELS_PER_EDGE`` of the bark instead:
-an atlas with one tile of rows per branch (row = s, column = phi; every tile spans the full width,
+an atlas with one band of rows per branch (row = s, column = phi; every band spans the full width,
 so phi wraps around the branch), each texel the V-profile 1 - d / w of the nearest crack open at
 that frame (d the distance to its centre line, w its width there,
 :func:`wooddecay.bark.cracks.widths` of the frame's cracks): above 1/2 inside the crack, as
@@ -18,7 +18,7 @@ nearby. UDIM numbers :data:`MAX_TILES` tiles; a bake of more frames keeps the fi
 
 ``bark_uv`` gives every face corner its (u, v) in the atlas: u = phi / (2 pi), unwrapped from the
 face's first corner so a face across phi = +-pi does not stretch over the whole width, and v the
-texel row of its s in its branch's tile.
+texel row of its s in its branch's band.
 """
 from __future__ import annotations
 
@@ -43,7 +43,7 @@ def file_name(stem: str, tile: int | None = None) -> str:
     return f"{stem}_bark.{'<UDIM>' if tile is None else FIRST_TILE + tile}.png"
 
 
-def _tiles(sheet, texel: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _branch_rows(sheet, texel: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per branch its lowest s, first row and number of rows in the atlas (0 without a sheet)."""
     nb = len(sheet.period)
     s0, count = np.zeros(nb), np.zeros(nb, dtype=np.int64)
@@ -76,7 +76,7 @@ def crack_maps(model, frames) -> list[np.ndarray] | None:
 def _profile(model, cracked: np.ndarray, texel: float) -> np.ndarray:
     """(H, W) uint16 V-profile of the nearest of the cracked sheet edges ``cracked`` per texel."""
     sheet = model.bark
-    s0, first, count = _tiles(sheet, texel)
+    s0, first, count = _branch_rows(sheet, texel)
     H, W = int(count.sum()), int(np.ceil(sheet.period.max() / texel))
     out = np.zeros((H, W), dtype=np.uint16)
     if not cracked.any():
@@ -105,7 +105,7 @@ def bark_uv(model, mesh, faces: np.ndarray) -> np.ndarray:
     if sheet is None:
         return np.zeros((3 * len(faces), 2))
     texel = sheet.h / TEXELS_PER_EDGE
-    s0, first, count = _tiles(sheet, texel)
+    s0, first, count = _branch_rows(sheet, texel)
     H = int(count.sum())
     corner = faces.ravel()
     b = model.branch[mesh.vertex_element[corner]]
