@@ -178,6 +178,13 @@ def covered_columns(px):
     cols = np.flatnonzero((px[..., 3] > 0.9).any(0))
     return int(cols.min()), int(cols.max()) + 1
 
+def halves(px):
+    """:func:`column_means` of the left and right half of what the object covers (a 2-pixel gap
+    each side of the middle)."""
+    x0, x1 = covered_columns(px)
+    mid = (x0 + x1) // 2
+    return column_means(px, {"left": (0, mid - 2), "right": (mid + 2, px.shape[1])})
+
 def column_means(px, bounds):
     """Mean colour and pixel count of the covered pixels in each column range of ``bounds``."""
     cover = px[..., 3] > 0.9
@@ -293,9 +300,7 @@ CRACK_RENDER = PRELUDE + r'''
     res["seconds"] = {}
     for name, obs in patches.items():
         px, res["seconds"][name] = render_still(os.path.join(png_dir, f"{name}.png"), obs)
-        x0, x1 = covered_columns(px)
-        mid = (x0 + x1) // 2
-        res[name] = column_means(px, {"left": (0, mid - 2), "right": (mid + 2, px.shape[1])})
+        res[name] = halves(px)
 except Exception:
     res["error"] = traceback.format_exc()
     finish(1)
@@ -312,10 +317,7 @@ CRACK_MAP_RENDER = PRELUDE + r'''
     setup_render(samples, threads, (0.0, 0.0, 1.0), (0.0, 0.0, 0.0), 0.26, (128, 64))  # from above
     for frame in (0, 1, 3):
         bpy.context.scene.frame_set(frame)
-        px, _ = render_still(os.path.join(png_dir, f"frame{frame}.png"), obs)
-        x0, x1 = covered_columns(px)
-        mid = (x0 + x1) // 2
-        res[frame] = column_means(px, {"left": (0, mid - 2), "right": (mid + 2, px.shape[1])})
+        res[frame] = halves(render_still(os.path.join(png_dir, f"frame{frame}.png"), obs)[0])
 except Exception:
     res["error"] = traceback.format_exc()
     finish(1)

@@ -58,6 +58,8 @@ def test_bake_replaces_an_earlier_crack_map(tmp_path):
     names = sorted(p.name for p in tmp_path.glob("tiny_bark*"))
     assert names == ["tiny_bark.1001.png", "tiny_bark.1002.png", "tiny_bark.notes.png"]
     assert (tmp_path / "tiny_bark.1001.png").read_bytes().startswith(b"\x89PNG")
+    assert f"wrote {tmp_path / 'tiny_bark.<UDIM>.png'}  (2 tiles, one per frame" in res.output
+    assert "tiny_bark.1001" not in res.output
 
 
 def test_bake_reports_under_converged_mechanics_with_its_remedy(tmp_path):

@@ -325,8 +325,17 @@ def bake(scene_path: str, out: str | None, days: float | None, years: float | No
         summary = run_bake(scene, out_dir, resume=resume, quality=quality, progress=progress, threads=n_threads,
                            max_memory=limit)
     sec = summary["seconds"]
+    from .bark.texture import file_name
+    from .export.usd import crack_map_tile
+
+    tiles = [o for name, o in summary["outputs"].items() if crack_map_tile(name, scene.name) is not None]
     for name, o in summary["outputs"].items():
-        click.echo(f"wrote {o['path']}  ({o['bytes'] / 2**20:.1f} MB)")
+        if crack_map_tile(name, scene.name) is None:
+            click.echo(f"wrote {o['path']}  ({o['bytes'] / 2**20:.1f} MB)")
+    if tiles:
+        pattern = Path(tiles[0]["path"]).with_name(file_name(scene.name))
+        click.echo(f"wrote {pattern}  ({len(tiles)} tiles, one per frame, "
+                   f"{sum(o['bytes'] for o in tiles) / 2**20:.1f} MB)")
     click.echo(f"wrote {out_dir / 'summary.json'}")
     click.echo("seconds: " + ", ".join(f"{k} {v:.2f}" for k, v in sec.items()))
     used, held = summary["threads"]["steps"], summary["threads"].get("held_by_load", 0)

@@ -44,17 +44,24 @@ from .png import write_png16
 BARK_PRIMVARS = ("bark_crack", "bark_crack_depth")
 
 
+def crack_map_tile(name: str, stem: str) -> int | None:
+    """The UDIM number of the file ``name`` if it is a tile of the crack map of ``<stem>.usdc``
+    (:func:`texture.file_name`), else None."""
+    prefix = f"{stem}_bark."
+    middle = name[len(prefix):-4] if name.startswith(prefix) and name.endswith(".png") else ""
+    return int(middle) if middle.isdigit() else None
+
+
 def crack_map_files(path) -> list[Path]:
-    """The crack map's files beside the stage ``path`` (its UDIM tiles, :func:`texture.file_name`,
-    and the single image older bakes wrote), in tile order."""
+    """The crack map's files beside the stage ``path`` (its UDIM tiles and the single image older
+    bakes wrote), in tile order."""
     path = Path(path)
     if not path.parent.is_dir():
         return []
-    prefix = f"{path.stem}_bark."
-    tiles = [p for p in path.parent.iterdir() if p.name.startswith(prefix) and p.name.endswith(".png")
-             and p.name[len(prefix):-4].isdigit()]
+    tiles = {p: crack_map_tile(p.name, path.stem) for p in path.parent.iterdir()}
     single = path.with_name(f"{path.stem}_bark.png")
-    return sorted(tiles, key=lambda p: int(p.name[len(prefix):-4])) + ([single] if single.exists() else [])
+    return (sorted((p for p, k in tiles.items() if k is not None), key=tiles.get)
+            + ([single] if single.exists() else []))
 
 
 def export_usd(path, model, mesh, frames, version: str = "") -> Path:
