@@ -325,12 +325,13 @@ def bake(scene_path: str, out: str | None, days: float | None, years: float | No
         summary = run_bake(scene, out_dir, resume=resume, quality=quality, progress=progress, threads=n_threads,
                            max_memory=limit)
     sec = summary["seconds"]
-    from .bark.texture import file_name
-    from .export.usd import crack_map_tile
+    from .bark.texture import file_name, tile_number
 
-    tiles = [o for name, o in summary["outputs"].items() if crack_map_tile(name, scene.name) is not None]
+    tiles = []
     for name, o in summary["outputs"].items():
-        if crack_map_tile(name, scene.name) is None:
+        if tile_number(name, scene.name) is not None:
+            tiles.append(o)
+        else:
             click.echo(f"wrote {o['path']}  ({o['bytes'] / 2**20:.1f} MB)")
     if tiles:
         pattern = Path(tiles[0]["path"]).with_name(file_name(scene.name))

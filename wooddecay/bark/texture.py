@@ -43,6 +43,14 @@ def file_name(stem: str, tile: int | None = None) -> str:
     return f"{stem}_bark.{'<UDIM>' if tile is None else FIRST_TILE + tile}.png"
 
 
+def tile_number(name: str, stem: str) -> int | None:
+    """The UDIM number of the file ``name`` if it is a tile of ``<stem>``'s crack map
+    (:func:`file_name`), else None."""
+    prefix = f"{stem}_bark."
+    middle = name[len(prefix):-4] if name.startswith(prefix) and name.endswith(".png") else ""
+    return int(middle) if middle.isdigit() else None
+
+
 def _branch_rows(sheet, texel: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per branch its lowest s, first row and number of rows in the atlas (0 without a sheet)."""
     nb = len(sheet.period)
@@ -59,7 +67,9 @@ def crack_maps(model, frames) -> list[np.ndarray] | None:
     """Per frame of ``frames`` (at most :data:`MAX_TILES`: module docstring) the (H, W) uint16
     crack map (the V-profile x 65535); None without a bark sheet or without the frames' cracks."""
     sheet = model.bark
-    cracked = [fr.bark.get("cracked") for fr in frames] if sheet is not None else [None]
+    if sheet is None:
+        return None
+    cracked = [fr.bark.get("cracked") for fr in frames]
     if any(c is None for c in cracked):
         return None
     if len(cracked) > MAX_TILES:

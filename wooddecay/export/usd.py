@@ -44,21 +44,13 @@ from .png import write_png16
 BARK_PRIMVARS = ("bark_crack", "bark_crack_depth")
 
 
-def crack_map_tile(name: str, stem: str) -> int | None:
-    """The UDIM number of the file ``name`` if it is a tile of the crack map of ``<stem>.usdc``
-    (:func:`texture.file_name`), else None."""
-    prefix = f"{stem}_bark."
-    middle = name[len(prefix):-4] if name.startswith(prefix) and name.endswith(".png") else ""
-    return int(middle) if middle.isdigit() else None
-
-
 def crack_map_files(path) -> list[Path]:
     """The crack map's files beside the stage ``path`` (its UDIM tiles and the single image older
     bakes wrote), in tile order."""
     path = Path(path)
     if not path.parent.is_dir():
         return []
-    tiles = {p: crack_map_tile(p.name, path.stem) for p in path.parent.iterdir()}
+    tiles = {p: texture.tile_number(p.name, path.stem) for p in path.parent.iterdir()}
     single = path.with_name(f"{path.stem}_bark.png")
     return (sorted((p for p, k in tiles.items() if k is not None), key=tiles.get)
             + ([single] if single.exists() else []))
