@@ -3,7 +3,8 @@ then the attributes renamed and the Wood Decay material assigned (DESIGN "Blende
 
 USD (``bpy.ops.wm.usd_import``): the mesh keeps the primvar names (H_c, H_l, M, R_w, R_b, C,
 wood, ring, bark_crack, bark_crack_depth; faceKind, element, tissue, piece per face); points and
-the time-sampled primvars play back through the MeshSequenceCache modifier Blender adds. glTF
+the time-sampled primvars play back through the MeshSequenceCache modifier Blender adds, and a
+geometry-nodes modifier after it drops the faces a crack has not yet exposed (``exposedFrame``). glTF
 (``bpy.ops.import_scene.gltf``): one object per piece with ``_H_c``, ``_H_l``, ``_M``, ``_WOOD``,
 ``_RING``, ``_FACE_KIND``, ``_BARK_CRACK``, ``_BARK_DEPTH``, renamed here to the USD names
 (:data:`.importer.RENAMES`) so one material serves both.
@@ -78,10 +79,57 @@ def rename_attributes(mesh) -> list[tuple[str, str]]:
     return plan
 
 
+#: the geometry-nodes group that hides each face before its ``exposedFrame``
+EXPOSURE_GROUP = "Wood Decay Exposure"
+
+
+def exposure_group():
+    """The node group (made once per file): Delete Geometry of the faces whose ``exposedFrame``
+    lies after the scene's frame, so a crack's faces show from the frame it opens and the normals
+    at a frame are those of its own surface (the stage's time-sampled ``holeIndices``, which
+    Blender's USD importer does not read)."""
+    group = bpy.data.node_groups.get(EXPOSURE_GROUP)
+    if group is not None:
+        return group
+    group = bpy.data.node_groups.new(EXPOSURE_GROUP, "GeometryNodeTree")
+    group.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    group.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    nodes, links = group.nodes, group.links
+    given, result = nodes.new("NodeGroupInput"), nodes.new("NodeGroupOutput")
+    shown = nodes.new("GeometryNodeInputNamedAttribute")
+    shown.data_type = "FLOAT"
+    shown.inputs["Name"].default_value = "exposedFrame"
+    time = nodes.new("GeometryNodeInputSceneTime")
+    later = nodes.new("FunctionNodeCompare")
+    later.data_type, later.operation = "FLOAT", "GREATER_THAN"
+    half = nodes.new("ShaderNodeMath")
+    half.operation = "ADD"
+    half.inputs[1].default_value = 0.5
+    drop = nodes.new("GeometryNodeDeleteGeometry")
+    drop.domain = "FACE"
+    links.new(time.outputs["Frame"], half.inputs[0])
+    links.new(shown.outputs["Attribute"], later.inputs["A"])
+    links.new(half.outputs["Value"], later.inputs["B"])
+    links.new(given.outputs["Geometry"], drop.inputs["Geometry"])
+    links.new(later.outputs["Result"], drop.inputs["Selection"])
+    links.new(drop.outputs["Geometry"], result.inputs["Geometry"])
+    return group
+
+
+def hide_unexposed(ob) -> bool:
+    """Add the :func:`exposure_group` modifier to ``ob`` (after its mesh cache) if its mesh has
+    ``exposedFrame``; whether it did."""
+    if "exposedFrame" not in ob.data.attributes:
+        return False
+    ob.modifiers.new(EXPOSURE_GROUP, "NODES").node_group = exposure_group()
+    return True
+
+
 def import_bake(filepath: str, assign_material: bool = True) -> dict:
     """Import ``filepath`` (.usd/.usda/.usdc/.glb) and dress it. Returns a report:
     ``objects`` (names of the imported meshes), ``format``, ``material`` (name or None),
-    ``attributes`` (the attribute names the material reads)."""
+    ``exposure`` (the meshes given the :func:`hide_unexposed` modifier), ``attributes`` (the
+    attribute names the material reads)."""
     fmt = importer.file_format(filepath)
     objects_before, materials_before = set(bpy.data.objects), set(bpy.data.materials)
     split = {}
@@ -97,7 +145,8 @@ def import_bake(filepath: str, assign_material: bool = True) -> dict:
     names = set()
     for ob in meshes:
         names.update(a.name for a in ob.data.attributes)
-    report = {"format": fmt, "objects": [ob.name for ob in meshes], "material": None,
+    exposed = [ob.name for ob in meshes if hide_unexposed(ob)]
+    report = {"format": fmt, "objects": [ob.name for ob in meshes], "material": None, "exposure": exposed,
               "attributes": sorted(n for n in names if n in {s.attribute for s in DATA})}
     if assign_material and meshes:
         crack_map = os.path.splitext(filepath)[0] + f"_bark.{material.UDIM_FIRST}.png"

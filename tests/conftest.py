@@ -125,3 +125,24 @@ def refused_in_one_line(args: list[str], target: Path, process: bool = False) ->
     assert line.strip().count("\n") == 0 and line.startswith("error:"), (args, line)
     assert not target.exists(), args
     return line
+
+
+def cracking_frames(model, frames, seed: int = 0) -> list:
+    """Copies of ``frames`` whose rod states break a growing random quarter of the REG
+    connections per frame after the first (components relabelled): cracks that open one frame
+    after another, at CI size."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from wooddecay.sim.failure import _components
+
+    order = np.random.default_rng(seed).permutation(model.n_edges)
+    out = []
+    for k, f in enumerate(frames):
+        mech = {key: v.copy() for key, v in f.mech.items()}
+        mech["edge_ok"][order[: k * model.n_edges // 4]] = False
+        mech["component"] = _components(model.n_elements, model.mech.joints, mech["element_ok"], model.reg_edges,
+                                        mech["edge_ok"])
+        out.append(replace(f, mech=mech))
+    return out

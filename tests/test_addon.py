@@ -31,6 +31,8 @@ from wooddecay.cli import main
 from wooddecay.export.gltf import export_gltf
 from wooddecay.export.usd import export_usd
 
+from .conftest import cracking_frames
+
 pytestmark = pytest.mark.blender
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -324,6 +326,23 @@ except Exception:
 finish(0)
 '''
 
+
+
+EXPOSURE = PRELUDE + r"""
+    enable()
+    obs, result = import_file(sys.argv[2])
+    ob = obs[0]
+    res["modifiers"] = [m.type for m in ob.modifiers]
+    res["faces"] = []
+    for frame in (0, 1, 2):
+        bpy.context.scene.frame_set(frame)
+        ev = ob.evaluated_get(bpy.context.evaluated_depsgraph_get())
+        res["faces"].append(len(ev.data.polygons))
+except Exception:
+    res["error"] = traceback.format_exc()
+    finish(1)
+finish(0)
+"""
 
 # ----------------------------------------------------------------------------- fixtures
 
@@ -674,7 +693,8 @@ def test_material_has_wood_decay_group(imported, bake, fmt):
                         "Base Color", "Bark Color"):
             assert control in d["inputs"]
         assert d["outputs"][:1] == ["BSDF"] and d["group_nodes"] > 50
-    assert imported["groups"] == ["Wood Decay"], "one node group serves both imports"
+    # one shader group serves both imports; the USD's mesh has the exposure modifier's group too
+    assert imported["groups"] == ["Wood Decay", "Wood Decay Exposure"]
     assert not [m for m in imported["materials"] if not m.startswith("Wood Decay")]
 
 
@@ -756,6 +776,25 @@ def test_render_crack_map_tile_of_each_frame(blender_user, tmp_path):
     assert abs(darker[0]) < CRACK_DARKER / 4, darker
     assert darker[1] > CRACK_DARKER and darker[3] > CRACK_DARKER, darker
     assert held <= SAME, held
+
+
+def test_faces_show_from_their_exposed_frame(blender_user, tmp_path):
+    """A bake whose cracks open over its frames: the imported mesh shows at each frame the faces
+    whose ``exposedFrame`` it has reached (the stage's holes at that frame), after its mesh cache."""
+    from pxr import Usd, UsdGeom
+
+    scene = wd.load_scene(ROOT / "samples" / "tiny.toml", overrides={"time.days": 2, "time.frames": 3})
+    model = wd.build_model(scene)
+    frames = cracking_frames(model, list(wd.Simulation(model).run()))
+    usd = export_usd(tmp_path / "tiny.usdc", model, wd.build_meshlets(model), frames)
+    stage = Usd.Stage.Open(str(usd))
+    wood = UsdGeom.Mesh(stage.GetPrimAtPath("/World/tiny/Wood"))
+    shown = np.asarray(UsdGeom.PrimvarsAPI(wood).GetPrimvar("exposedFrame").Get())
+    res = run_blender(EXPOSURE, usd, user=blender_user)
+    assert res["modifiers"] == ["MESH_SEQUENCE_CACHE", "NODES"]
+    expected = [int(np.count_nonzero(shown <= k)) for k in (0, 1, 2)]
+    print(f"faces shown at frames 0, 1, 2: {res['faces']} (stage {expected})")
+    assert res["faces"] == expected and expected[0] < expected[1] < expected[2]
 
 
 @pytest.mark.slow

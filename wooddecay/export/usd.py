@@ -14,13 +14,16 @@
   written beside the stage (:mod:`wooddecay.bark.texture`; customLayerData ``bark_texture`` names
   the set, tiles of an earlier bake there are removed) and ``displayColor`` (a rot preview, see
   :func:`wooddecay.export.colors.rot_color`); static ``wood`` (float3 rest wood-local r, phi, s)
-  and ``ring``; uniform int ``element``, ``tissue``, ``faceKind`` (0 bark, 1 side, 2 cap) and
-  time-sampled ``piece`` (the connected component of the face's element);
+  and ``ring``; uniform int ``element``, ``tissue``, ``faceKind`` (0 bark, 1 side, 2 cap),
+  ``exposedFrame`` (the time code from which the face shows) and time-sampled ``piece`` (the
+  connected component of the face's element);
 * faces between meshlets that stay connected for the whole bake are left out
-  (:func:`wooddecay.meshlets.visibility.visible_faces`): caps between consecutive elements of a
+  (:func:`wooddecay.meshlets.visibility.exposure`): caps between consecutive elements of a
   strand, side faces across a REG connection that never breaks, and side faces between unconnected
-  neighbours that stay in one piece. Faces that a crack exposes are present from the first frame;
-  their two sides coincide until it opens;
+  neighbours that stay in one piece. A face that a crack exposes is a hole (time-sampled
+  ``holeIndices``, a sample where the set changes) until the frame its crack opens, so a frame
+  shows the faces of its own state whatever the bake's length; the add-on drops them by
+  ``exposedFrame``;
 * ``/World/<scene>/Looks/Wood``: a UsdPreviewSurface whose diffuseColor reads ``displayColor``
   through a UsdPrimvarReader_float3, so any USD viewer shows the rot.
 
@@ -34,7 +37,7 @@ import numpy as np
 
 from ..bark import surface, texture
 from ..meshlets import skin as skin_mod
-from ..meshlets.visibility import visible_faces
+from ..meshlets.visibility import NEVER, exposure
 from ..sim.state import FIELDS
 from . import stage as stage_mod
 from .colors import rot_color
@@ -76,7 +79,10 @@ def export_usd(path, model, mesh, frames, version: str = "") -> Path:
         "frame_days": Vt.DoubleArray(days),
     }
     link = skin_mod.links(model, mesh)
-    keep = visible_faces(model, mesh, frames[-1].mech or None)
+    first = exposure(model, mesh, [f.mech or None for f in frames])
+    keep = first != NEVER
+    index = np.array([f.index for f in frames], dtype=np.int32)
+    shown_from = index[first[keep]]
     faces = mesh.faces[keep]
     used, inv = np.unique(faces, return_inverse=True)
     faces = inv.reshape(-1, 3)
@@ -102,15 +108,21 @@ def export_usd(path, model, mesh, frames, version: str = "") -> Path:
                                                 "bark_texture": texture.file_name(path.stem)}
         pv.CreatePrimvar("barkUV", T.TexCoord2fArray, UsdGeom.Tokens.faceVarying).Set(
             Vt.Vec2fArray.FromNumpy(texture.bark_uv(model, mesh, mesh.faces[keep]).astype(np.float32)))
-    for name, values in (("element", fe), ("tissue", model.tissue[fe]), ("faceKind", mesh.face_kind[keep])):
+    for name, values in (("element", fe), ("tissue", model.tissue[fe]), ("faceKind", mesh.face_kind[keep]),
+                         ("exposedFrame", shown_from)):
         pv.CreatePrimvar(name, T.IntArray, UsdGeom.Tokens.uniform).Set(
             Vt.IntArray.FromNumpy(np.asarray(values, dtype=np.int32)))
     piece = pv.CreatePrimvar("piece", T.IntArray, UsdGeom.Tokens.uniform)
     fields = {f: pv.CreatePrimvar(f, T.FloatArray, UsdGeom.Tokens.vertex) for f in FIELDS + BARK_PRIMVARS}
     color = wood.CreateDisplayColorPrimvar(UsdGeom.Tokens.vertex)
     points, extent = wood.CreatePointsAttr(), wood.CreateExtentAttr()
+    held = 0  # faces hidden at the last sample of holeIndices (none before the first)
     for fr in frames:
         t = float(fr.index)
+        hidden = np.flatnonzero(shown_from > fr.index).astype(np.int32)
+        if len(hidden) != held:  # the hidden set only shrinks
+            wood.CreateHoleIndicesAttr().Set(Vt.IntArray.FromNumpy(hidden), t)
+            held = len(hidden)
         crack, depth, offset = surface.frame_bark(model, mesh, fr)
         P, F = skin_mod.frame_arrays(model, mesh, link, fr, offset)
         P, F = P[used].astype(np.float32), F[used].astype(np.float32)
