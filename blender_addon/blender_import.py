@@ -79,34 +79,45 @@ def rename_attributes(mesh) -> list[tuple[str, str]]:
     return plan
 
 
-#: the geometry-nodes group that hides each face before its ``exposedFrame``
+#: the geometry-nodes group that hides each face before its ``exposedFrame``, and its tag
 EXPOSURE_GROUP = "Wood Decay Exposure"
+EXPOSURE_TAG = "wooddecay_exposure"
 
 
 def exposure_group():
-    """The node group (made once per file): Delete Geometry of the faces whose ``exposedFrame``
-    lies after the scene's frame, so a crack's faces show from the frame it opens and the normals
-    at a frame are those of its own surface (the stage's time-sampled ``holeIndices``, which
-    Blender's USD importer does not read)."""
-    group = bpy.data.node_groups.get(EXPOSURE_GROUP)
-    if group is not None:
-        return group
+    """The node group (made once per file; found by its tag): Delete Geometry of the faces (and
+    their edges; the points stay, so the point count is that of the mesh cache at every frame)
+    whose ``exposedFrame`` lies after the scene's frame, so a crack's faces show from the frame it
+    opens and the normals at a frame are those of its own surface (the stage's time-sampled
+    ``holeIndices``, which Blender's USD importer does not read). The scene's frame is the
+    stage's time code, as the mesh cache reads it without a frame offset."""
+    for tree in bpy.data.node_groups:
+        if tree.bl_idname == "GeometryNodeTree" and tree.get(EXPOSURE_TAG) == 1:
+            return tree
     group = bpy.data.node_groups.new(EXPOSURE_GROUP, "GeometryNodeTree")
+    group[EXPOSURE_TAG] = 1
+    group.is_modifier = True
     group.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
     group.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
     nodes, links = group.nodes, group.links
-    given, result = nodes.new("NodeGroupInput"), nodes.new("NodeGroupOutput")
-    shown = nodes.new("GeometryNodeInputNamedAttribute")
+
+    def node(kind, x, y):
+        made = nodes.new(kind)
+        made.location = (x, y)
+        return made
+
+    given, result = node("NodeGroupInput", -600, 0), node("NodeGroupOutput", 400, 0)
+    shown = node("GeometryNodeInputNamedAttribute", -600, -200)
     shown.data_type = "FLOAT"
     shown.inputs["Name"].default_value = "exposedFrame"
-    time = nodes.new("GeometryNodeInputSceneTime")
-    later = nodes.new("FunctionNodeCompare")
-    later.data_type, later.operation = "FLOAT", "GREATER_THAN"
-    half = nodes.new("ShaderNodeMath")
+    time = node("GeometryNodeInputSceneTime", -600, -400)
+    half = node("ShaderNodeMath", -400, -400)
     half.operation = "ADD"
     half.inputs[1].default_value = 0.5
-    drop = nodes.new("GeometryNodeDeleteGeometry")
-    drop.domain = "FACE"
+    later = node("FunctionNodeCompare", -200, -250)
+    later.data_type, later.operation = "FLOAT", "GREATER_THAN"
+    drop = node("GeometryNodeDeleteGeometry", 100, 0)
+    drop.domain, drop.mode = "FACE", "EDGE_FACE"
     links.new(time.outputs["Frame"], half.inputs[0])
     links.new(shown.outputs["Attribute"], later.inputs["A"])
     links.new(half.outputs["Value"], later.inputs["B"])

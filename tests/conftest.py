@@ -128,21 +128,24 @@ def refused_in_one_line(args: list[str], target: Path, process: bool = False) ->
 
 
 def cracking_frames(model, frames, seed: int = 0) -> list:
-    """Copies of ``frames`` whose rod states break a growing random quarter of the REG
-    connections per frame after the first (components relabelled): cracks that open one frame
-    after another, at CI size."""
+    """Copies of ``frames`` whose rod states break a growing random quarter of the REG connections
+    and fail a growing random eighth of the elements per frame after the first (components
+    recomputed): cracks that open one frame after another, at CI size."""
     from dataclasses import replace
+    from types import SimpleNamespace
 
     import numpy as np
 
-    from wooddecay.sim.failure import _components
+    from wooddecay.sim.failure import components
 
-    order = np.random.default_rng(seed).permutation(model.n_edges)
+    rng = np.random.default_rng(seed)
+    edges, elements = rng.permutation(model.n_edges), rng.permutation(model.n_elements)
     out = []
     for k, f in enumerate(frames):
         mech = {key: v.copy() for key, v in f.mech.items()}
-        mech["edge_ok"][order[: k * model.n_edges // 4]] = False
-        mech["component"] = _components(model.n_elements, model.mech.joints, mech["element_ok"], model.reg_edges,
-                                        mech["edge_ok"])
+        mech["edge_ok"][edges[: k * model.n_edges // 4]] = False
+        mech["element_ok"][elements[: k * model.n_elements // 8]] = False
+        mech["component"] = components(model.mech, SimpleNamespace(element_ok=mech["element_ok"],
+                                                                   edge_ok=mech["edge_ok"]))
         out.append(replace(f, mech=mech))
     return out

@@ -338,6 +338,7 @@ EXPOSURE = PRELUDE + r"""
         bpy.context.scene.frame_set(frame)
         ev = ob.evaluated_get(bpy.context.evaluated_depsgraph_get())
         res["faces"].append(len(ev.data.polygons))
+        res.setdefault("points", []).append(len(ev.data.vertices))
 except Exception:
     res["error"] = traceback.format_exc()
     finish(1)
@@ -778,15 +779,14 @@ def test_render_crack_map_tile_of_each_frame(blender_user, tmp_path):
     assert held <= SAME, held
 
 
-def test_faces_show_from_their_exposed_frame(blender_user, tmp_path):
-    """A bake whose cracks open over its frames: the imported mesh shows at each frame the faces
-    whose ``exposedFrame`` it has reached (the stage's holes at that frame), after its mesh cache."""
+def test_faces_show_from_their_exposed_frame(blender_user, bake, tmp_path):
+    """The tiny bake with cracks opening over its frames: the imported mesh shows at each frame
+    the faces whose ``exposedFrame`` it has reached (the stage's holes at that frame), after its
+    mesh cache, and keeps the cache's points."""
     from pxr import Usd, UsdGeom
 
-    scene = wd.load_scene(ROOT / "samples" / "tiny.toml", overrides={"time.days": 2, "time.frames": 3})
-    model = wd.build_model(scene)
-    frames = cracking_frames(model, list(wd.Simulation(model).run()))
-    usd = export_usd(tmp_path / "tiny.usdc", model, wd.build_meshlets(model), frames)
+    model = wd.build_model(bake["scene"])
+    usd = export_usd(tmp_path / "tiny.usdc", model, wd.build_meshlets(model), cracking_frames(model, bake["frames"]))
     stage = Usd.Stage.Open(str(usd))
     wood = UsdGeom.Mesh(stage.GetPrimAtPath("/World/tiny/Wood"))
     shown = np.asarray(UsdGeom.PrimvarsAPI(wood).GetPrimvar("exposedFrame").Get())
@@ -795,6 +795,7 @@ def test_faces_show_from_their_exposed_frame(blender_user, tmp_path):
     expected = [int(np.count_nonzero(shown <= k)) for k in (0, 1, 2)]
     print(f"faces shown at frames 0, 1, 2: {res['faces']} (stage {expected})")
     assert res["faces"] == expected and expected[0] < expected[1] < expected[2]
+    assert res["points"] == [len(wood.GetPointsAttr().Get(0.0))] * 3
 
 
 @pytest.mark.slow

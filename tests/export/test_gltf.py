@@ -144,7 +144,7 @@ def test_tiny_glb_passes_khronos_validator(tiny, tiny_glb, gltf_validator):
     info = report["info"]
     assert info["version"] == "2.0" and info["generator"] == "wooddecay"
     scene, model, mesh, frame = tiny
-    assert info["totalTriangleCount"] == int(visible_faces(model, mesh, frame.mech).sum())
+    assert info["totalTriangleCount"] == int(visible_faces(model, mesh, frame).sum())
 
 
 def test_validator_reports_a_broken_file(tiny, tmp_path, gltf_validator):
@@ -224,7 +224,7 @@ def test_broken_log_gives_two_nodes(tiny, tmp_path, gltf_validator):
         assert (np.median(z) < 0) == (piece == 1)
         assert attrs["_H_l"].min() >= 0.0 and attrs["_H_l"].max() <= 1.0
     # the split exposes the faces along it
-    assert report["info"]["totalTriangleCount"] > int(visible_faces(model, mesh, frame.mech).sum())
+    assert report["info"]["totalTriangleCount"] > int(visible_faces(model, mesh, frame).sum())
 
 
 def test_without_mechanics_one_piece(tiny, tmp_path, gltf_validator):

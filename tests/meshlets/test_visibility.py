@@ -1,42 +1,81 @@
 """Crack faces per frame (meshlets/visibility.py, export/usd.py): a frame shows the faces of its
-own rod state, however long the bake runs on after it."""
+own rod state and consumed wood, however long the bake runs on after it."""
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 import wooddecay as wd
+from wooddecay.export.gltf import gltf_document
+from wooddecay.meshlets.sweep import BARK, CAP
 from wooddecay.meshlets.visibility import NEVER, exposure, visible_faces
+from wooddecay.sim.coupling import crumble_scale
 
 from ..conftest import SAMPLES, cracking_frames
 
 
 @pytest.fixture(scope="module")
 def cracking():
-    """The tiny log over 3 frames with a quarter more of its connections broken at each frame."""
+    """The tiny log over 3 frames with a quarter more of its connections broken and an eighth more
+    of its elements failed at each frame."""
     model = wd.build_model(wd.load_scene(SAMPLES / "tiny.toml", {"time.days": 2, "time.frames": 3}))
     frames = cracking_frames(model, list(wd.Simulation(model).run()))
     return model, wd.build_meshlets(model), frames
 
 
-def test_a_face_shows_from_the_first_frame_whose_state_shows_it(cracking):
+def first_break(ok: list[np.ndarray]) -> np.ndarray:
+    """Per row, the index of the first of the boolean arrays ``ok`` where it is False, else NEVER."""
+    down = ~np.stack(ok)
+    return np.where(down.any(0), down.argmax(0), NEVER)
+
+
+def test_each_face_shows_from_the_frame_that_cuts_it(cracking):
+    """Independently of the lookup: a side face across a REG edge shows from the frame that breaks
+    the edge, a cap between consecutive elements from the frame that fails the lower one (the
+    strand link is cut), bark and open faces from the first; every frame shows what its state
+    alone shows."""
     model, mesh, frames = cracking
-    first = exposure(model, mesh, [f.mech for f in frames])
+    first = exposure(model, mesh, frames)
+    o, n, kind = mesh.face_element, mesh.face_neighbour, mesh.face_kind
+    edge_first = first_break([f.mech["edge_ok"][:, 0] for f in frames])
+    element_first = first_break([f.mech["element_ok"] for f in frames])
+    pair = {(min(a, b), max(a, b)): j for j, (a, b) in enumerate(model.reg_edges)}
+    side = np.flatnonzero((kind != BARK) & (kind != CAP) & (n >= 0))
+    across = [(f, pair[(min(o[f], n[f]), max(o[f], n[f]))]) for f in side if (min(o[f], n[f]), max(o[f], n[f])) in pair]
+    assert len(across) > 1000
+    for f, j in across:
+        assert first[f] == edge_first[j], (f, j)
+    caps = np.flatnonzero((kind == CAP) & (n >= 0))
+    np.testing.assert_array_equal(first[caps], element_first[np.minimum(o[caps], n[caps])])
+    assert (first[(kind == BARK) | (n < 0)] == 0).all()
     for k, f in enumerate(frames):
-        np.testing.assert_array_equal((first != NEVER) & (first <= k), visible_faces(model, mesh, f.mech))
+        np.testing.assert_array_equal((first != NEVER) & (first <= k), visible_faces(model, mesh, f))
     counts = np.bincount(first[first != NEVER])
-    assert len(counts) == 3 and counts.min() > 100, counts  # faces open at every frame
-    without = exposure(model, mesh, [None, None])  # no mechanics: bark and open faces from the start
-    assert set(without) == {0, NEVER} and np.array_equal(without == 0, visible_faces(model, mesh, None))
+    assert len(counts) == 3 and counts[1:].min() > 1000, counts  # faces open at every frame
+    assert np.array_equal(visible_faces(model, mesh, None), (kind == BARK) | (n < 0))  # intact wood
 
 
-def triangles(path, t: float) -> np.ndarray:
-    """The shown triangles of the stage's Wood mesh at time code ``t`` (its faces but the holes),
-    each as its 9 point coordinates, in sorted order."""
-    from pxr import Usd, UsdGeom
+def test_faces_round_dwindling_wood_show(cracking):
+    """An element whose remaining mass falls below 2 m_crumble dwindles towards its centre: every
+    face between it and a neighbour shows, its own and the neighbour's, connected or not."""
+    model, mesh, frames = cracking
+    f = frames[0]
+    e = int(np.flatnonzero(f.mech["element_ok"])[len(f.mech["element_ok"]) // 2])
+    fields = {k: v.copy() for k, v in f.fields.items()}
+    fields["H_c"][e] = fields["H_l"][e] = 0.0
+    consumed = replace(f, fields=fields)
+    assert crumble_scale(model.coupling, fields["H_c"], fields["H_l"])[e] < 1.0
+    shown = visible_faces(model, mesh, consumed)
+    round_e = (mesh.face_neighbour >= 0) & ((mesh.face_element == e) | (mesh.face_neighbour == e))
+    assert round_e.sum() >= 6 and shown[round_e].all()
+    assert np.array_equal(shown & ~round_e, visible_faces(model, mesh, f) & ~round_e)
 
-    stage = Usd.Stage.Open(str(path))
-    wood = UsdGeom.Mesh(stage.GetPrimAtPath("/World/tiny/Wood"))
+
+def triangles(wood, t: float) -> np.ndarray:
+    """The shown triangles of the Mesh ``wood`` at time code ``t`` (its faces but the holes), each
+    as its 9 point coordinates, in sorted order."""
     faces = np.asarray(wood.GetFaceVertexIndicesAttr().Get()).reshape(-1, 3)
     shown = np.setdiff1d(np.arange(len(faces)), np.asarray(wood.GetHoleIndicesAttr().Get(t) or [], dtype=int))
     tri = np.asarray(wood.GetPointsAttr().Get(t))[faces[shown]].reshape(-1, 9)
@@ -45,20 +84,28 @@ def triangles(path, t: float) -> np.ndarray:
 
 def test_a_longer_bake_shows_at_a_frame_the_faces_of_a_bake_that_ends_there(cracking, tmp_path):
     """The stage of 3 frames at time code 1 shows the same triangles as the stage of the first 2
-    frames (whose last state shows every face it writes), and its ``exposedFrame`` says when each
-    shows; without holes the longer stage would show 1,000s more at frame 1."""
-    from pxr import Usd, UsdGeom
+    frames (whose last state shows every face it writes) and as the glTF of frame 1; its
+    ``exposedFrame`` says when each face shows, its holes get a sample where that set changes,
+    and the stage passes usd-core's validators."""
+    from pxr import Usd, UsdGeom, UsdValidation
 
     model, mesh, frames = cracking
     (tmp_path / "a").mkdir()
     (tmp_path / "b").mkdir()
-    long = wd.export_usd(tmp_path / "a" / "tiny.usdc", model, mesh, frames)
-    short = wd.export_usd(tmp_path / "b" / "tiny.usdc", model, mesh, frames[:2])
-    np.testing.assert_array_equal(triangles(long, 1.0), triangles(short, 1.0))
-    np.testing.assert_array_equal(triangles(long, 0.0), triangles(short, 0.0))
-    stage = Usd.Stage.Open(str(long))
-    wood = UsdGeom.Mesh(stage.GetPrimAtPath("/World/tiny/Wood"))
-    shown = np.asarray(UsdGeom.PrimvarsAPI(wood).GetPrimvar("exposedFrame").Get())
+    stages = {n: Usd.Stage.Open(str(wd.export_usd(tmp_path / n / "tiny.usdc", model, mesh, fr)))
+              for n, fr in (("a", frames), ("b", frames[:2]))}
+    wood = {n: UsdGeom.Mesh(s.GetPrimAtPath("/World/tiny/Wood")) for n, s in stages.items()}
+    for t in (0.0, 1.0):
+        np.testing.assert_array_equal(triangles(wood["a"], t), triangles(wood["b"], t))
+    shown = np.asarray(UsdGeom.PrimvarsAPI(wood["a"]).GetPrimvar("exposedFrame").Get())
+    holes = wood["a"].GetHoleIndicesAttr()
+    assert holes.GetTimeSamples() == [0.0, 1.0, 2.0]
     for t in (0.0, 1.0, 2.0):
-        np.testing.assert_array_equal(np.flatnonzero(shown > t), np.asarray(wood.GetHoleIndicesAttr().Get(t)))
+        np.testing.assert_array_equal(np.flatnonzero(shown > t), np.asarray(holes.Get(t) or [], dtype=int))
     assert np.count_nonzero(shown > 1) > 1000 and np.count_nonzero(shown > 2) == 0
+    doc, _ = gltf_document(model, mesh, frames[1])
+    gltf_triangles = sum(doc["accessors"][p["indices"]]["count"] // 3 for m in doc["meshes"] for p in m["primitives"])
+    assert gltf_triangles == len(triangles(wood["a"], 1.0))
+    ctx = UsdValidation.ValidationContext(UsdValidation.ValidationRegistry().GetOrLoadAllValidators())
+    errors = [e for e in ctx.Validate(stages["a"]) if e.GetType() == UsdValidation.ValidationErrorType.Error]
+    assert errors == [], [e.GetMessage() for e in errors]

@@ -7,8 +7,8 @@
   without mechanics), each node a mesh of one triangle primitive, node ``translation`` = the
   centre of the piece's bounding box (vertex positions are relative to it, so each piece imports
   as an object with its origin at its centre), node ``extras.piece`` = the component id;
-* the same faces as the USD stage (:func:`wooddecay.meshlets.visibility.visible_faces` given this
-  frame's rod state), skinned the same way (:func:`wooddecay.meshlets.skin.frame_arrays`);
+* the faces the USD stage shows at this frame (:func:`wooddecay.meshlets.visibility.visible_faces`
+  given this frame), skinned the same way (:func:`wooddecay.meshlets.skin.frame_arrays`);
 * vertex attributes ``POSITION``, ``NORMAL``, ``COLOR_0`` (the rot preview colour of
   :func:`wooddecay.export.colors.rot_color`, so a plain glTF viewer shows the rot, as ``displayColor``
   does in USD) and the application-specific ``_H_c``, ``_H_l``, ``_M`` (FLOAT SCALAR), ``_WOOD``
@@ -131,7 +131,7 @@ def gltf_document(model, mesh, frame, version: str = "", link=None) -> tuple[dic
     if link is None:
         link = skin_mod.links(model, mesh)
     mech = frame.mech or None
-    keep = np.flatnonzero(visible_faces(model, mesh, mech))
+    keep = np.flatnonzero(visible_faces(model, mesh, frame))
     crack, depth, offset = surface.frame_bark(model, mesh, frame)
     P, F = skin_mod.frame_arrays(model, mesh, link, frame, offset)
     if not (np.all(np.isfinite(P)) and np.all(np.isfinite(F))):

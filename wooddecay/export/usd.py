@@ -6,7 +6,7 @@
   start/end time codes = the first and last frame index, customLayerData (wooddecay version, scene
   name, seed, hash of the resolved scene, days per frame, frame days);
 * ``/World/<scene>/Wood``: one Mesh of all meshlets as disjoint closed shells (triangles,
-  subdivisionScheme none, static topology), ``points`` and ``extent`` time-sampled (the skinned
+  subdivisionScheme none, static ``faceVertexIndices``), ``points`` and ``extent`` time-sampled (the skinned
   meshlets of :mod:`wooddecay.meshlets.skin`); vertex primvars H_c, H_l, M, R_w, R_b, C
   (time-sampled, interpolated with the skinning weights), ``bark_crack`` and ``bark_crack_depth``
   (time-sampled, :mod:`wooddecay.bark.surface`; the bark's grooves are in ``points``), the
@@ -17,13 +17,13 @@
   and ``ring``; uniform int ``element``, ``tissue``, ``faceKind`` (0 bark, 1 side, 2 cap),
   ``exposedFrame`` (the time code from which the face shows) and time-sampled ``piece`` (the
   connected component of the face's element);
-* faces between meshlets that stay connected for the whole bake are left out
-  (:func:`wooddecay.meshlets.visibility.exposure`): caps between consecutive elements of a
-  strand, side faces across a REG connection that never breaks, and side faces between unconnected
-  neighbours that stay in one piece. A face that a crack exposes is a hole (time-sampled
-  ``holeIndices``, a sample where the set changes) until the frame its crack opens, so a frame
-  shows the faces of its own state whatever the bake's length; the add-on drops them by
-  ``exposedFrame``;
+* faces between meshlets that hold together for the whole bake are left out
+  (:func:`wooddecay.meshlets.visibility.exposure`: side faces across a connection that never
+  breaks or between neighbours that stay in one piece, caps across a strand link never cut, none
+  next to dwindling wood). A face that a later frame exposes is a hole (``holeIndices``,
+  time-sampled where the hidden set changes; not authored when nothing is ever hidden) until that
+  frame, so a frame shows the faces of its own state whatever the bake's length; the add-on drops
+  them by ``exposedFrame``;
 * ``/World/<scene>/Looks/Wood``: a UsdPreviewSurface whose diffuseColor reads ``displayColor``
   through a UsdPrimvarReader_float3, so any USD viewer shows the rot.
 
@@ -79,7 +79,7 @@ def export_usd(path, model, mesh, frames, version: str = "") -> Path:
         "frame_days": Vt.DoubleArray(days),
     }
     link = skin_mod.links(model, mesh)
-    first = exposure(model, mesh, [f.mech or None for f in frames])
+    first = exposure(model, mesh, frames)
     keep = first != NEVER
     index = np.array([f.index for f in frames], dtype=np.int32)
     shown_from = index[first[keep]]
@@ -116,7 +116,7 @@ def export_usd(path, model, mesh, frames, version: str = "") -> Path:
     fields = {f: pv.CreatePrimvar(f, T.FloatArray, UsdGeom.Tokens.vertex) for f in FIELDS + BARK_PRIMVARS}
     color = wood.CreateDisplayColorPrimvar(UsdGeom.Tokens.vertex)
     points, extent = wood.CreatePointsAttr(), wood.CreateExtentAttr()
-    held = 0  # faces hidden at the last sample of holeIndices (none before the first)
+    held = 0  # faces hidden at the last sample of holeIndices; no sample while none is hidden
     for fr in frames:
         t = float(fr.index)
         hidden = np.flatnonzero(shown_from > fr.index).astype(np.int32)

@@ -1,52 +1,81 @@
 """Crack-face visibility: which meshlet faces an exporter writes, and from which frame they show
 (woodstock §8.3; DESIGN "USD stage").
 
-Faces between meshlets that stay connected are never seen: caps between consecutive elements of
-a strand, side faces across an intact REG connection, and side faces between unconnected
-neighbours in one piece. A side face shows from the first frame at which its connection is broken
-or its two elements lie in different pieces; failures never heal and pieces never join, so once
-shown it stays shown. Bark faces and faces without a neighbour show from the first frame.
+A face between two meshlets shows once the two no longer hold together or one of them dwindles:
+
+* a side face across a REG connection, once the connection is broken;
+* a side face between unconnected neighbours, once they lie in different pieces;
+* a cap between consecutive elements of a strand, once the link between them is cut: the lower
+  of the two has failed (its stretch is off; the skinning's rule, :mod:`.skin`);
+* any of them, once either element dwindles (:func:`wooddecay.sim.coupling.crumble_scale` < 1):
+  its meshlet draws in towards its centre and the faces round it become a cavity's walls.
+
+Failures never heal, pieces never join and consumed wood never returns, so once shown a face
+stays shown; until then it coincides with its neighbour's and is left out of that frame (the
+stage's holes). Bark faces and faces without a neighbour show from the first frame.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from ..sim.coupling import crumble_scale
 from .sweep import BARK, CAP
 
 #: :func:`exposure` of a face that no frame shows
 NEVER = -1
 
 
-def exposure(model, mesh, mechs) -> np.ndarray:
-    """(F,) int: for each face of ``mesh`` the index into ``mechs`` of the first rod state
-    (``Frame.mech``: ``edge_ok``, ``component``; in frame order) that shows it, NEVER if none does.
-    ``mechs`` empty or its states None (no mechanics): bark and open faces from 0, the rest NEVER."""
+def exposure(model, mesh, frames) -> np.ndarray:
+    """(F,) int: for each face of ``mesh`` the index into ``frames`` (frame order; each a
+    :class:`~wooddecay.sim.driver.Frame`, or None for intact wood) of the first frame that shows it
+    (module docstring), NEVER if none does."""
+    frames = list(frames)
     o, n, kind = mesh.face_element, mesh.face_neighbour, mesh.face_kind
     first = np.where((kind == BARK) | (n < 0), 0, NEVER)
-    side = np.flatnonzero((first == NEVER) & ~((kind == CAP) & (n >= 0)))
-    if not len(side) or not any(mechs):
-        return first
-    e = model.reg_edges
-    nn = model.n_elements
-    keys = np.minimum(e[:, 0], e[:, 1]) * nn + np.maximum(e[:, 0], e[:, 1])
-    order = np.argsort(keys)
-    q = np.minimum(o[side], n[side]) * nn + np.maximum(o[side], n[side])
-    pos = np.clip(np.searchsorted(keys[order], q), 0, len(keys) - 1)
-    has = keys[order][pos] == q
-    edge = order[pos]
-    for k, mech in enumerate(mechs):
-        if not mech:
-            continue
-        shown = np.where(has, ~mech["edge_ok"][edge, 0], mech["component"][o[side]] != mech["component"][n[side]])
-        first[side[shown]] = k
-        side = side[~shown]
-        has, edge = has[~shown], edge[~shown]
-        if not len(side):
+    inner = np.flatnonzero(first == NEVER)
+    edge, has = _reg_edge(model, o[inner], n[inner])
+    cap = kind[inner] == CAP
+    shown_last = _shown(model, frames[-1] if frames else None, o[inner], n[inner], cap, edge, has)
+    keep = shown_last  # monotone: a face the last frame hides, no frame shows
+    inner, edge, has, cap = inner[keep], edge[keep], has[keep], cap[keep]
+    for k, frame in enumerate(frames):
+        if not len(inner):
             break
+        shown = _shown(model, frame, o[inner], n[inner], cap, edge, has)
+        first[inner[shown]] = k
+        inner, edge, has, cap = inner[~shown], edge[~shown], has[~shown], cap[~shown]
     return first
 
 
-def visible_faces(model, mesh, last) -> np.ndarray:
-    """(F,) bool: the faces of ``mesh`` shown by the rod state ``last`` (``Frame.mech`` of the
-    last frame); ``last`` None: no mechanics."""
-    return exposure(model, mesh, [last]) != NEVER
+def visible_faces(model, mesh, frame) -> np.ndarray:
+    """(F,) bool: the faces of ``mesh`` that ``frame`` shows (None: intact wood)."""
+    return exposure(model, mesh, [frame]) != NEVER
+
+
+def _reg_edge(model, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The REG edge joining elements ``a`` and ``b`` (pairwise) and whether there is one."""
+    e = model.reg_edges
+    if not len(e):
+        return np.zeros(len(a), dtype=np.int64), np.zeros(len(a), dtype=bool)
+    nn = model.n_elements
+    keys = np.minimum(e[:, 0], e[:, 1]) * nn + np.maximum(e[:, 0], e[:, 1])
+    order = np.argsort(keys)
+    q = np.minimum(a, b) * nn + np.maximum(a, b)
+    pos = np.clip(np.searchsorted(keys[order], q), 0, len(keys) - 1)
+    return order[pos], keys[order][pos] == q
+
+
+def _shown(model, frame, o, n, cap, edge, has) -> np.ndarray:
+    """Whether ``frame`` shows the faces between elements ``o`` and ``n`` (caps where ``cap``,
+    side faces across REG edge ``edge`` where ``has``): module docstring."""
+    shown = np.zeros(len(o), dtype=bool)
+    if frame is None:
+        return shown
+    if frame.fields:
+        scale = crumble_scale(model.coupling, frame.fields["H_c"], frame.fields["H_l"])
+        shown |= (scale[o] < 1.0) | (scale[n] < 1.0)
+    m = frame.mech
+    if m:
+        broken = np.where(has, ~m["edge_ok"][edge, 0], m["component"][o] != m["component"][n])
+        shown |= np.where(cap, ~m["element_ok"][np.minimum(o, n)], broken)
+    return shown
