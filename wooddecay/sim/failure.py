@@ -402,7 +402,7 @@ def update(setup, ms, tested: tuple | None = None, record: bool = False, bounded
     ``ms.fail_epoch`` to this test (an exact test of every edge). Returns the number of new
     failures (elements plus edges)."""
     idx_e, idx_k = tested if tested is not None else (setup.all_elements, setup.all_edges)
-    elem = np.empty((setup.n_elements, 2))
+    elem = np.zeros((setup.n_elements, 2))  # the rows outside idx_e are subtracted, never flagged
     _strains_at(idx_e, setup.fp, ms.x, ms.q, ms.rest_length, elem)
     new_e = _flag_elements(idx_e, elem - ms.strain_ref_elem, ms.limit_elem, ms.link_integrity, setup.I_fail_elem,
                            ms.crumbled, setup.inner, ms.element_ok)
