@@ -127,20 +127,17 @@ def exposure_group():
     return group
 
 
-def hide_unexposed(ob) -> bool:
+def hide_unexposed(ob) -> None:
     """Add the :func:`exposure_group` modifier to ``ob`` (after its mesh cache) if its mesh has
-    ``exposedFrame``; whether it did."""
-    if "exposedFrame" not in ob.data.attributes:
-        return False
-    ob.modifiers.new(EXPOSURE_GROUP, "NODES").node_group = exposure_group()
-    return True
+    ``exposedFrame``."""
+    if "exposedFrame" in ob.data.attributes:
+        ob.modifiers.new(EXPOSURE_GROUP, "NODES").node_group = exposure_group()
 
 
 def import_bake(filepath: str, assign_material: bool = True) -> dict:
     """Import ``filepath`` (.usd/.usda/.usdc/.glb) and dress it. Returns a report:
     ``objects`` (names of the imported meshes), ``format``, ``material`` (name or None),
-    ``exposure`` (the meshes given the :func:`hide_unexposed` modifier), ``attributes`` (the
-    attribute names the material reads)."""
+    ``attributes`` (the attribute names the material reads)."""
     fmt = importer.file_format(filepath)
     objects_before, materials_before = set(bpy.data.objects), set(bpy.data.materials)
     split = {}
@@ -156,8 +153,8 @@ def import_bake(filepath: str, assign_material: bool = True) -> dict:
     names = set()
     for ob in meshes:
         names.update(a.name for a in ob.data.attributes)
-    exposed = [ob.name for ob in meshes if hide_unexposed(ob)]
-    report = {"format": fmt, "objects": [ob.name for ob in meshes], "material": None, "exposure": exposed,
+        hide_unexposed(ob)
+    report = {"format": fmt, "objects": [ob.name for ob in meshes], "material": None,
               "attributes": sorted(n for n in names if n in {s.attribute for s in DATA})}
     if assign_material and meshes:
         crack_map = os.path.splitext(filepath)[0] + f"_bark.{material.UDIM_FIRST}.png"

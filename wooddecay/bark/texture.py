@@ -75,18 +75,20 @@ def crack_maps(model, frames) -> list[np.ndarray] | None:
     if len(cracked) > MAX_TILES:
         cracked = cracked[:MAX_TILES - 1] + cracked[-1:]
     texel = sheet.h / TEXELS_PER_EDGE
+    rows = _branch_rows(sheet, texel)
     tiles, last = [], None
     for c in cracked:
         if last is None or not np.array_equal(c, last[0]):
-            last = (c, _profile(model, c, texel))
+            last = (c, _profile(model, c, texel, rows))
         tiles.append(last[1])
     return tiles
 
 
-def _profile(model, cracked: np.ndarray, texel: float) -> np.ndarray:
-    """(H, W) uint16 V-profile of the nearest of the cracked sheet edges ``cracked`` per texel."""
+def _profile(model, cracked: np.ndarray, texel: float, rows) -> np.ndarray:
+    """(H, W) uint16 V-profile of the nearest of the cracked sheet edges ``cracked`` per texel
+    (``rows``: :func:`_branch_rows`)."""
     sheet = model.bark
-    s0, first, count = _branch_rows(sheet, texel)
+    s0, first, count = rows
     H, W = int(count.sum()), int(np.ceil(sheet.period.max() / texel))
     out = np.zeros((H, W), dtype=np.uint16)
     if not cracked.any():

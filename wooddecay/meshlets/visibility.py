@@ -32,13 +32,16 @@ def exposure(model, mesh, frames) -> np.ndarray:
     frames = list(frames)
     o, n, kind = mesh.face_element, mesh.face_neighbour, mesh.face_kind
     first = np.where((kind == BARK) | (n < 0), 0, NEVER)
+    if not frames:
+        return first
     inner = np.flatnonzero(first == NEVER)
     edge, has = _reg_edge(model, o[inner], n[inner])
     cap = kind[inner] == CAP
-    shown_last = _shown(model, frames[-1] if frames else None, o[inner], n[inner], cap, edge, has)
-    keep = shown_last  # monotone: a face the last frame hides, no frame shows
-    inner, edge, has, cap = inner[keep], edge[keep], has[keep], cap[keep]
-    for k, frame in enumerate(frames):
+    # monotone: the last frame shows every face some frame shows; the rest is when each first does
+    shown = _shown(model, frames[-1], o[inner], n[inner], cap, edge, has)
+    inner, edge, has, cap = inner[shown], edge[shown], has[shown], cap[shown]
+    first[inner] = len(frames) - 1
+    for k, frame in enumerate(frames[:-1]):
         if not len(inner):
             break
         shown = _shown(model, frame, o[inner], n[inner], cap, edge, has)
