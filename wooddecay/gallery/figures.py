@@ -251,7 +251,7 @@ FIGURES = {f.key: f for f in (
         variants=(Variant("a", "S_R/S_T = 0.1/1", {"mechanics.S_R": 0.1, "mechanics.S_T": 1.0}),
                   Variant("b", "S_R/S_T = 1/0.1", {"mechanics.S_R": 1.0, "mechanics.S_T": 0.1}),
                   Variant("c", "S_R/S_T = 1/1", {"mechanics.S_R": 1.0, "mechanics.S_T": 1.0})),
-        quick={"time.days": 18.0, "time.frames": 4}, measure=_fig6_measure, panels=(-1,),
+        quick={"time.days": 24.0, "time.frames": 4}, measure=_fig6_measure, panels=(-1,),
         render_options=END_VIEW),
     Figure(
         "fig11", "BSP configurations",
