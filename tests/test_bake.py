@@ -271,7 +271,7 @@ def test_gallery_resume_continues_its_own_checkpoint_and_starts_over_on_another_
     scene's checkpoint in the folder is baked over from day 0, not an error."""
     from wooddecay.gallery.bakes import bake_scene
 
-    short = {"time.days": 1.0, "time.frames": 2}
+    short = {"time.days": 1.0, "time.frames": 2, "mechanics.iterations": 1}  # the bakes, not the section's cracks
     first = bake_scene("fig6.toml", short, tmp_path)
     again = bake_scene("fig6.toml", short, tmp_path, resume=True)
     assert not first.reused and again.reused and again.summary == first.summary
@@ -290,7 +290,7 @@ def test_gallery_bake_reuses_a_finished_bake_of_the_same_scene_elsewhere(tmp_pat
     from wooddecay.gallery.bakes import bake_scene
     from wooddecay.gallery.sensitivity import own_bakes
 
-    short = {"time.days": 1.0, "time.frames": 2}
+    short = {"time.days": 1.0, "time.frames": 2, "mechanics.iterations": 1}  # the bakes, not the section's cracks
     first = bake_scene("fig6.toml", short, tmp_path / "a")
     again = bake_scene("fig6.toml", short, tmp_path / "b", reuse=(tmp_path / "missing", tmp_path / "a"))
     assert again.reused and again.summary == first.summary and again.usd == tmp_path / "a" / "fig6.usdc"
