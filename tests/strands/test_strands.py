@@ -108,3 +108,16 @@ def test_taper_terminates_strands():
     # the trunk top holds fewer strands than the base: strands ended along the way
     top = scene.skeleton.ids.index("t9")
     assert tip_counts[top] < root_count / 2
+
+
+def test_edge_between_finds_the_reg_edge_of_a_pair_in_either_order():
+    """strands.reg.edge_between: the edge's id for a joined pair, either order; not found where no
+    edge joins them or the graph has no edges."""
+    from wooddecay.strands.reg import edge_between
+
+    edges = np.array([[0, 3], [2, 1], [4, 0]])
+    edge, found = edge_between(edges, 5, np.array([3, 1, 0, 1, 2]), np.array([0, 2, 4, 4, 3]))
+    np.testing.assert_array_equal(found, [True, True, True, False, False])
+    np.testing.assert_array_equal(edge[found], [0, 1, 2])
+    edge, found = edge_between(np.zeros((0, 2), dtype=np.int64), 5, np.array([0]), np.array([1]))
+    assert not found.any() and len(edge) == 1

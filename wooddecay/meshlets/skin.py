@@ -40,6 +40,7 @@ import numpy as np
 from ..quaternion import conj_np, rotate, rotate_np
 from ..sim.coupling import crumble_scale, shrink_factor
 from ..sim.state import FIELDS
+from ..strands.reg import edge_between
 
 #: link kinds of a (vertex, candidate) pair, besides a REG edge index >= 0
 ALWAYS, BY_COMPONENT, STRAND = -1, -2, -3
@@ -95,15 +96,9 @@ def links(model, mesh) -> np.ndarray:
     rows = np.repeat(np.arange(len(mesh.points)), np.diff(mesh.skin_indptr))
     o = mesh.vertex_element[rows]
     c = mesh.skin_element
-    n = model.n_elements
     strand = (model.strand[o] == model.strand[c]) & (np.abs(o - c) == 1)
-    e = model.reg_edges
-    keys = np.minimum(e[:, 0], e[:, 1]) * n + np.maximum(e[:, 0], e[:, 1])
-    order = np.argsort(keys)
-    q = np.minimum(o, c) * n + np.maximum(o, c)
-    pos = np.clip(np.searchsorted(keys[order], q), 0, len(keys) - 1)
-    found = keys[order][pos] == q
-    out = np.where(found, order[pos], BY_COMPONENT)
+    edge, found = edge_between(model.reg_edges, model.n_elements, o, c)
+    out = np.where(found, edge, BY_COMPONENT)
     return np.where(o == c, ALWAYS, np.where(strand, STRAND, out)).astype(np.int64)
 
 

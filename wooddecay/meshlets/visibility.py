@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..sim.coupling import crumble_scale
+from ..strands.reg import edge_between
 from .sweep import BARK, CAP
 
 #: :func:`exposure` of a face that no frame shows
@@ -35,7 +36,7 @@ def exposure(model, mesh, frames) -> np.ndarray:
     if not frames:
         return first
     inner = np.flatnonzero(first == NEVER)
-    edge, has = _reg_edge(model, o[inner], n[inner])
+    edge, has = edge_between(model.reg_edges, model.n_elements, o[inner], n[inner])
     cap = kind[inner] == CAP
     # monotone: the last frame shows every face some frame shows; the rest is when each first does
     shown = _shown(model, frames[-1], o[inner], n[inner], cap, edge, has)
@@ -53,19 +54,6 @@ def exposure(model, mesh, frames) -> np.ndarray:
 def visible_faces(model, mesh, frame) -> np.ndarray:
     """(F,) bool: the faces of ``mesh`` that ``frame`` shows (None: intact wood)."""
     return exposure(model, mesh, [frame]) != NEVER
-
-
-def _reg_edge(model, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The REG edge joining elements ``a`` and ``b`` (pairwise) and whether there is one."""
-    e = model.reg_edges
-    if not len(e):
-        return np.zeros(len(a), dtype=np.int64), np.zeros(len(a), dtype=bool)
-    nn = model.n_elements
-    keys = np.minimum(e[:, 0], e[:, 1]) * nn + np.maximum(e[:, 0], e[:, 1])
-    order = np.argsort(keys)
-    q = np.minimum(a, b) * nn + np.maximum(a, b)
-    pos = np.clip(np.searchsorted(keys[order], q), 0, len(keys) - 1)
-    return order[pos], keys[order][pos] == q
 
 
 def _shown(model, frame, o, n, cap, edge, has) -> np.ndarray:

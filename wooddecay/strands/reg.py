@@ -86,6 +86,19 @@ def segment_distance_reference(p1, q1, p2, q2):
     return np.linalg.norm(diff, axis=1)
 
 
+def edge_between(reg_edges: np.ndarray, n_elements: int, a: np.ndarray, b: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The REG edge joining elements ``a[k]`` and ``b[k]`` (either order) and whether there is
+    one (where not, the edge id is meaningless)."""
+    if not len(reg_edges):
+        return np.zeros(len(a), dtype=np.int64), np.zeros(len(a), dtype=bool)
+    keys = np.minimum(reg_edges[:, 0], reg_edges[:, 1]) * n_elements + np.maximum(reg_edges[:, 0], reg_edges[:, 1])
+    order = np.argsort(keys)
+    q = np.minimum(a, b) * n_elements + np.maximum(a, b)
+    pos = np.clip(np.searchsorted(keys[order], q), 0, len(keys) - 1)
+    return order[pos], keys[order][pos] == q
+
+
 @nb.njit(cache=True)
 def _cell_range(keys, key):
     lo = np.searchsorted(keys, key, side="left")
