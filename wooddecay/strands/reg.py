@@ -94,9 +94,10 @@ def edge_between(reg_edges: np.ndarray, n_elements: int, a: np.ndarray, b: np.nd
         return np.zeros(len(a), dtype=np.int64), np.zeros(len(a), dtype=bool)
     keys = np.minimum(reg_edges[:, 0], reg_edges[:, 1]) * n_elements + np.maximum(reg_edges[:, 0], reg_edges[:, 1])
     order = np.argsort(keys)
+    sorted_keys = keys[order]
     q = np.minimum(a, b) * n_elements + np.maximum(a, b)
-    pos = np.clip(np.searchsorted(keys[order], q), 0, len(keys) - 1)
-    return order[pos], keys[order][pos] == q
+    pos = np.clip(np.searchsorted(sorted_keys, q), 0, len(keys) - 1)
+    return order[pos], sorted_keys[pos] == q
 
 
 @nb.njit(cache=True)
