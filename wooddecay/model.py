@@ -359,7 +359,7 @@ def build_model(scene) -> WoodModel:
         pb = samp.particles[samp.first_particle + 1]
         pairs, is_reg, chains = transport_graph(pa, pb, samp.strand, samp.element_offsets,
                                                 st.connect_radius, st.transport_reach * st.r_s)
-        reg = build_reg(pairs[is_reg], geo.centers, geo.rest_quat, geo.frames)
+        reg = build_reg(pairs[is_reg], geo.centers, geo.rest_quat, geo.wood_frames)
         t_edges = np.vstack([pairs, chains])
         t_kind = np.concatenate([np.where(is_reg, 0, 2).astype(np.int8), np.ones(len(chains), np.int8)])
         t_indptr, t_indices, t_edge_of = csr_adjacency(len(geo.centers), t_edges)

@@ -84,9 +84,16 @@ def fig6_orientations(m) -> bool:
     return bool(ta > 2 * ra and rb > 2 * tb and tc > 2 * rc)
 
 
+#: Fig. 6 (c) is baked on the scene's seed (1) and on seeds 2 and 3, and read on their median: one
+#: section's count moves by 2-3 sectors from seed to seed (docs/decisions.md, "Fig. 6: a converged
+#: section")
+BALANCED = {"mechanics.S_R": 1.0, "mechanics.S_T": 1.0}
+BALANCED_VARIANTS = ("c", "c_seed2", "c_seed3")
+
+
 def _fig6_decide(m):
-    c = m["c"]
-    return fig6_orientations(m) and 0 < c["effective_radial_cracks"] <= FEW_CRACKS
+    few = float(np.median([m[k]["effective_radial_cracks"] for k in BALANCED_VARIANTS]))
+    return fig6_orientations(m) and 0 < few <= FEW_CRACKS
 
 
 def _blocks(model, frames):
@@ -246,11 +253,13 @@ FIGURES = {f.key: f for f in (
         "on the first frame with >= 25 broken connections their shares t > 2 r for 0.1/1 and 1/1, "
         "r > 2 t for 1/0.1; for 1/1 on the last frame the opening of its radial cracks (broken "
         "tangential connections, summed in 10-degree sectors around the pith) is held by at most 6 "
-        "sectors, opening-weighted",
+        "sectors, opening-weighted, in the median of seeds 1, 2 and 3",
         _fig6_decide, scene="fig6.toml",
         variants=(Variant("a", "S_R/S_T = 0.1/1", {"mechanics.S_R": 0.1, "mechanics.S_T": 1.0}),
                   Variant("b", "S_R/S_T = 1/0.1", {"mechanics.S_R": 1.0, "mechanics.S_T": 0.1}),
-                  Variant("c", "S_R/S_T = 1/1", {"mechanics.S_R": 1.0, "mechanics.S_T": 1.0})),
+                  Variant("c", "S_R/S_T = 1/1", BALANCED),
+                  Variant("c_seed2", "S_R/S_T = 1/1, seed 2", {**BALANCED, "scene.seed": 2}),
+                  Variant("c_seed3", "S_R/S_T = 1/1, seed 3", {**BALANCED, "scene.seed": 3})),
         quick={"time.days": 24.0, "time.frames": 4}, measure=_fig6_measure, panels=(-1,),
         render_options=END_VIEW),
     Figure(

@@ -178,6 +178,7 @@ class ElementGeometry:
     rest_quat: np.ndarray  # (n, 4) material frame (d1, d2, d3), w first
     frames: np.ndarray  # (n, 3, 3) rows e_r, e_t, e_l
     s: np.ndarray  # (n,) distance to the root along the skeleton
+    wood_frames: np.ndarray  # (n, 3, 3) rows e_R, e_T, e_L of the cross-section (:func:`wood_frames`)
 
 
 def element_geometry(samp: Sampling, node_a: np.ndarray, node_b: np.ndarray, edge_t: np.ndarray,
@@ -211,4 +212,22 @@ def element_geometry(samp: Sampling, node_a: np.ndarray, node_b: np.ndarray, edg
         rest_quat=matrix_to_quaternion(R),
         frames=np.stack([e_r, e_t, e_l], axis=1),
         s=node_s[node_a] + edge_t * edge_len,
+        wood_frames=wood_frames(centers, axis_point, U,
+                                _unit((1.0 - t) * node_frames[node_a, 2] + t * node_frames[node_b, 2])),
     )
+
+
+def wood_frames(centers: np.ndarray, axis_point: np.ndarray, U: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """The cross-section's frame at each element (rows e_R, e_T, e_L): e_L the skeleton's tangent
+    ``T`` where the element lies, e_R from the axis point to its centre across e_L (``U`` on the
+    axis), e_T = e_L x e_R. Unlike ``frames`` it does not follow the strand's wander between the
+    profiles, so a cross-section's elements share e_L: shrinkage gains taken in it (Eq. 16) are
+    the first-order length change of the REG offsets under one strain field, and wood that dries
+    evenly with S_R = S_T shrinks without straining a connection (docs/decisions.md, "Shrinkage in
+    the cross-section's frame")."""
+    radial = reject(centers - axis_point, T)
+    rn = np.linalg.norm(radial, axis=1)
+    tiny = rn < 1e-9 * max(float(rn.max(initial=0.0)), 1e-300)
+    radial[tiny] = reject(U[tiny], T[tiny])
+    e_R = _unit(radial)
+    return np.stack([e_R, np.cross(T, e_R), T], axis=1)

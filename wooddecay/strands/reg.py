@@ -220,14 +220,15 @@ class REG:
     edges: np.ndarray  # (m, 2) i < j, sorted
     rest_offset: np.ndarray  # (m,) dp_0
     rest_darboux: np.ndarray  # (m, 4) conj(q_i) q_j
-    dir_weights: np.ndarray  # (m, 3) n_r^2, n_t^2, n_l^2
+    dir_weights: np.ndarray  # (m, 3) n_r^2, n_t^2, n_l^2 in the two elements' cross-section frames
     indptr: np.ndarray  # CSR adjacency of the REG
     indices: np.ndarray
     edge_of: np.ndarray  # edge id of each CSR entry
 
 
 def build_reg(edges, centers, rest_quat, frames) -> REG:
-    """REG of the given edges (pairs within connect_radius) with their rest quantities."""
+    """REG of the given edges (pairs within connect_radius) with their rest quantities; ``frames``
+    the elements' cross-section frames (rows e_R, e_T, e_L) that weigh each offset's direction."""
     i, j = edges[:, 0], edges[:, 1]
     d = centers[j] - centers[i]
     rest = np.linalg.norm(d, axis=1)
