@@ -72,7 +72,7 @@ def test_bakes_made_ahead_on_two_processes_are_measured_alike(quick, tmp_path):
     give the signatures and frame rows of the bakes made in this process, as fresh bakes."""
     lines = []
     entry = run_gallery(("fig6",), tmp_path, quick=True, renders=False, log=lines.append, workers=2)["fig6"]
-    assert lines[0] == "baking 3 scenes ahead on 2 processes"
+    assert lines[0] == f"baking {len(FIGURES['fig6'].variants)} scenes ahead on 2 processes"
     same = quick[1]["fig6"]["variants"]
     for name, v in entry["variants"].items():
         assert v["signature"] == same[name]["signature"] and v["frames"] == same[name]["frames"]
@@ -95,8 +95,8 @@ def test_signatures_json_and_page(quick):
 @pytest.mark.blender
 def test_gallery_command_resumes_and_renders_panels(quick, tmp_path):
     """`wooddecay gallery 6 --quick --resume` over the quick bakes of Fig. 6: it bakes nothing
-    (each variant's bake reused, its summary untouched) and renders three panels through the
-    add-on, listed in signatures.json, each of its variant's last frame."""
+    (each variant's bake reused, its summary untouched) and renders a panel per variant through
+    the add-on, listed in signatures.json, each of its variant's last frame."""
     shutil.copytree(quick[0] / "fig6", tmp_path / "fig6")
     summaries = sorted((tmp_path / "fig6").glob("*/summary.json"))
     before = [p.stat().st_mtime_ns for p in summaries]
@@ -104,9 +104,10 @@ def test_gallery_command_resumes_and_renders_panels(quick, tmp_path):
                            str(tmp_path)], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr[-2000:]
     entry = json.loads((tmp_path / "signatures.json").read_text())["fig6"]
-    assert len(summaries) == 3 and [p.stat().st_mtime_ns for p in summaries] == before
-    assert all(v["reused"] for v in entry["variants"].values()) and proc.stderr.count("(bake reused)") == 3
-    assert len(entry["panels"]) == 3
+    n = len(FIGURES["fig6"].variants)
+    assert len(summaries) == n == 5 and [p.stat().st_mtime_ns for p in summaries] == before
+    assert all(v["reused"] for v in entry["variants"].values()) and proc.stderr.count("(bake reused)") == n
+    assert len(entry["panels"]) == n
     for name, v in entry["variants"].items():
         assert f"fig6/{name}_f{len(v['frames']) - 1}.png" in entry["panels"]
     for p in entry["panels"]:
