@@ -47,6 +47,10 @@ LOAD_JUMP = 0.25
 #: largest :func:`strain_excess` a bake accepts without a warning: a clamped strand then sags
 #: within about 3% of beam theory
 STRAIN_EXCESS_TOLERANCE = 0.03
+#: iterations a substep that bring a bundle of strands within about 0.02 of its law (Fig. 6's
+#: section: 0.94 at 16, 0.058 at 128, 0.020 at 256; docs/decisions.md, "Fig. 6: a converged
+#: section"), for the remedy the bake prints
+CONVERGED_ITERATIONS = 256
 
 
 @dataclass(frozen=True, eq=False)
@@ -731,7 +735,9 @@ def convergence(setup: MechSetup, excess) -> dict:
     remedy = None if ok else (
         f"the strands are softer than mechanics.E and G say: their strain exceeds their forces' by "
         f"{worst:.0%} (tolerance {STRAIN_EXCESS_TOLERANCE:.0%}); raise mechanics.iterations (now "
-        f"{setup.iterations}) or lower mechanics.dt_mech (now {setup.dt:g} s)")
+        f"{setup.iterations}) or lower mechanics.dt_mech (now {setup.dt:g} s): a bundle converges at about "
+        f"{CONVERGED_ITERATIONS} iterations a substep, that many times the mechanics, and the samples' "
+        f"fracture settings are tuned on the soft one")
     return {"strain_excess_settled": excess[0], "strain_excess_max": worst,
             "tolerance": STRAIN_EXCESS_TOLERANCE, "converged": ok, "remedy": remedy}
 
