@@ -6,7 +6,7 @@ After each biology step, with (x)^+ = max(x, 0):
 * Eq. 16 with the direction-dependent gain of SPEC §4 (Table 2, Fig. 6): REG rest offsets
   dp = dp_0 (1 - (M_0 - M)^+ g_edge), g_edge = S (S_R n_r^2 + S_T n_t^2) + s n_l^2, n the
   offset's direction in the cross-section's frame of its two elements (``reg_dir_weights``,
-  :func:`wooddecay.strands.elements.wood_frames`), not the strands' own: to first
+  :func:`wooddecay.strands.elements.radial_frames`), not the strands' own: to first
   order this is the length change of the offset vector dp_0 n under the shrinkage strains
   (S S_R, S S_T, s) (M_0 - M)^+ along (e_r, e_t, e_l), and with one frame per cross-section
   evenly drying wood shrinks as one strain field. The along-grain gain is the strands' own

@@ -178,7 +178,7 @@ class ElementGeometry:
     rest_quat: np.ndarray  # (n, 4) material frame (d1, d2, d3), w first
     frames: np.ndarray  # (n, 3, 3) rows e_r, e_t, e_l
     s: np.ndarray  # (n,) distance to the root along the skeleton
-    wood_frames: np.ndarray  # (n, 3, 3) rows e_R, e_T, e_L of the cross-section (:func:`wood_frames`)
+    wood_frames: np.ndarray  # (n, 3, 3) rows e_R, e_T, e_L of the cross-section (:func:`radial_frames`)
 
 
 def element_geometry(samp: Sampling, node_a: np.ndarray, node_b: np.ndarray, edge_t: np.ndarray,
@@ -195,13 +195,8 @@ def element_geometry(samp: Sampling, node_a: np.ndarray, node_b: np.ndarray, edg
     edge_len = np.linalg.norm(positions[node_b] - positions[node_a], axis=1)
     U = _unit((1.0 - t) * node_frames[node_a, 0] + t * node_frames[node_b, 0])
     centers = 0.5 * (pa + pb)
-    radial = reject(centers - axis_point, e_l)
-    rn = np.linalg.norm(radial, axis=1)
-    fallback = reject(U, e_l)
-    tiny = rn < 1e-9 * max(float(length.mean()), 1e-300)
-    radial[tiny] = fallback[tiny]
-    e_r = _unit(radial)
-    e_t = np.cross(e_l, e_r)
+    on_axis = 1e-9 * max(float(length.mean()), 1e-300)
+    T = _unit((1.0 - t) * node_frames[node_a, 2] + t * node_frames[node_b, 2])
     first = samp.element_offsets[:-1]  # every strand has at least one element
     d1_all = transport_frames_numba(samp.element_offsets, e_l, _unit(reject(U[first], e_l[first])))
     d2 = np.cross(e_l, d1_all)
@@ -210,24 +205,24 @@ def element_geometry(samp: Sampling, node_a: np.ndarray, node_b: np.ndarray, edg
         centers=centers,
         rest_length=length,
         rest_quat=matrix_to_quaternion(R),
-        frames=np.stack([e_r, e_t, e_l], axis=1),
+        frames=radial_frames(centers, axis_point, U, e_l, on_axis),
         s=node_s[node_a] + edge_t * edge_len,
-        wood_frames=wood_frames(centers, axis_point, U,
-                                _unit((1.0 - t) * node_frames[node_a, 2] + t * node_frames[node_b, 2])),
+        wood_frames=radial_frames(centers, axis_point, U, T, on_axis),
     )
 
 
-def wood_frames(centers: np.ndarray, axis_point: np.ndarray, U: np.ndarray, T: np.ndarray) -> np.ndarray:
-    """The cross-section's frame at each element (rows e_R, e_T, e_L): e_L the skeleton's tangent
-    ``T`` where the element lies, e_R from the axis point to its centre across e_L (``U`` on the
-    axis), e_T = e_L x e_R. Unlike ``frames`` it does not follow the strand's wander between the
-    profiles, so a cross-section's elements share e_L: shrinkage gains taken in it (Eq. 16) are
+def radial_frames(centers: np.ndarray, axis_point: np.ndarray, U: np.ndarray, axis: np.ndarray,
+                  on_axis: float) -> np.ndarray:
+    """Frames (rows e_r, e_t, e_l) about the unit ``axis`` of each element: e_r from its axis point
+    to its centre across the axis (``U`` there for a centre within ``on_axis`` of it), e_t = e_l x
+    e_r. About the strand's own direction they are ``frames``; about the skeleton's tangent
+    ``wood_frames``, the cross-section's frame, which does not follow the strand's wander between
+    the profiles: a cross-section's elements share e_L, so shrinkage gains taken in it (Eq. 16) are
     the first-order length change of the REG offsets under one strain field, and wood that dries
     evenly with S_R = S_T shrinks without straining a connection (docs/decisions.md, "Shrinkage in
     the cross-section's frame")."""
-    radial = reject(centers - axis_point, T)
-    rn = np.linalg.norm(radial, axis=1)
-    tiny = rn < 1e-9 * max(float(rn.max(initial=0.0)), 1e-300)
-    radial[tiny] = reject(U[tiny], T[tiny])
-    e_R = _unit(radial)
-    return np.stack([e_R, np.cross(T, e_R), T], axis=1)
+    radial = reject(centers - axis_point, axis)
+    tiny = np.linalg.norm(radial, axis=1) < on_axis
+    radial[tiny] = reject(U[tiny], axis[tiny])
+    e_r = _unit(radial)
+    return np.stack([e_r, np.cross(axis, e_r), axis], axis=1)
