@@ -3,16 +3,20 @@ that it runs beside tests/test_gallery.py): sixteen times the fungal activity fr
 more of the log's mass, breaks its wood finer (a smaller weight-average fragment,
 ``measures.fragment_share``) and leaves a lower pile (the mean height of its wood). The quick logs
 on seeds 7 (the scene's), 2 and 3 (one bake each, 2026-12-05): fragment share 0.496 -> 0.371,
-0.562 -> 0.452, 0.540 -> 0.390; pile 4.1, 8.0 and 33.5 mm lower; the full-size logs hold too (docs/decisions.md, "Fig. 12: finer is the
-weight-average fragment"). The median loose block is printed, not decided: the loose blocks are
+0.562 -> 0.452, 0.540 -> 0.390; pile 4.1, 8.0 and 33.5 mm lower; the full-size logs hold too
+(docs/decisions.md, "Fig. 12: finer is the weight-average fragment"). The median loose block is printed, not decided: the loose blocks are
 single BSP cells rotted to their lignin in both logs."""
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import pytest
 
+from wooddecay.arrays import best_rotation
 from wooddecay.gallery import run_gallery
-from wooddecay.gallery.bakes import bake_scene
+from wooddecay.gallery.bakes import SCENES, bake_scene
+from wooddecay.scene import load_scene
 
 
 @pytest.fixture(scope="module")
@@ -34,11 +38,8 @@ def test_quick_fig12_one_sided_activity_breaks_the_wood_finer_into_a_lower_pile(
 
 
 def roll_degrees(x0: np.ndarray, x: np.ndarray) -> float:
-    """Rotation about the x axis (the log's) of the best-fitting rigid motion of the points ``x0``
-    onto ``x`` (Kabsch), in degrees."""
-    a, b = x0 - x0.mean(0), x - x.mean(0)
-    u, _, vt = np.linalg.svd(a.T @ b)
-    r = vt.T @ np.diag([1.0, 1.0, np.sign(np.linalg.det(vt.T @ u.T))]) @ u.T
+    """Rotation about the x axis (the log's) of the best-fitting rigid motion of ``x0`` onto ``x``."""
+    r = best_rotation(x0, x)
     return float(np.degrees(np.arctan2(r[2, 1], r[1, 1])))
 
 
@@ -48,8 +49,9 @@ def test_fig12_log_lies_between_its_ridges_while_its_rotted_underside_bows_it(tm
     degrees at most, 2026-12-05); moved 5 m away, the log rolls as a whole (52.7 degrees):
     docs/decisions.md, "Fig. 12's log lies in its litter"."""
     year = {"time.years": 1.2, "time.frames": 12}
-    away = {f"collider.{i}.{end}": [x, side * 5.0, 0.01] for i, side in ((0, 1.0), (1, -1.0))
-            for end, x in (("a", -0.2), ("b", 1.2))}
+    ridges = load_scene(SCENES / "fig12.toml").colliders
+    away = {f"collider.{i}.{end}": [c[end][0], c[end][1] + math.copysign(5.0, c[end][1]), c[end][2]]
+            for i, c in enumerate(ridges) for end in ("a", "b")}
     rolls = {}
     for name, overrides in (("ridges", year), ("no ridges", {**year, **away})):
         frames = bake_scene("fig12.toml", overrides, tmp_path / name.replace(" ", "_")).frames

@@ -18,6 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..arrays import best_rotation
+
 #: adaptive settings: strain_tolerance, tolerance and rest_speed all times each factor
 FACTORS = (0.25, 1.0, 4.0)
 #: the ``[time]`` keys the factors scale
@@ -50,9 +52,7 @@ class Run:
             rows = np.flatnonzero(reference.piece == k)
             a, b = reference.x[rows], self.x[rows]
             a0, b0 = a - a.mean(axis=0), b - b.mean(axis=0)
-            u, _, vt = np.linalg.svd(a0.T @ b0)
-            flip = np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt)) or 1.0])
-            fitted = a0 @ (u @ flip @ vt)
+            fitted = a0 @ best_rotation(a, b).T
             worst = max(worst, float(np.sqrt(np.max(np.sum((b0 - fitted) ** 2, axis=1)))))
         return worst
 
