@@ -14,7 +14,8 @@ import time
 
 from wooddecay.model import build_model
 from wooddecay.scene import load_scene
-from wooddecay.studies.transport import fisher_speed_ratio, front_resolution, heat_kernel_ratio, lattice_speed_ratio
+from wooddecay.sim.fronts import lattice_speed_ratio
+from wooddecay.studies.transport import fisher_speed_ratio, front_resolution, heat_kernel_ratio
 
 for direction in ("l", "r", "t"):
     t0 = time.perf_counter()

@@ -17,8 +17,10 @@ newest values of the fields before it (explicit forward Euler):
 with alpha(M) = alpha_0 psi((M - M_min) / s_t) psi((M_max - M) / s_t) (Eqs. 10, 11). The weak-point
 field scales growth and transport by 1 + k_W (2 W - 1) (SPEC §3). The climate's seasonal factors
 w_in, w_out, w_ground, the exposed-surface distance bd (bark or cut end) and the ground contact g
-are those of :mod:`wooddecay.sim.climate`. Diffusion uses the anisotropic
-graph Laplacian of :mod:`wooddecay.sim.transport`. Every parameter may differ per tissue.
+are those of :mod:`wooddecay.sim.climate`. Diffusion uses the anisotropic graph Laplacian of
+:mod:`wooddecay.sim.transport`, for the two fungi with each weight scaled so that their fronts
+keep the continuum's speed on a coarse graph (:mod:`wooddecay.sim.fronts`). Every parameter may
+differ per tissue.
 
 Stability: an explicit step keeps every field in its box [0, 1] / [M_2, M_1] (Appendix A)
 when dt (S_i + r_i) <= 1 for every element and field, S_i the Gershgorin row sum of the diffusion
@@ -42,6 +44,7 @@ import numpy as np
 
 from ..strands.rings import TISSUES
 from . import climate as climate_mod
+from . import fronts
 from .climate import Climate
 from .state import SimState
 from .transport import TransportOperator, assemble
@@ -70,6 +73,8 @@ class BioSetup:
     wfac: np.ndarray  # (n,) 1 + k_W (2 W - 1)
     bd: np.ndarray  # (n,) distance to the nearest exposed surface, bark or cut end (climate.exposure_distance)
     kappa: np.ndarray  # (n, 3) diffusivities of R_w, R_b, C (with wfac)
+    aniso: np.ndarray  # (n, 3) transport factors (a_r, a_t, a_l)
+    rho_table: np.ndarray  # the fronts' diffusivity factor on its q grid (fronts.rho_table)
     schedules: tuple  # per tissue: (days, M_1, M_2) arrays, or constants as 1-row arrays
     box_M: np.ndarray  # (n_tissues, 2) the envelope [min M_2, max M_1] over tissues and schedules
     climate: Climate  # seasons and ground wetting of Eq. 15
@@ -112,7 +117,8 @@ def prepare(model, phi_pack: float, k_W: float, climate: Climate) -> BioSetup:
     envelope = [min(m2.min() for _, _, m2 in schedules), max(m1.max() for _, m1, _ in schedules)]
     box_M = np.tile(envelope, (len(schedules), 1))
     setup = BioSetup(op=op, P=P, tissue=tissue, wfac=wfac, bd=climate_mod.exposure_distance(model),
-                     kappa=np.ascontiguousarray(kappa), schedules=schedules, box_M=box_M,
+                     kappa=np.ascontiguousarray(kappa), aniso=np.ascontiguousarray(aniso),
+                     rho_table=fronts.rho_table(), schedules=schedules, box_M=box_M,
                      climate=climate, bound=0.0)
     return replace(setup, bound=stability_bound(setup))
 
@@ -174,6 +180,21 @@ def _lap(i, u, kappa, indptr, indices, weight, volume):
 
 
 @nb.njit(cache=True, inline="always")
+def _lap_front(i, u, kappa, rho, share, indptr, indices, weight, volume):
+    """(L_kappa u)_i with each entry's weight scaled by the fronts' correction (fronts module)."""
+    acc = 0.0
+    ui = u[i]
+    ki = kappa[i]
+    for e in range(indptr[i], indptr[i + 1]):
+        j = indices[e]
+        s = 0.0
+        for k in range(3):
+            s += share[e, k] * 0.5 * (rho[i, k] + rho[j, k])
+        acc += s * weight[e] * 0.5 * (ki + kappa[j]) * (u[j] - ui)
+    return acc / volume[i]
+
+
+@nb.njit(cache=True, inline="always")
 def _clamp(v, lo, hi, clamp, i):
     if v < lo:
         if lo - v > CLAMP_TOL:
@@ -187,34 +208,42 @@ def _clamp(v, lo, hi, clamp, i):
 
 
 @nb.njit(parallel=True, cache=True)
-def _substep(h, indptr, indices, weight, volume, tissue, P, wfac, bd, kappa, M12, box_M, w, k_g,
-             R_w, R_b, H_c, H_l, C, M, rotting, buf, kappa_M, clamp):
+def _substep(h, indptr, indices, weight, share, spacing, volume, tissue, P, wfac, bd, kappa, aniso, table, M12,
+             box_M, w, k_g, R_w, R_b, H_c, H_l, C, M, rotting, buf, growth, rho, kappa_M, clamp):
     """One forward-Euler substep of all six fields in the paper's order (module docstring);
     ``w``: the climate's (w_in, w_out), ``k_g``: w_ground k_ground g per element, ``rotting``:
     whether R_w and R_b hold any fungus (a field that is zero everywhere stays zero, bit for bit,
-    so its update is skipped). ``buf`` is copied back element by element: a slice assignment
-    compiles numba's shape-error formatting (docs/decisions.md, "Tests on two workers")."""
+    so its update is skipped). A fungus' growth rate and its fronts' diffusivity factors
+    (:mod:`.fronts`) are taken in one pass before its update, into ``growth`` and ``rho``. ``buf``
+    is copied back element by element: a slice assignment compiles numba's shape-error formatting
+    (docs/decisions.md, "Tests on two workers")."""
     n = len(R_w)
     kw = kappa[:, 0]
     kb = kappa[:, 1]
     kc = kappa[:, 2]
     if rotting[0]:
-        for i in nb.prange(n):  # Eq. 8
+        for i in nb.prange(n):  # Eq. 8: growth at R_w -> 0
             p = P[tissue[i]]
             a = _alpha(p[ALPHA_W], M[i], p[M_MIN], p[M_MAX], p[S_T]) * wfac[i]
-            sub = (p[LAMBDA_L] * H_l[i] + p[LAMBDA_C] * H_c[i]) * H_c[i] / (p[K_C] + H_c[i])
+            growth[i] = a * (p[LAMBDA_L] * H_l[i] + p[LAMBDA_C] * H_c[i]) * H_c[i] / (p[K_C] + H_c[i])
+            fronts.element_rho(i, growth[i] - p[BETA_W] * C[i], kw[i], spacing, aniso, table, rho)
+        for i in nb.prange(n):  # Eq. 8
             r = R_w[i]
-            f = a * r * (1.0 - r) * sub - p[BETA_W] * C[i] * r
-            buf[i] = _clamp(r + h * (f + _lap(i, R_w, kw, indptr, indices, weight, volume)), 0.0, 1.0, clamp, i)
+            f = growth[i] * r * (1.0 - r) - P[tissue[i], BETA_W] * C[i] * r
+            lap = _lap_front(i, R_w, kw, rho, share, indptr, indices, weight, volume)
+            buf[i] = _clamp(r + h * (f + lap), 0.0, 1.0, clamp, i)
         for i in nb.prange(n):
             R_w[i] = buf[i]
     if rotting[1]:
-        for i in nb.prange(n):  # Eq. 9
+        for i in nb.prange(n):  # Eq. 9: growth at R_b -> 0
             p = P[tissue[i]]
-            a = _alpha(p[ALPHA_B], M[i], p[M_MIN], p[M_MAX], p[S_T]) * wfac[i]
+            growth[i] = _alpha(p[ALPHA_B], M[i], p[M_MIN], p[M_MAX], p[S_T]) * wfac[i] * H_c[i]
+            fronts.element_rho(i, growth[i] - p[BETA_B] * C[i], kb[i], spacing, aniso, table, rho)
+        for i in nb.prange(n):  # Eq. 9
             r = R_b[i]
-            f = a * r * (1.0 - r) * H_c[i] - p[BETA_B] * C[i] * r
-            buf[i] = _clamp(r + h * (f + _lap(i, R_b, kb, indptr, indices, weight, volume)), 0.0, 1.0, clamp, i)
+            f = growth[i] * r * (1.0 - r) - P[tissue[i], BETA_B] * C[i] * r
+            lap = _lap_front(i, R_b, kb, rho, share, indptr, indices, weight, volume)
+            buf[i] = _clamp(r + h * (f + lap), 0.0, 1.0, clamp, i)
         for i in nb.prange(n):
             R_b[i] = buf[i]
     for i in nb.prange(n):  # Eqs. 12, 13 (no transport: pointwise)
@@ -266,9 +295,11 @@ def _numba_kernel(setup: BioSetup, state: SimState, h: float, M12: np.ndarray, w
     op = setup.op
     n = len(state.R_w)
     clamp = np.zeros(n, dtype=np.int64)
-    _substep(h, op.indptr, op.indices, op.weight, op.volume, setup.tissue, setup.P, setup.wfac,
-             setup.bd, setup.kappa, M12, setup.box_M, w, k_g, state.R_w, state.R_b, state.H_c, state.H_l,
-             state.C, state.M, np.array([state.R_w.any(), state.R_b.any()]), np.empty(n), np.empty(n), clamp)
+    _substep(h, op.indptr, op.indices, op.weight, op.share, op.spacing, op.volume, setup.tissue, setup.P,
+             setup.wfac, setup.bd, setup.kappa, setup.aniso, setup.rho_table, M12, setup.box_M, w, k_g,
+             state.R_w, state.R_b, state.H_c, state.H_l, state.C, state.M,
+             np.array([state.R_w.any(), state.R_b.any()]), np.empty(n), np.empty(n), np.empty((n, 3)),
+             np.empty(n), clamp)
     state.clamp_count += int(clamp.sum())
 
 
@@ -305,11 +336,20 @@ def _reference_kernel(setup: BioSetup, s: SimState, h: float, M12: np.ndarray, w
     def alpha(a0):
         return a0 * _smoothstep_np((s.M - col["M_min"]) / col["s_t"]) * _smoothstep_np((col["M_max"] - s.M) / col["s_t"]) * w
 
-    sub = (col["lambda_l"] * s.H_l + col["lambda_c"] * s.H_c) * s.H_c / (col["K_c"] + s.H_c)
-    f = alpha(col["alpha_w0"]) * s.R_w * (1 - s.R_w) * sub - col["beta_w"] * s.C * s.R_w
-    s.R_w = _clamp_np(s.R_w + h * (f + op.apply(s.R_w, setup.kappa[:, 0])), 0.0, 1.0, s)
-    f = alpha(col["alpha_b0"]) * s.R_b * (1 - s.R_b) * s.H_c - col["beta_b"] * s.C * s.R_b
-    s.R_b = _clamp_np(s.R_b + h * (f + op.apply(s.R_b, setup.kappa[:, 1])), 0.0, 1.0, s)
+    rows = op.rows
+
+    def front_scale(g, kappa):
+        rho = fronts.rho_reference(g, kappa, op.spacing, setup.aniso, setup.rho_table)
+        return np.sum(op.share * 0.5 * (rho[rows] + rho[op.indices]), axis=1)
+
+    growth = alpha(col["alpha_w0"]) * (col["lambda_l"] * s.H_l + col["lambda_c"] * s.H_c) * s.H_c / (col["K_c"] + s.H_c)
+    scale = front_scale(growth - col["beta_w"] * s.C, setup.kappa[:, 0])
+    f = growth * s.R_w * (1 - s.R_w) - col["beta_w"] * s.C * s.R_w
+    s.R_w = _clamp_np(s.R_w + h * (f + op.apply(s.R_w, setup.kappa[:, 0], scale)), 0.0, 1.0, s)
+    growth = alpha(col["alpha_b0"]) * s.H_c
+    scale = front_scale(growth - col["beta_b"] * s.C, setup.kappa[:, 1])
+    f = growth * s.R_b * (1 - s.R_b) - col["beta_b"] * s.C * s.R_b
+    s.R_b = _clamp_np(s.R_b + h * (f + op.apply(s.R_b, setup.kappa[:, 1], scale)), 0.0, 1.0, s)
     fc = -col["gamma_cw"] * s.R_w * s.H_c - col["gamma_cb"] * s.R_b * s.H_c + col["rho_c"] * (1 - s.H_c) * s.C
     fl = -col["gamma_lw"] * s.R_w * s.H_l + col["rho_l"] * (1 - s.H_l) * s.C
     s.H_c = _clamp_np(s.H_c + h * fc, 0.0, 1.0, s)

@@ -31,6 +31,7 @@ from itertools import combinations
 import numpy as np
 
 from .. import fmath as fm
+from . import fronts
 
 
 def _supports(k: int) -> np.ndarray:
@@ -49,15 +50,18 @@ class TransportOperator:
     volume: np.ndarray  # (n,) V_i
     fit_error: np.ndarray  # (n,) relative residual of the across-grain moment fit
     chain_saturated: int  # elements whose cross pairs alone exceed the longitudinal moment
+    share: np.ndarray  # (nnz, 3) the entry's share along (e_r, e_t, e_l) (fronts.share)
+    spacing: np.ndarray  # (n, 3) lattice spacing h_ik along (e_r, e_t, e_l) (fronts.spacing)
 
     @property
     def rows(self) -> np.ndarray:
         return np.repeat(np.arange(len(self.volume)), np.diff(self.indptr))
 
-    def apply(self, u: np.ndarray, kappa: np.ndarray) -> np.ndarray:
-        """(L_kappa u)_i, plain numpy (the reference the numba kernels are tested against)."""
+    def apply(self, u: np.ndarray, kappa: np.ndarray, scale: np.ndarray | float = 1.0) -> np.ndarray:
+        """(L_kappa u)_i, plain numpy (the reference the numba kernels are tested against), each
+        entry's weight times ``scale`` (per entry: the fronts' correction, :mod:`.fronts`)."""
         rows = self.rows
-        c = self.weight * 0.5 * (kappa[rows] + kappa[self.indices])
+        c = scale * self.weight * 0.5 * (kappa[rows] + kappa[self.indices])
         return np.bincount(rows, c * (u[self.indices] - u[rows]), minlength=len(u)) / self.volume
 
     def row_sums(self, kappa: np.ndarray) -> np.ndarray:
@@ -138,11 +142,12 @@ def assemble(
     reverse = csr_reverse(indptr, indices)
     d = centers[cols] - centers[rows]
     dist = np.linalg.norm(d, axis=1)
+    d_frame = np.einsum("mki,mi->mk", frames[rows], d)  # (d . e_r, d . e_t, d . e_l)
     weight = np.zeros(len(rows))
     # across the grain: REG edges weighted by their overlap along the grain, with the second
     # moment in the (e_r, e_t) plane renormalised per node (module docstring)
     reg = ~chain
-    proj = np.einsum("mki,mi->mk", frames[rows, :2], d)  # (d . e_r, d . e_t)
+    proj = d_frame[:, :2]
     perp2 = np.einsum("mk,mk->m", proj, proj)
     nk2 = proj**2 / np.maximum(perp2, 1e-300)[:, None]
     h2 = np.mean(perp2[reg]) if reg.any() else 1.0
@@ -162,10 +167,11 @@ def assemble(
     weight[reg] = (0.5 * (vg + vg[reverse]))[reg]
     # along the grain: 1D finite volumes on the strand chain, w = a_l A / |d|, less the share of
     # the longitudinal second moment the REG edges already carry through their stagger
-    along = np.einsum("mi,mi->m", frames[rows, 2], d)
+    along = d_frame[:, 2]
     m_l = np.bincount(rows, weight * along**2, minlength=n) / volume
     f = m_l / (2.0 * aniso[:, 2])
     a_l = 0.5 * (aniso[rows, 2] + aniso[cols, 2])
     weight[chain] = (a_l * area / dist * np.maximum(0.0, 1.0 - 0.5 * (f[rows] + f[cols])))[chain]
     return TransportOperator(indptr=indptr, indices=indices, weight=weight, reverse=reverse, volume=volume,
-                             fit_error=fit_error, chain_saturated=int(np.sum(f > 1.0)))
+                             fit_error=fit_error, chain_saturated=int(np.sum(f > 1.0)),
+                             share=fronts.share(d_frame, reverse), spacing=fronts.spacing(rows, d_frame, weight, n))

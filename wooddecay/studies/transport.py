@@ -10,7 +10,7 @@ replaced by a constant one so that planar fronts and heat kernels have fixed pri
   Bramson's log correction (an ideal 1D finite-difference solver gives 0.993 on that window), at
   a resolution q = h sqrt(alpha / D_dir) of the element spacing h in front widths.
 * :func:`front_resolution`: that q for the decay fronts of a scene's model, and
-  :func:`lattice_speed_ratio` the speed a 1D lattice of spacing h gives a front at q: a pulled
+  :func:`wooddecay.sim.fronts.lattice_speed_ratio` the speed a 1D lattice of spacing h gives a front at q: a pulled
   front runs ahead of the continuum's on a coarse graph, since its leading edge jumps h at once.
 """
 from __future__ import annotations
@@ -138,20 +138,6 @@ def fisher_speed_ratio(direction: str, alpha: float = 1.0, q: float | None = Non
     corrected = X + 1.5 * np.sqrt(D_dir / alpha) * np.log(alpha * ts)
     v = np.polyfit(ts[late], corrected[late], 1)[0]
     return float(v / (2 * np.sqrt(alpha * D_dir))), s.clamp_count
-
-
-def lattice_speed_ratio(q: float, alpha_dt: float = 0.0) -> float:
-    """Speed of a pulled Fisher-KPP front on a 1D lattice (u_t = D (u_{i+1} - 2 u_i + u_{i-1}) / h^2
-    + alpha u (1 - u), explicit Euler steps of dt) over the continuum's 2 sqrt(alpha D), at q =
-    h sqrt(alpha / D) and ``alpha_dt`` = alpha dt (0: exact in time). The linearised leading edge
-    u ~ exp(-mu (x - c t) / h) grows by G = 1 + alpha dt (1 + 2 (cosh mu - 1) / q^2) a step, so
-    the ratio is the minimum over mu > 0 of q ln G / (2 mu alpha dt) (van Saarloos 2003, Phys.
-    Rep. 386, §2), which at alpha dt -> 0 is (q / mu + 2 (cosh mu - 1) / (q mu)) / 2: 1 as q -> 0."""
-    mu = np.linspace(1e-4, 40.0, 400_001)
-    with np.errstate(over="ignore"):
-        growth = 1.0 + 2.0 * (np.cosh(mu) - 1.0) / q**2
-        c = q * (growth if alpha_dt == 0.0 else np.log1p(alpha_dt * growth) / alpha_dt) / (2.0 * mu)
-    return float(np.min(c))
 
 
 def front_resolution(model) -> dict[str, dict[str, float]]:
