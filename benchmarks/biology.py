@@ -9,8 +9,10 @@ Prints ``name value unit`` lines for samples/tree.toml (or the scene given):
     diffusing_passes                the transported fields updated: C, M, and R_w and R_b where a
                                     fungus is present (a rot field zero everywhere is skipped)
 Traffic model per substep: each diffusing pass streams its CSR row (index, weight) and gathers
-u_j and kappa_j: 32 bytes per nonzero; the passes also read and write their per-element arrays
-(63 doubles per element over the six updates). Timings are medians of 9 substeps after a
+u_j and kappa_j: 32 bytes per nonzero, and a fungus' pass also its entries' three shares and the
+neighbours' three front factors (sim/fronts.py): 80 bytes; the passes also read and write their
+per-element arrays (63 doubles per element over the six updates, and 11 more per fungus: growth
+written and read, spacing and transport factors read, front factors written). Timings are medians of 9 substeps after a
 warm-up, with their quartiles and extremes, all in this one run.
 """
 from __future__ import annotations
@@ -57,7 +59,8 @@ def main() -> None:
         print(f"bio_updates_per_s_threads_{k} {6 * n / median:.4g} 1/s")
     nb.set_num_threads(nb.config.NUMBA_NUM_THREADS)
     bw = stream_triad()
-    traffic = passes * 32 * nnz + 63 * 8 * n
+    fungi = passes - 2
+    traffic = (2 * 32 + fungi * 80) * nnz + (63 + 11 * fungi) * 8 * n
     print(f"stream_triad_gb_s {bw / 1e9:.2f} GB/s")
     print(f"bio_bytes_per_substep {traffic} B")
     print(f"bio_bandwidth_fraction {traffic / min(results.values()) / bw:.3f} -")
