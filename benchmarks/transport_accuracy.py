@@ -2,8 +2,8 @@
 heat-kernel variance growth over 2 D a_dir and Fisher-KPP front speed over 2 sqrt(alpha D_dir),
 along e_l, e_r and e_t (1.0 is exact), with the seconds each took; then the resolution q of the
 decay fronts of ``SCENE`` (default samples/log.toml; every shipped sample has its strands and
-rods) and the front speed on the rod graph and on a 1D lattice at each of those q, in biology
-steps of ALPHA_DT / alpha.
+rods) and the front speed on the rod graph (with the fronts' correction, sim/fronts.py) and on a
+1D lattice without it at each of those q, in biology steps of ALPHA_DT / alpha.
 
     python benchmarks/transport_accuracy.py [SCENE]
 """
