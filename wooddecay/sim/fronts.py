@@ -27,6 +27,8 @@ diffuses. Measured on the rod graph: ``benchmarks/transport_accuracy.py``.
 """
 from __future__ import annotations
 
+import functools
+
 import numba as nb
 import numpy as np
 
@@ -35,29 +37,35 @@ Q_STEP = 0.01
 Q_END = 40.0
 
 
+def _ratio(q, mu, alpha_dt: float = 0.0):
+    """The leading edge's speed over the continuum's at decay rate ``mu`` per spacing: q ln G /
+    (2 mu alpha dt), G = 1 + alpha dt (1 + 2 (cosh mu - 1) / q^2) the growth of an explicit step,
+    and at alpha dt -> 0 (q / mu + 2 (cosh mu - 1) / (q mu)) / 2 (module docstring)."""
+    with np.errstate(over="ignore"):
+        if alpha_dt == 0.0:
+            return (q / mu + 2.0 * (np.cosh(mu) - 1.0) / (q * mu)) / 2.0
+        return q * np.log1p(alpha_dt * (1.0 + 2.0 * (np.cosh(mu) - 1.0) / q**2)) / (2.0 * mu * alpha_dt)
+
+
 def lattice_speed_ratio(q: float, alpha_dt: float = 0.0) -> float:
     """Speed of a pulled Fisher-KPP front on a 1D lattice (u_t = D (u_{i+1} - 2 u_i + u_{i-1}) / h^2
     + alpha u (1 - u), explicit Euler steps of dt) over the continuum's 2 sqrt(alpha D), at q =
-    h sqrt(alpha / D) and ``alpha_dt`` = alpha dt (0: exact in time). The linearised leading edge
-    grows by G = 1 + alpha dt (1 + 2 (cosh mu - 1) / q^2) a step, so the ratio is the minimum over
-    mu > 0 of q ln G / (2 mu alpha dt), which at alpha dt -> 0 is R(q) (module docstring)."""
-    mu = np.linspace(1e-4, 40.0, 400_001)
-    with np.errstate(over="ignore"):
-        growth = 1.0 + 2.0 * (np.cosh(mu) - 1.0) / q**2
-        c = q * (growth if alpha_dt == 0.0 else np.log1p(alpha_dt * growth) / alpha_dt) / (2.0 * mu)
-    return float(np.min(c))
+    h sqrt(alpha / D) and ``alpha_dt`` = alpha dt (0: exact in time): the minimum of
+    :func:`_ratio` over mu > 0, R(q) at alpha dt -> 0."""
+    return float(np.min(_ratio(q, np.linspace(1e-4, 40.0, 400_001), alpha_dt)))
 
 
+@functools.cache
 def rho_table() -> np.ndarray:
     """rho on q = k Q_STEP, k = 0 .. Q_END / Q_STEP: the diffusivity factor that brings a 1D
     lattice's front at q to the continuum's speed (module docstring), from R(Q) on a geometric
-    grid of Q, interpolated in q."""
+    grid of Q, interpolated in q. One read-only table, shared by every model."""
     Q = np.geomspace(1e-3, 1e6, 1_000)
-    mu = np.geomspace(1e-5, 40.0, 6_000)[:, None]
-    with np.errstate(over="ignore"):
-        R = np.min((Q / mu + 2.0 * (np.cosh(mu) - 1.0) / (Q * mu)) / 2.0, axis=0)
+    R = np.min(_ratio(Q, np.geomspace(1e-5, 40.0, 6_000)[:, None]), axis=0)
     q = np.arange(0.0, Q_END + 0.5 * Q_STEP, Q_STEP)
-    return np.interp(q, np.concatenate([[0.0], Q / R]), np.concatenate([[1.0], 1.0 / R**2]))
+    table = np.interp(q, np.concatenate([[0.0], Q / R]), np.concatenate([[1.0], 1.0 / R**2]))
+    table.flags.writeable = False
+    return table
 
 
 def spacing(rows: np.ndarray, d: np.ndarray, weight: np.ndarray, n: int) -> np.ndarray:
