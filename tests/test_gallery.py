@@ -184,3 +184,33 @@ def test_sparser_rods_compare_block_purity_only_where_the_default_came_apart():
     log = {**sig, "hollow_fraction": 0.0, "block_purity": 1.0, "pieces": 107}
     assert not within_tolerance({**log, "block_purity": 0.6, "pieces": 13}, log)
     assert within_tolerance({**log, "block_purity": 0.9, "pieces": 68}, log)
+
+
+def test_the_timestep_renders_are_compared_with_the_default_through_one_camera(tmp_path, monkeypatch):
+    """Fig. 20's SSIM: every run against ``dt``, all rendered through one camera box; the floor's
+    run differs from the default only by k_col x (1 + PERTURBATION)."""
+    from types import SimpleNamespace
+
+    import numpy as np
+    from PIL import Image
+
+    from wooddecay.gallery import sensitivity
+
+    runs = sensitivity.variants("fig12", quick=True)
+    changed = {k for k in runs["perturbed"] if runs["perturbed"][k] != runs["dt"].get(k)}
+    assert changed == {"mechanics.k_col"} and runs["perturbed"]["mechanics.k_col"] == 1e7 * (1 + sensitivity.PERTURBATION)
+    boxes = []
+
+    def render(usd, png, frame, options):
+        boxes.append(options[options.index("--fit-box") + 1:])
+        grey = np.full((40, 60), 128, np.uint8)
+        grey[10:20, 10:30] = 0 if usd == "dt_half.usdc" else 255
+        Image.fromarray(grey).save(png)
+
+    monkeypatch.setattr(sensitivity, "render_panel", render)
+    frame = SimpleNamespace(index=3, mech={"x": np.zeros((2, 3))})
+    frames = {v: [frame] for v in ("dt", "dt_half", "perturbed")}
+    ssim = sensitivity.ssim_at(frames, {v: f"{v}.usdc" for v in frames}, 0, tmp_path, "degraded", 0.01)
+    assert set(ssim) == {"dt_half", "perturbed"} and ssim["perturbed"] == 1.0 and ssim["dt_half"] < 0.9
+    assert len(boxes) == 3 and all(b == boxes[0] for b in boxes)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dt_degraded.png", "dt_half_degraded.png", "perturbed_degraded.png"]

@@ -32,15 +32,16 @@ def test_the_plan_is_every_variant_then_the_studies_bakes_in_figure_order(tmp_pa
     jobs = plan(select(("fig12", "fig20")), tmp_path, quick=True, resume=False)
     assert [j.folder.relative_to(tmp_path).as_posix() for j in jobs] == [
         "fig12/uniform", "fig12/one_side", *(f"fig20/{f}/{v}" for f in ("fig12", "fig14")
-                                             for v in ("dt_half", "sparse2", "sparse4"))]
+                                             for v in ("dt_half", "perturbed", "sparse2", "sparse4"))]
     assert jobs[1].overrides["inoculation.1.activity"] == 0.8 and jobs[0].overrides["strands.r_s"] == 0.012
 
 
 def test_a_resumed_plan_leaves_out_the_finished_bakes_of_variants_and_studies(tmp_path, monkeypatch):
     monkeypatch.setattr(bakes, "finished_bake", lambda scene, folder: folder.name in ("uniform", "sparse4") or None)
     folders = [j.folder.relative_to(tmp_path).as_posix() for j in plan(select(("fig12", "fig20")), tmp_path, True, True)]
-    assert folders == ["fig12/one_side", *(f"fig20/{f}/{v}" for f in ("fig12", "fig14") for v in ("dt_half", "sparse2"))]
-    assert len(plan(select(("fig12", "fig20")), tmp_path, True, False)) == 8
+    assert folders == ["fig12/one_side", *(f"fig20/{f}/{v}" for f in ("fig12", "fig14")
+                                           for v in ("dt_half", "perturbed", "sparse2"))]
+    assert len(plan(select(("fig12", "fig20")), tmp_path, True, False)) == 10
 
 
 @pytest.mark.slow

@@ -3,10 +3,14 @@
 
 Timestep: the cracking state (the first frame with FIRST_CRACKS broken connections in the default
 run, as Fig. 6 reads its cracks) and the degraded state (the last frame) of both runs are rendered
-alike (one camera fitted to both, no captions, no quantisation) and compared by SSIM (:mod:`.ssim`; the paper: 0.9984 and 0.9868, our targets
-SSIM_TARGET). Resolution: strands 2x and 4x sparser (r_s x sqrt 2 and x 2, so 1/2 and 1/4 of the
-strands) keep the last frame's signature within TOLERANCE of the default's (block purity where the
-default has come apart into PURITY_PIECES pieces or more: :func:`within_tolerance`).
+alike (one camera fitted to all runs, no captions, no quantisation) and compared by SSIM
+(:mod:`.ssim`; the paper: 0.9984 and 0.9868, our targets SSIM_TARGET). The floor: the default run
+against itself with the contact stiffness k_col changed by PERTURBATION (a change of the order of
+the solver's round-off), rendered and compared alike; where pieces fall and pile up this is the
+most the timestep comparison can reach (docs/decisions.md, "Fig. 20's chaos floor"). Resolution:
+strands 2x and 4x sparser (r_s x sqrt 2 and x 2, so 1/2 and 1/4 of the strands) keep the last
+frame's signature within TOLERANCE of the default's (block purity where the default has come apart
+into PURITY_PIECES pieces or more: :func:`within_tolerance`).
 """
 from __future__ import annotations
 
@@ -29,6 +33,8 @@ SSIM_TARGET = (0.99, 0.985)
 TOLERANCE = {"mass_loss": 0.05, "hollow_fraction": 0.1, "largest_piece_fraction": 0.25, "block_purity": 0.2}
 #: block purity is a median over the pieces: compared only where the default has this many
 PURITY_PIECES = 5
+#: relative change of mechanics.k_col in the ``perturbed`` run (the SSIM floor, module docstring)
+PERTURBATION = 1e-7
 #: renders compared by SSIM: as the panels, without captions or quantisation
 SSIM_OPTIONS = ("--no-labels", "--max-kb", "0")
 
@@ -54,8 +60,10 @@ def run(out: Path, quick: bool, renders: bool, log, resume: bool) -> tuple[dict,
         entry["within_tolerance"] = {v: within_tolerance(runs[v]["signature"], ref) for v in ("sparse2", "sparse4")}
         if renders:
             last = len(frames["dt"]) - 1
+            compared = ("dt", "dt_half", "perturbed")
             for state, k in (("cracking", first_cracks(frame_rows(summaries["dt"]))), ("degraded", last)):
-                entry[f"ssim_{state}"] = ssim_at(frames, usds, k, out / name, state, 2.0 * scene.strands.r_s)
+                ssim = ssim_at({v: frames[v] for v in compared}, usds, k, out / name, state, 2.0 * scene.strands.r_s)
+                entry[f"ssim_{state}"], entry[f"floor_{state}"] = ssim["dt_half"], ssim["perturbed"]
                 entry[f"{state}_frame"] = int(frames["dt"][k].index)
         measured[name] = entry
     chart = out / "fig20.png"
@@ -65,10 +73,12 @@ def run(out: Path, quick: bool, renders: bool, log, resume: bool) -> tuple[dict,
 
 def variants(name: str, quick: bool) -> dict[str, dict]:
     """The overrides of figure ``name``'s scene for each run of the study: ``dt`` (the default
-    step), ``dt_half``, ``sparse2`` and ``sparse4`` (the figure's --quick ones under ``quick``)."""
+    step), ``dt_half``, ``perturbed`` (k_col changed by PERTURBATION), ``sparse2`` and
+    ``sparse4`` (the figure's --quick ones under ``quick``)."""
     base = FIGURES[name].quick if quick else {}
     scene = load_scene(SCENES / FIGURES[name].scene, overrides=base)
     return {"dt": dict(base), "dt_half": {**base, "time.dt_bio": scene.time.dt_bio / 2},
+            "perturbed": {**base, "mechanics.k_col": scene.mechanics.k_col * (1.0 + PERTURBATION)},
             "sparse2": {**base, "strands.r_s": scene.strands.r_s * math.sqrt(2.0)},
             "sparse4": {**base, "strands.r_s": scene.strands.r_s * 2.0}}
 
@@ -88,15 +98,15 @@ def own_bakes(name: str, out: Path) -> tuple[Path, ...]:
     return tuple(out.parent / name / v.name for v in fig.variants if not v.overrides and v.scene in (None, fig.scene))
 
 
-def ssim_at(frames: dict, usds: dict, k: int, folder: Path, state: str, pad: float) -> float:
-    """SSIM of frame ``k`` of the ``dt`` and ``dt_half`` runs (their frames and USD files, keyed
-    so), rendered alike into ``folder/<run>_<state>.png`` through one camera fitted to both
-    (:func:`fit_box`, ``pad`` m wider)."""
-    pngs = [folder / f"{v}_{state}.png" for v in ("dt", "dt_half")]
-    box = fit_box([frames[v][k] for v in ("dt", "dt_half")], pad)
-    for v, png in zip(("dt", "dt_half"), pngs):
+def ssim_at(frames: dict, usds: dict, k: int, folder: Path, state: str, pad: float) -> dict[str, float]:
+    """SSIM against the ``dt`` run's frame ``k`` of every other run's (``frames`` and ``usds``
+    keyed by run, ``dt`` among them), keyed by run: each rendered into ``folder/<run>_<state>.png``
+    through one camera fitted to all (:func:`fit_box`, ``pad`` m wider)."""
+    pngs = {v: folder / f"{v}_{state}.png" for v in frames}
+    box = fit_box([f[k] for f in frames.values()], pad)
+    for v, png in pngs.items():
         render_panel(usds[v], png, frames[v][k].index, (*SSIM_OPTIONS, "--fit-box", *box))
-    return ssim_png(*pngs)
+    return {v: ssim_png(pngs["dt"], png) for v, png in pngs.items() if v != "dt"}
 
 
 def fit_box(frames, pad: float) -> list[str]:
@@ -122,7 +132,8 @@ def decide(measured: dict) -> bool:
 
 
 def plot(measured: dict, path: Path) -> None:
-    """Per scene, the last frame's signature (TOLERANCE's keys) of the four runs, SSIM in the title."""
+    """Per scene, the last frame's signature (TOLERANCE's keys) of every run, SSIM and its floor in
+    the title."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -134,10 +145,11 @@ def plot(measured: dict, path: Path) -> None:
         runs = e["runs"]
         width = 0.8 / len(runs)
         for i, (v, r) in enumerate(runs.items()):
-            ax.bar(np.arange(len(keys)) + (i - 1.5) * width, [r["signature"][k] for k in keys], width,
+            ax.bar(np.arange(len(keys)) + (i - (len(runs) - 1) / 2) * width, [r["signature"][k] for k in keys], width,
                    label=f"{v} ({r['elements']} elements)")
         ax.set_xticks(np.arange(len(keys)), [k.replace("_", " ") for k in keys], fontsize=8)
-        ssim_text = (f"SSIM dt/2: cracking {e['ssim_cracking']:.4f}, degraded {e['ssim_degraded']:.4f}"
+        ssim_text = (f"SSIM dt/2: cracking {e['ssim_cracking']:.4f}, degraded {e['ssim_degraded']:.4f}\n"
+                     f"floor (k_col x (1 + {PERTURBATION:g})): cracking {e['floor_cracking']:.4f}, degraded {e['floor_degraded']:.4f}"
                      if "ssim_cracking" in e else "SSIM: not rendered")
         ax.set_title(f"{name}\n{ssim_text}", fontsize=9)
         ax.set_ylim(0, 1.05)
