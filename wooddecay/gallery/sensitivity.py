@@ -149,7 +149,8 @@ def plot(measured: dict, path: Path) -> None:
                    label=f"{v} ({r['elements']} elements)")
         ax.set_xticks(np.arange(len(keys)), [k.replace("_", " ") for k in keys], fontsize=8)
         ssim_text = (f"SSIM dt/2: cracking {e['ssim_cracking']:.4f}, degraded {e['ssim_degraded']:.4f}\n"
-                     f"floor (k_col x (1 + {PERTURBATION:g})): cracking {e['floor_cracking']:.4f}, degraded {e['floor_degraded']:.4f}"
+                     f"floor (k_col x (1 + {PERTURBATION:g})): cracking {e['floor_cracking']:.4f}, "
+                     f"degraded {e['floor_degraded']:.4f}"
                      if "ssim_cracking" in e else "SSIM: not rendered")
         ax.set_title(f"{name}\n{ssim_text}", fontsize=9)
         ax.set_ylim(0, 1.05)
