@@ -2,11 +2,11 @@
 (Fig. 14) baked at the default step dt_bio and at dt_bio / 2, and with 2x and 4x sparser rods.
 
 Timestep: the cracking state (the first frame with FIRST_CRACKS broken connections in the default
-run, as Fig. 6 reads its cracks) and the degraded state (the last frame) of both runs are rendered
-alike (one camera fitted to all runs, no captions, no quantisation) and compared by SSIM
+run, as Fig. 6 reads its cracks) and the degraded state (the last frame) of the runs in COMPARED
+are rendered alike (one camera fitted to all of them, no captions, no quantisation) and compared by SSIM
 (:mod:`.ssim`; the paper: 0.9984 and 0.9868, our targets SSIM_TARGET). The floor: the default run
-against itself with the contact stiffness k_col changed by PERTURBATION (a change of the order of
-the solver's round-off), rendered and compared alike; where pieces fall and pile up this is the
+against itself with the contact stiffness k_col changed by PERTURBATION (a change far below any
+physical meaning), rendered and compared alike; where pieces fall and pile up this is the
 most the timestep comparison can reach (docs/decisions.md, "Fig. 20's chaos floor"). Resolution:
 strands 2x and 4x sparser (r_s x sqrt 2 and x 2, so 1/2 and 1/4 of the strands) keep the last
 frame's signature within TOLERANCE of the default's (block purity where the default has come apart
@@ -35,6 +35,8 @@ TOLERANCE = {"mass_loss": 0.05, "hollow_fraction": 0.1, "largest_piece_fraction"
 PURITY_PIECES = 5
 #: relative change of mechanics.k_col in the ``perturbed`` run (the SSIM floor, module docstring)
 PERTURBATION = 1e-7
+#: the runs rendered for SSIM: the default, half the step (``ssim_*``) and the floor's (``floor_*``)
+COMPARED = ("dt", "dt_half", "perturbed")
 #: renders compared by SSIM: as the panels, without captions or quantisation
 SSIM_OPTIONS = ("--no-labels", "--max-kb", "0")
 
@@ -60,9 +62,8 @@ def run(out: Path, quick: bool, renders: bool, log, resume: bool) -> tuple[dict,
         entry["within_tolerance"] = {v: within_tolerance(runs[v]["signature"], ref) for v in ("sparse2", "sparse4")}
         if renders:
             last = len(frames["dt"]) - 1
-            compared = ("dt", "dt_half", "perturbed")
             for state, k in (("cracking", first_cracks(frame_rows(summaries["dt"]))), ("degraded", last)):
-                ssim = ssim_at({v: frames[v] for v in compared}, usds, k, out / name, state, 2.0 * scene.strands.r_s)
+                ssim = ssim_at({v: frames[v] for v in COMPARED}, usds, k, out / name, state, 2.0 * scene.strands.r_s)
                 entry[f"ssim_{state}"], entry[f"floor_{state}"] = ssim["dt_half"], ssim["perturbed"]
                 entry[f"{state}_frame"] = int(frames["dt"][k].index)
         measured[name] = entry
