@@ -1,4 +1,4 @@
-"""The gravity cantilever in wooddecay's XPBD rods and in PyElastica (SPEC §7).
+"""The gravity cantilever in wooddecay's XPBD rods and in PyElastica (docs/model.md §7).
 
 Default run (L = 0.5 m, r_s = 6 mm, E = 1 GPa, 20 elements); prints ``name value unit`` lines:
     cantilever_error, cantilever_seconds     ours at dt = 2e-4 s, 2 iterations, 1 s simulated

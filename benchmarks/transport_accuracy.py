@@ -1,4 +1,4 @@
-"""Transport accuracy on the irregular rod graph (SPEC §7), printed as ``name value unit``:
+"""Transport accuracy on the irregular rod graph (docs/model.md §7), printed as ``name value unit``:
 heat-kernel variance growth over 2 D a_dir and Fisher-KPP front speed over 2 sqrt(alpha D_dir),
 along e_l, e_r and e_t (1.0 is exact), with the seconds each took; then the resolution q of the
 decay fronts of ``SCENE`` (default samples/log.toml; every shipped sample has its strands and

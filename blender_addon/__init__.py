@@ -1,6 +1,6 @@
 """Wood Decay: import wooddecay bakes into Blender with a fungal decay material.
 
-A Blender 4.2+ extension (DESIGN "Blender add-on"). File > Import > Wood Decay
+A Blender 4.2+ extension (docs/architecture.md "Blender add-on"). File > Import > Wood Decay
 (.usd/.usda/.usdc/.glb) imports a bake through Blender's own USD or glTF importer, renames the
 glTF attributes to the USD primvar names and gives the meshes the "Wood Decay" material, whose
 controls sit on one "Wood Decay" group node. Scripts can call the operator directly::

@@ -1,5 +1,5 @@
 """Blender side of the importer: a wooddecay bake through Blender's own USD or glTF importer,
-then the attributes renamed and the Wood Decay material assigned (DESIGN "Blender add-on").
+then the attributes renamed and the Wood Decay material assigned (docs/architecture.md "Blender add-on").
 
 USD (``bpy.ops.wm.usd_import``): the mesh keeps the primvar names (H_c, H_l, M, R_w, R_b, C,
 wood, ring, bark_crack, bark_crack_depth; faceKind, element, tissue, piece per face); points and

@@ -1,4 +1,4 @@
-"""Format helpers of the Wood Decay importer, with no ``bpy`` (DESIGN "Blender add-on").
+"""Format helpers of the Wood Decay importer, with no ``bpy`` (docs/architecture.md "Blender add-on").
 
 The Blender side (:mod:`.blender_import`) imports a bake through Blender's own USD or glTF
 importer; this module holds what does not need Blender, so it can be read and tested alone

@@ -1,5 +1,5 @@
 """Blender side of the Wood Decay material: the node group of :mod:`.shader` as Blender nodes,
-and the material that feeds it from the mesh attributes (DESIGN "Blender add-on").
+and the material that feeds it from the mesh attributes (docs/architecture.md "Blender add-on").
 
 * :func:`ensure_group` builds (or reuses) the "Wood Decay" ShaderNodeTree node group;
 * :func:`build_material` makes a material: one Attribute node per attribute present on the

@@ -1,4 +1,4 @@
-"""The Wood Decay material as data, with no ``bpy`` (DESIGN "Blender add-on"; woodstock §8.3,
+"""The Wood Decay material as data, with no ``bpy`` (docs/architecture.md "Blender add-on"; woodstock §8.3,
 offline rendering: a PBR material with procedural textures in wood-local coordinates, albedo and
 roughness modulated by coherent noise, the same noise as small-scale relief, colour and roughness
 blended as functions of H_c, H_l and M).

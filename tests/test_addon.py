@@ -1,4 +1,4 @@
-"""The Blender add-on (DESIGN "Blender add-on"; issue 6, item 5 and "Show"), headless with the
+"""The Blender add-on (docs/architecture.md "Blender add-on"; issue 6, item 5 and "Show"), headless with the
 ``bpy`` wheel.
 
 Every bpy step runs in a subprocess (``bpy`` bundles its own ``pxr``, which must not meet

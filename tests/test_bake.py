@@ -64,7 +64,7 @@ def test_bake_replaces_an_earlier_crack_map(tmp_path):
 
 def test_bake_reports_under_converged_mechanics_with_its_remedy(tmp_path):
     """The tiny log's strands at the default 1 iteration per 0.1 ms substep are far softer than
-    their E (SPEC §7): summary.json and one stderr line say so and name the remedy."""
+    their E (docs/model.md §7): summary.json and one stderr line say so and name the remedy."""
     res = run("bake", TINY, "-o", tmp_path, *SHORT)
     assert res.exit_code == 0, res.output
     conv = json.loads((tmp_path / "summary.json").read_text())["convergence"]

@@ -1,4 +1,4 @@
-"""Bark cracks and shedding (wooddecay.bark, wooddecay.sim.bark; SPEC §10, woodification §5)."""
+"""Bark cracks and shedding (wooddecay.bark, wooddecay.sim.bark; docs/model.md §10, woodification §5)."""
 from __future__ import annotations
 
 from dataclasses import replace

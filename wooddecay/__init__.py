@@ -1,6 +1,6 @@
 """wooddecay: fungal wood decay (Woodstock, SIGGRAPH 2026) baked into USD and glTF assets.
 
-Python API (DESIGN "Python API")::
+Python API (docs/architecture.md "Python API")::
 
     import wooddecay as wd
     scene = wd.load_scene("samples/log.toml", overrides={"time.days": 30})

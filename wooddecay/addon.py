@@ -8,7 +8,7 @@ tags included) and writes ``<id>-<version>.zip``. :func:`install` runs ``extensi
 the same way (used by the tests; Blender users install the zip from Blender itself).
 
 Everything that imports ``bpy`` runs in a subprocess of this Python: ``bpy`` bundles its own
-``pxr``, which must never meet usd-core's ``pxr`` in one interpreter (DESIGN "Blender add-on").
+``pxr``, which must never meet usd-core's ``pxr`` in one interpreter (docs/architecture.md "Blender add-on").
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Atomic file output: never a half file (DESIGN "CLI": outputs are written to a temporary name
+"""Atomic file output: never a half file (docs/architecture.md "CLI": outputs are written to a temporary name
 and renamed).
 
 :func:`write_bytes` writes to a hidden temporary file in the target's folder that keeps the real

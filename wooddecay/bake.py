@@ -1,4 +1,4 @@
-"""``wooddecay bake``: simulate, mesh and export a scene (DESIGN "CLI").
+"""``wooddecay bake``: simulate, mesh and export a scene (docs/architecture.md "CLI").
 
 :func:`bake` runs the model build, the coupled simulation (:class:`wooddecay.sim.driver.Simulation`),
 the rest meshlets (:func:`wooddecay.meshlets.sweep.build_meshlets`) and the exporters, and writes

@@ -1,7 +1,7 @@
-"""The size of a bake, estimated from the scene alone before anything large is allocated (SPEC §7).
+"""The size of a bake, estimated from the scene alone before anything large is allocated (docs/model.md §7).
 
 Strands per cross-section follow the packing rule of the strand stage, floor(phi_pack A / (pi
-r_s^2)) (SPEC §2), so the rod elements of a skeleton edge of length L between profiles of areas
+r_s^2)) (docs/model.md §2), so the rod elements of a skeleton edge of length L between profiles of areas
 A_a and A_b number about phi_pack (A_a + A_b) / 2 / (pi r_s^2) x L / rod_length. The rest scale
 with the elements, by ratios measured on the samples (:data:`PER_ELEMENT`): REG edges, meshlet
 faces, output bytes per frame and the bake's peak resident memory, on top of the libraries'

@@ -1,4 +1,4 @@
-"""Command line: ``wooddecay inspect`` and ``wooddecay init`` (DESIGN "CLI").
+"""Command line: ``wooddecay inspect`` and ``wooddecay init`` (docs/architecture.md "CLI").
 
 Errors in the input are one line on stderr (file, key, allowed range) with exit code 2 and no
 traceback unless ``--debug`` is given.
@@ -607,7 +607,7 @@ def chart_barrier(output: str, days: float) -> None:
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="PNG to write.")
 @click.option("--quick", is_flag=True, help="Fewer settings (dt in {1e-2, 1e-3, 2e-4} s x 2, 10 iterations).")
 def chart_mechanics(output: str, quick: bool) -> None:
-    """SPEC §7 "Speed": cantilever error against wall time over dt (substeps per simulated
+    """docs/model.md §7 "Speed": cantilever error against wall time over dt (substeps per simulated
     second = 1/dt) and iterations, with PyElastica's point on the same axes."""
     from .studies.mechanics_chart import (DTS, DTS_QUICK, ITERATIONS, ITERATIONS_QUICK, describe,
                                           plot_mechanics, run_mechanics)

@@ -1,7 +1,7 @@
 """Input errors: one clear line naming the file, the key and what is allowed.
 
 Every boundary (scene TOML, skeleton files, TreeQSM tables, CLI ``--set``) raises
-:class:`InputError`; the CLI prints ``str(err)`` on one line and exits with code 2 (SPEC §1).
+:class:`InputError`; the CLI prints ``str(err)`` on one line and exits with code 2 (docs/model.md §1).
 :func:`type_name`, :func:`format_value` and :func:`did_you_mean` are the words those messages
 share: a value's TOML type, a short rendering of the value, and the closest allowed name.
 """

@@ -1,6 +1,6 @@
-"""WoodModel: everything the stages after the scene read, built once (DESIGN "Data model").
+"""WoodModel: everything the stages after the scene read, built once (docs/architecture.md "Data model").
 
-Woodstock §3 and §5 (opening), Fig. 3; SPEC §2. ``build_model(scene)`` runs skeleton -> topology
+Woodstock §3 and §5 (opening), Fig. 3; docs/model.md §2. ``build_model(scene)`` runs skeleton -> topology
 -> strands -> rod elements -> rings and tissues -> REG -> BSP -> W, resolves the per-tissue
 parameters (:class:`~wooddecay.strands.materials.Materials`) and the inoculation and load regions,
 and builds the solvers' static data (``bio``, ``mech``, ``coupling``). It returns a frozen
@@ -90,7 +90,7 @@ class TimeSpec:
 class WoodModel:
     """Structure of arrays; element arrays have length ``n_elements``, edge arrays ``n_edges``.
 
-    Public names follow DESIGN.md: ``centers``, ``wood_coords`` (r, phi, s), ``frames`` (rows
+    Public names follow docs/architecture.md: ``centers``, ``wood_coords`` (r, phi, s), ``frames`` (rows
     e_r, e_t, e_l), ``tissue``, ``ring_age``, ``bsp_leaf``, ``reg_edges``, ``reg_theta``.
     """
 
@@ -131,7 +131,7 @@ class WoodModel:
     transport_indptr: np.ndarray
     transport_indices: np.ndarray
     transport_edge_of: np.ndarray
-    # strand control points in their node's cross-section frame (what the meshlets sweep, SPEC §5):
+    # strand control points in their node's cross-section frame (what the meshlets sweep, docs/model.md §5):
     # strand k owns rows cp_offsets[k]:cp_offsets[k + 1]; cp_uv is the actual position (an end
     # part-way along an edge interpolated), cp_s its distance to the root
     cp_offsets: np.ndarray

@@ -1,4 +1,4 @@
-"""glTF export (wooddecay/export/gltf.py, DESIGN "glTF"): a GLB of one frame of samples/tiny.toml,
+"""glTF export (wooddecay/export/gltf.py, docs/architecture.md "glTF"): a GLB of one frame of samples/tiny.toml,
 checked with the Khronos glTF-Validator (npm ``gltf-validator``, run through
 tools/gltf_validate.js) and read back with a small independent GLB reader and trimesh.
 

@@ -1,4 +1,4 @@
-"""Kinetic Delaunay triangulation of branch cross-sections and the contour offset (woodstock §8.1; SPEC §5).
+"""Kinetic Delaunay triangulation of branch cross-sections and the contour offset (woodstock §8.1; docs/model.md §5).
 
 The reference is scipy.spatial.Delaunay (qhull) of the interpolated alive sites at random d_t
 between sections, sampled away from event times (where the triangulation is ambiguous).

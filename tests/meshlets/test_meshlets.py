@@ -1,4 +1,4 @@
-"""Meshlets (SPEC §5): closed and oriented shells, a partition of the wood,
+"""Meshlets (docs/model.md §5): closed and oriented shells, a partition of the wood,
 bark on the profile, tags, skinning."""
 from __future__ import annotations
 

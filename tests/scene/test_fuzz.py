@@ -1,5 +1,5 @@
 """Property tests: no input makes scene loading raise anything but a one-line InputError
-(SPEC §1; wooddecay.scene.load through schema and validate)."""
+(docs/model.md §1; wooddecay.scene.load through schema and validate)."""
 from __future__ import annotations
 
 import json

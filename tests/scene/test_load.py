@@ -1,4 +1,4 @@
-"""Reading and resolving scenes, overrides and --set (SPEC §1; wooddecay.scene.load)."""
+"""Reading and resolving scenes, overrides and --set (docs/model.md §1; wooddecay.scene.load)."""
 from __future__ import annotations
 
 import json

@@ -1,4 +1,4 @@
-"""The scene schema (SPEC §1; wooddecay.scene.schema): every key documented, defaults valid."""
+"""The scene schema (docs/model.md §1; wooddecay.scene.schema): every key documented, defaults valid."""
 from __future__ import annotations
 
 from wooddecay import scene as P

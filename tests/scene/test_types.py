@@ -1,4 +1,4 @@
-"""The frozen Scene: read-only, picklable, identified by its hash (SPEC §1; wooddecay.scene.types)."""
+"""The frozen Scene: read-only, picklable, identified by its hash (docs/model.md §1; wooddecay.scene.types)."""
 from __future__ import annotations
 
 import pickle

@@ -1,4 +1,4 @@
-"""Scene value validation and its one-line errors (SPEC §1; wooddecay.scene.validate)."""
+"""Scene value validation and its one-line errors (docs/model.md §1; wooddecay.scene.validate)."""
 from __future__ import annotations
 
 import pytest

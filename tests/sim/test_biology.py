@@ -1,4 +1,4 @@
-"""Biophysics (woodstock §6, Eqs. 8-15, 20; SPEC §3 and §7): kernel vs reference, conservation,
+"""Biophysics (woodstock §6, Eqs. 8-15, 20; docs/model.md §3 and §7): kernel vs reference, conservation,
 the invariant box, stability and the rot signatures."""
 from __future__ import annotations
 

@@ -204,7 +204,7 @@ print(hashlib.sha256(b"".join(np.ascontiguousarray(a).tobytes() for a in (x, q, 
 
 
 def test_direct_solve_same_bits_compiled_or_from_the_cache(tmp_path):
-    """SPEC §4: the same input gives the same bits whether the kernel was just compiled or read
+    """docs/model.md §4: the same input gives the same bits whether the kernel was just compiled or read
     from numba's cache (with fastmath, LLVM contracted and reordered differently in the two, and
     a chaotic unsettled strand then ended +9% or +270% off)."""
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}

@@ -1,4 +1,4 @@
-"""The transport operator (wooddecay.sim.transport; SPEC §3 "Transport"): symmetric,
+"""The transport operator (wooddecay.sim.transport; docs/model.md §3 "Transport"): symmetric,
 non-negative weights, and pure diffusion conserves the volume-weighted sum to round-off."""
 from __future__ import annotations
 

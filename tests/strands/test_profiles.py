@@ -1,4 +1,4 @@
-"""Cross-section geometry (SPEC §1; woodstock Fig. 3a)."""
+"""Cross-section geometry (docs/model.md §1; woodstock Fig. 3a)."""
 import numpy as np
 import pytest
 

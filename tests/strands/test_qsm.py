@@ -1,4 +1,4 @@
-"""TreeQSM cylinder tables as skeletons (SPEC §1)."""
+"""TreeQSM cylinder tables as skeletons (docs/model.md §1)."""
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings

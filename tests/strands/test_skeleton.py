@@ -1,4 +1,4 @@
-"""Skeleton graph input: native nodes and the [skeleton] table (SPEC §1)."""
+"""Skeleton graph input: native nodes and the [skeleton] table (docs/model.md §1)."""
 import copy
 import math
 

@@ -1,4 +1,4 @@
-"""Strand packing, forks and terminations (SPEC §2 invariants)."""
+"""Strand packing, forks and terminations (docs/model.md §2 invariants)."""
 from __future__ import annotations
 
 import numpy as np

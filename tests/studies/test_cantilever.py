@@ -1,4 +1,4 @@
-"""Single-strand accuracy of the rod solver (SPEC §7 "Mechanics"; wooddecay.studies.cantilever):
+"""Single-strand accuracy of the rod solver (docs/model.md §7 "Mechanics"; wooddecay.studies.cantilever):
 the gravity cantilever, the tip moment and fixed-free buckling."""
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ def test_cantilever_deflection_within_3_percent():
 
 @pytest.mark.slow
 def test_tip_moment_curls_into_a_circle():
-    """SPEC §7: the tip moment 2 pi E I / L closes a clamped strand into a circle of radius
+    """docs/model.md §7: the tip moment 2 pi E I / L closes a clamped strand into a circle of radius
     L / (2 pi) (cantilever.tip_moment: ramped, held, strongly damped; no constraint)."""
     r = mv.tip_moment()
     assert r["gap_over_L"] <= 0.05, r
@@ -35,7 +35,7 @@ def test_fixed_free_buckling_load_within_5_percent():
 
 
 def test_strain_excess_flags_the_strands_that_sag_too_far():
-    """SPEC §7, XPBD with too few iterations for its step: Gauss-Seidel at the scene's step and
+    """docs/model.md §7, XPBD with too few iterations for its step: Gauss-Seidel at the scene's step and
     iterations lets a 50-element strand sag about ten times too far and the solver's strain excess
     says so (far above the bake's tolerance); a 10-element one is within 3% and passes. Both stay
     bounded: the tip hangs below the clamp by less than the strand's length."""
@@ -56,7 +56,7 @@ def test_more_iterations_lower_the_strain_excess_and_the_error_together():
 
 
 def test_strain_excess_flags_a_step_ten_times_the_default():
-    """SPEC §7, XPBD with too large a step: at dt_mech 1 ms (10x the default) a 50-element strand
+    """docs/model.md §7, XPBD with too large a step: at dt_mech 1 ms (10x the default) a 50-element strand
     under Gauss-Seidel is still sagging at 100 times beam theory after 200 / omega_1 and the strain
     excess is thousands of times the tolerance; the tip stays within the strand's length."""
     r = mv.sweep_case(60, 5e9, 50, dt=1e-3, solver="gauss-seidel")

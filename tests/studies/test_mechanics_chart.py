@@ -1,4 +1,4 @@
-"""`wooddecay chart mechanics` (issue 4 item 7; SPEC §7): the cantilever's error against wall
+"""`wooddecay chart mechanics` (issue 4 item 7; docs/model.md §7): the cantilever's error against wall
 time over dt and iterations, with PyElastica's point, written as a PNG."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Transport accuracy on the irregular rod graph (SPEC §7; wooddecay.studies.transport): heat
+"""Transport accuracy on the irregular rod graph (docs/model.md §7; wooddecay.studies.transport): heat
 kernels and Fisher-KPP fronts along e_l, e_r and e_t."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Bark that cracks and sheds (woodification §4-5; SPEC §10).
+"""Bark that cracks and sheds (woodification §4-5; docs/model.md §10).
 
 * :mod:`.sheet`: the bark surface of every branch as a triangle mesh in its (phi, s) parameters,
   with the growth strain its rings record, the threshold noise and the elements under it;

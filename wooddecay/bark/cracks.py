@@ -1,4 +1,4 @@
-"""Bark cracks on the sheet (woodification §5 after Iben and O'Brien 2006; SPEC §10).
+"""Bark cracks on the sheet (woodification §5 after Iben and O'Brien 2006; docs/model.md §10).
 
 Stress. The bark is a thin layer bonded to the wood; its loading strain eps per face is the
 growth strain of the rings (woodification §4, :mod:`.sheet`) plus its drying shrinkage

@@ -1,4 +1,4 @@
-"""Bark that sheds: plates bounded by cracks come off when their bond to the wood is gone (SPEC §10).
+"""Bark that sheds: plates bounded by cracks come off when their bond to the wood is gone (docs/model.md §10).
 
 Every face of the sheet has a bond b to the wood beneath, about 1 at first (with noise of a
 plate's size, :mod:`.sheet`). Per step of dt days it weakens by ``shedding`` (per year) times the

@@ -1,4 +1,4 @@
-"""What the meshlets' bark shows of the cracks: per-vertex crack primvars and grooves (SPEC §10).
+"""What the meshlets' bark shows of the cracks: per-vertex crack primvars and grooves (docs/model.md §10).
 
 A meshlet vertex on a bark face lies at (phi, s) of its branch (its rest ``wood`` coordinates), so
 at flat coordinates of the sheet (:mod:`.sheet`). Its distance d to the nearest crack (the cracked

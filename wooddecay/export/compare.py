@@ -1,4 +1,4 @@
-"""Compare two USD stages (``wooddecay diff``; DESIGN "CLI").
+"""Compare two USD stages (``wooddecay diff``; docs/architecture.md "CLI").
 
 :func:`compare_usd` returns the list of :class:`Difference` between stage ``a`` and stage ``b``:
 

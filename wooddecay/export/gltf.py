@@ -1,4 +1,4 @@
-"""One baked frame as binary glTF 2.0 (DESIGN "glTF"; woodstock §8.3, exported meshlets).
+"""One baked frame as binary glTF 2.0 (docs/architecture.md "glTF"; woodstock §8.3, exported meshlets).
 
 ``export_gltf(path, model, mesh, frame)`` writes a ``.glb`` of one
 :class:`wooddecay.sim.driver.Frame` (the CLI passes the last by default):

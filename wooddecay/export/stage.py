@@ -1,4 +1,4 @@
-"""USD stage plumbing shared by the exporters: the stage conventions of DESIGN "USD stage" (Z up,
+"""USD stage plumbing shared by the exporters: the stage conventions of docs/architecture.md "USD stage" (Z up,
 metres, default prim ``/World`` with one Xform per scene) and atomic writes.
 
 Stages are written with :mod:`wooddecay.atomic` (temporary file and rename; a failed write raises

@@ -1,4 +1,4 @@
-"""The baked USD stage (DESIGN "USD stage": the contract between bake, the add-on and CI).
+"""The baked USD stage (docs/architecture.md "USD stage": the contract between bake, the add-on and CI).
 
 ``export_usd(path, model, mesh, frames)`` writes:
 

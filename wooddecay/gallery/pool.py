@@ -6,7 +6,7 @@ in turn as its bakes finish (:func:`wooddecay.gallery.bakes.bake_scene` takes th
 Why: a bake's kernels gain 1.5x from a second thread on two cores (Stage 2's gathers; the
 biology, bark and coupling between mechanics run on one), so two one-thread bakes side by side do
 more in the same time (docs/decisions.md, "The gallery's bakes on processes"). A bake is the same
-bits on any thread count (SPEC §4), so the gallery measures what it would measure in one process.
+bits on any thread count (docs/model.md §4), so the gallery measures what it would measure in one process.
 
 Workers are spawned, not forked: the gallery's process may have started numba's thread pool, and
 a fork copies only the thread that calls it. A failed bake raises in the figure that reads it; the

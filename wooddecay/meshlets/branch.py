@@ -1,4 +1,4 @@
-"""A branch's kinetic sites: sections, strand sites, ghost mirrors and element bounds (SPEC §5).
+"""A branch's kinetic sites: sections, strand sites, ghost mirrors and element bounds (docs/model.md §5).
 
 Woodstock §8.1: per branch, the strand sites P_i(d_t) are the strands' control points in their
 nodes' cross-section frames (``model.cp_uv``, ``model.cp_s``), linear in d_t between the sections

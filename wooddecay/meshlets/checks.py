@@ -1,4 +1,4 @@
-"""Checks of the meshlet contract (SPEC §5): closed, oriented, positive volume, a partition.
+"""Checks of the meshlet contract (docs/model.md §5): closed, oriented, positive volume, a partition.
 
 * :func:`closed_oriented`: per meshlet, every directed edge of its triangles appears exactly once
   and its reverse exactly once (a closed, consistently oriented 2-manifold surface); plain-Python

@@ -1,7 +1,7 @@
-"""Outward offset of a cross-section contour by the strand radius (woodstock §8.1; SPEC §5).
+"""Outward offset of a cross-section contour by the strand radius (woodstock §8.1; docs/model.md §5).
 
 §8.1 bounds a branch's cross-section by the outer boundary of an alpha complex of its sites, offset
-outwards by the strand radius r_s (SPEC §5). The meshlets bound the wood by mirror ghosts across the
+outwards by the strand radius r_s (docs/model.md §5). The meshlets bound the wood by mirror ghosts across the
 node profiles instead (:mod:`wooddecay.meshlets.branch`); past a fork, where a branch's strands
 fill only part of the fork's profile, the ghosts mirror across the convex hull of the branch's
 sites (the alpha shape with alpha = inf) offset by r_s with :func:`offset_contour`.

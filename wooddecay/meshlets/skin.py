@@ -1,4 +1,4 @@
-"""Per-frame meshlet vertices by blend skinning over the elements that share them (SPEC §5).
+"""Per-frame meshlet vertices by blend skinning over the elements that share them (docs/model.md §5).
 
 Woodstock §8.3: the meshlets follow the simulated rods. A meshlet vertex x_0 is shared in the rest
 partition by the elements whose cells meet there (:class:`~wooddecay.meshlets.sweep.Meshlets`,

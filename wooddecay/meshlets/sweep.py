@@ -1,6 +1,6 @@
 """Per-element meshlets: each strand site's Voronoi cell swept along d_t over its rod element.
 
-Woodstock §8.1 and Fig. 10; SPEC §5. Per branch, the strand sites P_i(d_t) and their ghost mirrors
+Woodstock §8.1 and Fig. 10; docs/model.md §5. Per branch, the strand sites P_i(d_t) and their ghost mirrors
 (:mod:`wooddecay.meshlets.branch`) are carried along the branch by the kinetic Delaunay
 triangulation of :mod:`wooddecay.meshlets.kinetic`. The meshlet of the rod element of strand i
 over [a, b] is the sweep of site i's Voronoi cell over [a, b]:
@@ -57,7 +57,7 @@ from .junction import junction_walls
 from .kinetic import FLIP, REPAIR, SECTION, perturbation, sweep
 from .skin import rest_skinning
 
-#: face kinds (DESIGN "USD stage": uniform int faceKind)
+#: face kinds (docs/architecture.md "USD stage": uniform int faceKind)
 BARK, SIDE, CAP = 0, 1, 2
 
 

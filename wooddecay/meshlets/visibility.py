@@ -1,5 +1,5 @@
 """Crack-face visibility: which meshlet faces an exporter writes, and from which frame they show
-(woodstock §8.3; DESIGN "USD stage").
+(woodstock §8.3; docs/architecture.md "USD stage").
 
 A face between two meshlets shows once the two no longer hold together or one of them dwindles:
 

@@ -1,4 +1,4 @@
-"""The scene: one TOML file -> a validated, frozen :class:`Scene` (SPEC §1).
+"""The scene: one TOML file -> a validated, frozen :class:`Scene` (docs/model.md §1).
 
 A scene describes one simulation: the skeleton graph G (woodstock §3, Fig. 3a) and every
 parameter of the paper's Table 3 (woodstock), each a key named after its symbol with the Table 3

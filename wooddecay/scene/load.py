@@ -1,4 +1,4 @@
-"""Reading a scene: TOML text -> overrides -> a validated, frozen :class:`Scene` (SPEC §1).
+"""Reading a scene: TOML text -> overrides -> a validated, frozen :class:`Scene` (docs/model.md §1).
 
 :func:`load_scene` reads a file, :func:`parse_scene` takes TOML text or the mapping it parses
 to; both check every value against :mod:`wooddecay.scene.schema` through

@@ -1,6 +1,6 @@
 """The scene schema: every key of every scene table, its default, unit, allowed range and doc.
 
-This module is the single source of truth for what a scene may contain (SPEC §1). Every
+This module is the single source of truth for what a scene may contain (docs/model.md §1). Every
 parameter of the paper's Table 3 (woodstock) is a key named after its symbol (``alpha_w0``,
 ``D_b``, ``k_DM``, ``M_0``, ``S``, ``s``, ``p_l_*``, ``k_c``, ``k_l``, ``k_col``, ``mu_f``, ...)
 with the Table 3 typical value as its default. Units are SI; biology time is in days, mechanics
@@ -17,7 +17,7 @@ Two kinds of table, one row format ``(name, default, unit, range, doc[, kind])``
   default is required. A table with a ``kind`` key has further keys per kind: a region is a
   ``box`` (``min``, ``max``), ``sphere`` (``center``, ``radius``), skeleton ``node`` (``id``,
   ``radius``), log ``end`` (``which``, ``depth``) or bark ``wound`` (``position``, ``radius``,
-  ``depth``), in ``world`` or wood-local (r, phi, s) coordinates (SPEC §3 inoculation); a
+  ``depth``), in ``world`` or wood-local (r, phi, s) coordinates (docs/model.md §3 inoculation); a
   collider (woodstock §5.1) is a ``plane``, ``box``, ``sphere`` or ``cylinder``.
 
 :func:`format_range` says in words what a :class:`Param` allows (``(0, 1] m``); :func:`describe`
@@ -95,11 +95,11 @@ _SCHEMA: dict[str, list[tuple]] = {
         ("description", "", "", "", "Free text describing the scene."),
     ],
     "strands": [
-        ("r_s", 0.006, "m", "(0, 1]", f"Strand radius r_s (SPEC §2); also the capsule radius r_i of contact, {_T3} typical [0.005, 0.05] m."),
-        ("phi_pack", 0.8, "", "(0, 0.9]", "Packing fraction: strands per profile = floor(phi_pack * area / (pi r_s^2)) (SPEC §2)."),
-        ("rod_length", 0.04, "m", "(0, 10]", "Target rod element length along a strand (randomly phased per strand; SPEC §2)."),
+        ("r_s", 0.006, "m", "(0, 1]", f"Strand radius r_s (docs/model.md §2); also the capsule radius r_i of contact, {_T3} typical [0.005, 0.05] m."),
+        ("phi_pack", 0.8, "", "(0, 0.9]", "Packing fraction: strands per profile = floor(phi_pack * area / (pi r_s^2)) (docs/model.md §2)."),
+        ("rod_length", 0.04, "m", "(0, 10]", "Target rod element length along a strand (randomly phased per strand; docs/model.md §2)."),
         ("connect_radius", None, "m", "(0, 10]", "REG edge radius: segments of different strands closer than this are joined (woodstock §5); default 2.5 * r_s, must be >= 2 * r_s.", "float"),
-        ("packing_iterations", 200, "", "[1, 100000]", "PBD iterations when packing strand positions on a profile (SPEC §2)."),
+        ("packing_iterations", 200, "", "[1, 100000]", "PBD iterations when packing strand positions on a profile (docs/model.md §2)."),
         ("transport_reach", 4.0, "r_s", "[2, 20]", "Transverse reach of the transport graph in strand radii: cross-strand pairs within reach * r_s exchange fields (a wider ring than the REG so that positive weights can represent a_r != a_t at any lattice orientation; docs/decisions.md)."),
     ],
     "rings": [
@@ -108,9 +108,9 @@ _SCHEMA: dict[str, list[tuple]] = {
         ("eccentricity", 0.0, "", "[-0.9, 0.9]", "Reaction-wood eccentricity e (woodification Eq. 3): rings wider where n . y_hat > 0 for e > 0."),
         ("width_noise", 0.2, "", "[0, 0.9]", "Relative per-year noise on ring widths (woodification §4.2)."),
         ("pith_blend", 0.3, "", "[0, 1]", "Blend of the innermost rings towards a near-circular pith contour (branch-fracture §3.3)."),
-        ("bark_thickness", 0.008, "m", "[0, 1]", "Bark tissue: elements with bark distance bd below this (SPEC §2)."),
-        ("sapwood_rings", 8, "", "[0, 10000]", "Number of outermost rings that are sapwood (SPEC §2)."),
-        ("pith_rings", 1, "", "[0, 10000]", "Number of innermost rings that are pith (SPEC §2)."),
+        ("bark_thickness", 0.008, "m", "[0, 1]", "Bark tissue: elements with bark distance bd below this (docs/model.md §2)."),
+        ("sapwood_rings", 8, "", "[0, 10000]", "Number of outermost rings that are sapwood (docs/model.md §2)."),
+        ("pith_rings", 1, "", "[0, 10000]", "Number of innermost rings that are pith (docs/model.md §2)."),
     ],
     "bsp": [
         ("cells", 800, "", "[0, 10000000]", f"Total BSP leaves over the whole model (woodstock §7.1, Fig. 11; {_T3} 'BSP size/depth'); with fewer cells than branches each branch is one leaf; 0 disables prepartitioning (one leaf, theta = 0)."),
@@ -158,13 +158,13 @@ _SCHEMA: dict[str, list[tuple]] = {
         ("M_init", 0.5, "kg/kg", "[0, 10]", "Initial moisture content of every element; must lie in [M_2, M_1]."),
         ("D_M0", 1e-5, "m^2/day", "[0, 1e-2]", f"Baseline moisture diffusivity D_M0 (Eq. 20; {_T3} typical [1e-6, 1e-4])."),
         ("k_DM", 0.5, "", "[0, 10]", f"Sensitivity of D_M to health loss k_DM (Eq. 20; {_T3} typical [0, 1])."),
-        ("k_H", 2.5, "", "[0, 100]", "Carbohydrate weight k in the health aggregate H = (H_l + k H_c) / (1 + k) (Eq. 20, §9.4; SPEC §3)."),
+        ("k_H", 2.5, "", "[0, 100]", "Carbohydrate weight k in the health aggregate H = (H_l + k H_c) / (1 + k) (Eq. 20, §9.4; docs/model.md §3)."),
         ("k_in0", 0.01, "1/day", "[0, 100]", f"Moisture uptake rate k_in0 in k_in = k_in0 max(0, 1 - k_r_in bd) H_c (Eq. 15; {_T3} k_in)."),
         ("k_r_in", 10.0, "1/m", "[0, 1000000]", "Decay of uptake with bark distance k_r_in (Eq. 15)."),
         ("k_out0", 0.2, "1/(day m)", "[0, 10000]", f"Moisture loss rate k_out0 (per metre of depth bd_0 - bd) in k_out = k_out0 max(0, 1 - k_r_out H_c) max(0, bd_0 - bd) (Eq. 15; {_T3} k_out)."),
         ("k_r_out", 0.5, "", "[0, 100]", "Reduction of moisture loss by carbohydrate health k_r_out (Eq. 15)."),
         ("bd_0", 0.05, "m", "[0, 100]", f"Bark-distance depth of moisture loss bd_0 (Eq. 15; {_T3} bd(x))."),
-        ("schedule", [], "", "", "Seasonal keyframes [[day, M_1, M_2], ...] replacing M_1, M_2 over time (SPEC §3); days strictly increasing, M_2 < M_1.", "list"),
+        ("schedule", [], "", "", "Seasonal keyframes [[day, M_1, M_2], ...] replacing M_1, M_2 over time (docs/model.md §3); days strictly increasing, M_2 < M_1.", "list"),
     ],
     "climate": [
         ("preset", "temperate", "", "", "Climate that wets and dries the wood through Eq. 15 (sim/climate.py): 'temperate' (wet winters, summers that dry the surface below M_0), 'dry' (the wood dries out), 'wet-ground' (a forest floor), 'constant' (Table 3's Eq. 15 unchanged, no ground wetting).", "enum:temperate|dry|wet-ground|constant"),
@@ -210,9 +210,9 @@ _SCHEMA: dict[str, list[tuple]] = {
         ("iterations", 1, "", "[1, 1000]", "XPBD constraint iterations per substep (Algorithm 1); substeps converge better than iterations at the same cost (docs/decisions.md)."),
         ("settle", 0.2, "s", "[0, 100]", "Seconds the rods settle under gravity at the start, with failure off and damping settle_damping; the strains they settle into are the reference failure strains are measured from (docs/decisions.md)."),
         ("settle_damping", 20.0, "1/s", "[0, 10000]", "Viscous damping while settling (about critical for the sway of a branch)."),
-        ("E", 1e9, "Pa", "(0, 1e13]", "Young's modulus of a strand (stretch and bend compliance from E A, E I; SPEC §4)."),
-        ("G", 4e8, "Pa", "(0, 1e13]", "Shear modulus of a strand (shear and twist compliance from G A, G J; SPEC §4)."),
-        ("rho_dry", 450.0, "kg/m^3", "(0, 1e5]", "Dry wood density; element mass = rho_dry (1 + M) pi r_s^2 l (SPEC §2)."),
+        ("E", 1e9, "Pa", "(0, 1e13]", "Young's modulus of a strand (stretch and bend compliance from E A, E I; docs/model.md §4)."),
+        ("G", 4e8, "Pa", "(0, 1e13]", "Shear modulus of a strand (shear and twist compliance from G A, G J; docs/model.md §4)."),
+        ("rho_dry", 450.0, "kg/m^3", "(0, 1e5]", "Dry wood density; element mass = rho_dry (1 + M) pi r_s^2 l (docs/model.md §2)."),
         ("gravity", [0.0, 0.0, -9.81], "m/s^2", "", "Gravity vector (world frame, Z up); any finite components (woodstock §5.4).", "vec3"),
         ("inertia_scale", 100.0, "", "[1, 1e6]", "Rotary inertia of a rod element over its physical m (r^2/4 + l^2/12). Euler-Bernoulli strands neglect rotary inertia; a larger one lets XPBD's stretch-shear projection move the particles rather than the orientation, which converges bending many times faster (docs/decisions.md)."),
         ("damping", 2.0, "1/s", "[0, 1000]", "Viscous velocity damping c: v <- v exp(-c dt) each substep, so pieces come to rest (woodstock §5.4)."),
@@ -284,10 +284,10 @@ _TABLE_SCHEMA: dict[str, dict[str, list[tuple]]] = {
         ("fungus", None, "", "", "Fungus kind.", "enum:white|brown"),
         ("activity", 0.1, "", "(0, 1]", "Initial activity R_w or R_b (woodstock Eqs. 8-9)."),
         ("day", 0.0, "day", "[0, inf)", "Day the inoculation happens."),
-        ("region", None, "", "", "Where the fungus starts (SPEC §3).", "region"),
+        ("region", None, "", "", "Where the fungus starts (docs/model.md §3).", "region"),
     ]},
     "load": {"": [
-        ("region", None, "", "", "Elements the force is applied to (SPEC §4, woodstock Fig. 17).", "region"),
+        ("region", None, "", "", "Elements the force is applied to (docs/model.md §4, woodstock Fig. 17).", "region"),
         ("force", None, "N", "", "Force applied to the region.", _VEC),
         ("days", None, "day", "[0, inf)", "Day interval [start, end] the force acts over.", "interval"),
     ]},

@@ -1,4 +1,4 @@
-"""The frozen scene: :class:`Scene` and its read-only containers (SPEC §1).
+"""The frozen scene: :class:`Scene` and its read-only containers (docs/model.md §1).
 
 A :class:`Scene` is what :func:`wooddecay.scene.load_scene` hands on: every value validated and
 resolved (defaults, overrides, quality preset). Its sections are :class:`Section` namespaces

@@ -1,4 +1,4 @@
-"""Checking scene values against the schema, and saying what is wrong in one line (SPEC §1).
+"""Checking scene values against the schema, and saying what is wrong in one line (docs/model.md §1).
 
 Unknown keys, wrong types, out-of-range values and inconsistent combinations raise
 :class:`wooddecay.errors.InputError` ``(file, key, message)`` whose one line names the file, the

@@ -1,4 +1,4 @@
-"""The bark solver of the simulation loop: cracks from growth and drying, bonds, shedding (SPEC §10).
+"""The bark solver of the simulation loop: cracks from growth and drying, bonds, shedding (docs/model.md §10).
 
 ``initial(model, state)`` gives every face of the sheet its initial bond to the wood
 (:attr:`~wooddecay.bark.sheet.BarkSheet.bond`) and loads the sheet (:mod:`wooddecay.bark.sheet`) with the growth strain

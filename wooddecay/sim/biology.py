@@ -15,7 +15,7 @@ newest values of the fields before it (explicit forward Euler):
                    D_M = D_M0 (1 + k_DM (1 - H)),  H = (H_l + k_H H_c) / (1 + k_H)   (Eq. 20)
 
 with alpha(M) = alpha_0 psi((M - M_min) / s_t) psi((M_max - M) / s_t) (Eqs. 10, 11). The weak-point
-field scales growth and transport by 1 + k_W (2 W - 1) (SPEC §3). The climate's seasonal factors
+field scales growth and transport by 1 + k_W (2 W - 1) (docs/model.md §3). The climate's seasonal factors
 w_in, w_out, w_ground, the exposed-surface distance bd (bark or cut end) and the ground contact g
 are those of :mod:`wooddecay.sim.climate`. Diffusion uses the anisotropic graph Laplacian of
 :mod:`wooddecay.sim.transport`, for the two fungi with each weight scaled so that their fronts
@@ -59,7 +59,7 @@ BIO_PARAMS = (
  RHO_C, RHO_L, KAPPA, DELTA, D_C, M_MIN, M_MAX, S_T, D_M0, K_DM, K_H, K_IN0, K_R_IN, K_OUT0, K_R_OUT,
  BD_0) = range(len(BIO_PARAMS))
 
-#: a clamp that changes a value by more than this is counted (SPEC §3)
+#: a clamp that changes a value by more than this is counted (docs/model.md §3)
 CLAMP_TOL = 1e-12
 
 

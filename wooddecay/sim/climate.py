@@ -2,7 +2,7 @@
 
 Eq. 15 (woodstock §6) exchanges moisture with the surroundings through k_in (uptake towards M_1)
 and k_out (loss towards M_2), both functions of the distance bd to the bark. A climate modulates
-them over the year and adds the soil (SPEC §8):
+them over the year and adds the soil (docs/model.md §8):
 
     k_in  = w_in(t) k_in0 max(0, 1 - k_r_in bd) H_c + w_ground(t) k_ground g,
     k_out = w_out(t) k_out0 max(0, 1 - k_r_out H_c) max(0, bd_0 - bd),

@@ -1,16 +1,16 @@
 """Coupling of moisture and decay back to the mechanics (woodstock §7, Eqs. 16-19 and 21;
-Algorithm 1 lines 12-13; SPEC §4).
+Algorithm 1 lines 12-13; docs/model.md §4).
 
 After each biology step, with (x)^+ = max(x, 0):
 
-* Eq. 16 with the direction-dependent gain of SPEC §4 (Table 2, Fig. 6): REG rest offsets
+* Eq. 16 with the direction-dependent gain of docs/model.md §4 (Table 2, Fig. 6): REG rest offsets
   dp = dp_0 (1 - (M_0 - M)^+ g_edge), g_edge = S (S_R n_r^2 + S_T n_t^2) + s n_l^2, n the
   offset's direction in the cross-section's frame of its two elements (``reg_dir_weights``,
   :func:`wooddecay.strands.elements.radial_frames`), not the strands' own: to first
   order this is the length change of the offset vector dp_0 n under the shrinkage strains
   (S S_R, S S_T, s) (M_0 - M)^+ along (e_r, e_t, e_l), and with one frame per cross-section
   evenly drying wood shrinks as one strain field. The along-grain gain is the strands' own
-  s of Eq. 17, in place of SPEC's S S_L: an offset's along-grain part is measured along the
+  s of Eq. 17, in place of docs/model.md's S S_L: an offset's along-grain part is measured along the
   strands, and a different gain there makes uniformly drying wood pull its strands apart
   lengthwise (docs/decisions.md);
 * Eq. 17: rest lengths l_r = l_r0 (1 - (M_0 - M)^+ s);
@@ -28,7 +28,7 @@ After each biology step, with (x)^+ = max(x, 0):
   M = 0.24 (wood still above M_0) was 7e-4 and a drying board shattered before any of it shrank
   (docs/decisions.md, "Limits reduce below M_0"). Wood at or above M_k keeps L_0;
 * Eq. 21: I_ij = (1 - theta_ij k_c (1 - H_c)) (1 - k_l (1 - H_l)), clipped to [0, 1]. It scales
-  the pair's stiffness (SPEC §4) and, as the paper's "connection strength", its strain limits:
+  the pair's stiffness (docs/model.md §4) and, as the paper's "connection strength", its strain limits:
   with stiff wood and dt = 0.01 s a connection is effectively rigid until I_ij is tiny, so the
   stiffness alone would not let decay concentrate failure on the weakened pairs
   (docs/decisions.md). The strand link between consecutive elements e, e + 1 is a pair of the
@@ -42,7 +42,7 @@ After each biology step, with (x)^+ = max(x, 0):
   is below ``m_crumble`` is consumed (``crumbled``): its pairs and both its strand links get
   integrity 0, so they fail (:mod:`wooddecay.sim.failure`), and the element itself fails whatever
   its neighbours; its meshlet dwindles (:func:`crumble_scale`, :mod:`wooddecay.meshlets.skin`);
-* the element masses rho_dry (1 + M) pi r^2 l (SPEC §2).
+* the element masses rho_dry (1 + M) pi r^2 l (docs/model.md §2).
 
 Pair quantities (M, H_c, H_l and the per-tissue parameters) are the mean of the two elements.
 """

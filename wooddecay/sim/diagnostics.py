@@ -1,4 +1,4 @@
-"""Per-step diagnostics of the biology (woodstock §9.4; SPEC §3).
+"""Per-step diagnostics of the biology (woodstock §9.4; docs/model.md §3).
 
 * mass loss = 1 - (H_l + k H_c) / (1 + k), k = k_H (2.5), volume-weighted over the wood;
 * moisture content ratio = (M - M_2)(1 + k) l / ((M_1 - M_2)(H_l + k H_c)), l = 1, volume-

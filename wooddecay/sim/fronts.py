@@ -1,4 +1,4 @@
-"""Decay fronts at the continuum's speed on a coarse graph (woodstock Eqs. 8-9; SPEC §3).
+"""Decay fronts at the continuum's speed on a coarse graph (woodstock Eqs. 8-9; docs/model.md §3).
 
 White and brown rot spread into sound wood as pulled Fisher-KPP fronts, u_t = D u_xx + g u (1 - u),
 whose continuum speed is 2 sqrt(g D). On a lattice of spacing h the leading edge

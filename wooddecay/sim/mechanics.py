@@ -108,7 +108,7 @@ def _sweep_arrays(order, edge_ok, integrity, rest_offset, k_conn0, k_pb0, k_pt0,
 
 @dataclass(frozen=True)
 class MechConfig:
-    """The ``[mechanics]`` scalars the rod system is built with (SPEC §4; Table 3)."""
+    """The ``[mechanics]`` scalars the rod system is built with (docs/model.md §4; Table 3)."""
 
     gravity: tuple
     damping: float
@@ -197,7 +197,7 @@ class MechSetup:
 
 @dataclass(eq=False)
 class MechState:
-    """The mechanical part of the SimState (DESIGN: positions, velocities, quaternions,
+    """The mechanical part of the SimState (docs/architecture.md: positions, velocities, quaternions,
     angular velocities, current rest data, I_ij, failure flags, component labels)."""
 
     x: np.ndarray  # (P, 3) particle positions
@@ -415,7 +415,7 @@ def set_radius(setup: MechSetup, ms: MechState, radius: np.ndarray) -> None:
 
 
 def set_masses(setup: MechSetup, ms: MechState, M: np.ndarray) -> None:
-    """Element mass rho_dry (1 + M) pi r^2 l (SPEC §2), half to each particle; inverse masses
+    """Element mass rho_dry (1 + M) pi r^2 l (docs/model.md §2), half to each particle; inverse masses
     and quaternion weights 1 / (4 I_rot) (zero where anchored or asleep: new masses wake no
     piece, :func:`sleep.hold`)."""
     ms.mass_e = setup.dry_mass * (1.0 + M)

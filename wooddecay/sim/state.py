@@ -1,6 +1,6 @@
 """SimState: the fields that change every step, their initial values and inoculation.
 
-Woodstock §6 (opening), Table 3; SPEC §3. Per rod element: fungal activities R_w, R_b, tissue
+Woodstock §6 (opening), Table 3; docs/model.md §3. Per rod element: fungal activities R_w, R_b, tissue
 health H_c, H_l, defence C (all in [0, 1]) and moisture M in [M_2, M_1] (kg/kg), plus the time in
 days and the count of clamp activations (the safety net of Appendix A, which should stay 0).
 

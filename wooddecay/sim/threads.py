@@ -10,7 +10,7 @@ descheduled thread, and the probes' few steps did not tell it reliably: a year o
 busy loop ran 1.4-6.7x as long as on one thread with the timing alone (bakes of each,
 alternating, 2026-12-04; docs/decisions.md, "Threads").
 
-Results are bit-identical for any count (SPEC §4), so the count may change between macro steps
+Results are bit-identical for any count (docs/model.md §4), so the count may change between macro steps
 without changing a bake. ``auto`` probes in rounds: from the macro step after the warm-up ones,
 and again ``REPROBE_EVERY`` steps later because the machine's load changes, the interval doubling
 (up to ``REPROBE_MOST``) after each later round that keeps the count and back to ``REPROBE_EVERY``

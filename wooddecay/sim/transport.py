@@ -1,4 +1,4 @@
-"""Anisotropic graph Laplacian on the transport graph (woodstock §6, Fig. 5; SPEC §3).
+"""Anisotropic graph Laplacian on the transport graph (woodstock §6, Fig. 5; docs/model.md §3).
 
 The diffusion terms D nabla^2 u of Eqs. 8, 9, 14 and div(D_M grad M) of Eq. 15 are discretised as
 

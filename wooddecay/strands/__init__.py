@@ -1,1 +1,1 @@
-"""Wood representation: skeleton graph, cross-section profiles and strands (SPEC §1-2)."""
+"""Wood representation: skeleton graph, cross-section profiles and strands (docs/model.md §1-2)."""

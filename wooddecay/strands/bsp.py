@@ -1,6 +1,6 @@
 """BSP prepartition in wood-local coordinates and the boundary indicator theta_ij.
 
-Woodstock §7.1, Figs. 9 and 11, Table 2; SPEC §2. Each branch starts as one cell of its elements
+Woodstock §7.1, Figs. 9 and 11, Table 2; docs/model.md §2. Each branch starts as one cell of its elements
 in wood-local coordinates scaled to physical length, X = (r, r phi, s / elongation): a larger
 ``elongation`` makes cells longer along the grain (Fig. 11b). The cell whose longest axis is the
 longest of all is split across that axis, at the middle of its extent moved by a jitter of up to

@@ -1,6 +1,6 @@
 """Rod elements: staggered sampling of strand centrelines, frames and wood-local coordinates.
 
-Woodstock §5 (opening), Fig. 3b; SPEC §2. A strand's centreline is a cubic B-spline through its
+Woodstock §5 (opening), Fig. 3b; docs/model.md §2. A strand's centreline is a cubic B-spline through its
 control points (chord-length parameter). Rod particles are placed along it by arc length at
 ``rod_length`` spacing with a random phase per strand, so element boundaries of neighbouring
 strands do not line up (the "randomly subdivided strand group"); the first and last elements

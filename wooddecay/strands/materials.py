@@ -1,4 +1,4 @@
-"""Material parameters resolved per tissue (SPEC §1-2: any parameter of ``[fungi]``,
+"""Material parameters resolved per tissue (docs/model.md §1-2: any parameter of ``[fungi]``,
 ``[moisture]``, ``[mechanics]``, ``[transport]`` or ``[wood]`` may be overridden per tissue).
 
 :class:`Materials` is the one lookup every solver uses: the value of a parameter in each tissue

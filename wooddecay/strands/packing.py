@@ -1,6 +1,6 @@
 """Strand positions on a cross-section profile: seeding and PBD packing.
 
-Woodstock §5 (opening) and SPEC §2: strand positions on each profile are optimised with PBD so
+Woodstock §5 (opening) and docs/model.md §2: strand positions on each profile are optimised with PBD so
 that strands do not collide (centre distance >= 2 r_s) and stay inside the profile. Count per
 profile: floor(phi_pack * area / (pi r_s^2)).
 
@@ -26,7 +26,7 @@ SEPARATION_SLACK = 1.0 + 1e-6
 
 
 def strand_capacity(profile: Profile, r_s: float, phi_pack: float) -> int:
-    """floor(phi_pack * A / (pi r_s^2)) strands fit on ``profile`` (SPEC §2)."""
+    """floor(phi_pack * A / (pi r_s^2)) strands fit on ``profile`` (docs/model.md §2)."""
     return int(np.floor(phi_pack * profile.area / (np.pi * r_s * r_s)))
 
 

@@ -1,4 +1,4 @@
-"""Planar cross-section profiles of the skeleton graph (SPEC §1; woodstock Fig. 3a).
+"""Planar cross-section profiles of the skeleton graph (docs/model.md §1; woodstock Fig. 3a).
 
 Every skeleton node carries a cross-section in its node frame, coordinates ``(u, v)`` in m:
 a circle (radius), an ellipse (semi-axes ``a``, ``b`` and a rotation ``angle``) or a simple

@@ -1,4 +1,4 @@
-"""TreeQSM cylinder tables as skeletons (SPEC §1; woodstock §3, Fig. 3a).
+"""TreeQSM cylinder tables as skeletons (docs/model.md §1; woodstock §3, Fig. 3a).
 
 TreeQSM (quantitative structure models reconstructed from terrestrial LiDAR) describes a tree
 as cylinders. The table read here has one cylinder per line, nine columns::

@@ -1,6 +1,6 @@
 """The rod element graph (REG) and the transport graph.
 
-Woodstock §3, §5 (opening), Fig. 3c; SPEC §2. An REG edge joins two elements of different
+Woodstock §3, §5 (opening), Fig. 3c; docs/model.md §2. An REG edge joins two elements of different
 strands whose segments come within ``connect_radius`` of each other (the minimum distance between
 the two segments, the proximity construction of Macklin et al. 2016). Per edge: the rest offset
 dp_0 = |c_i - c_j| (Eq. 2), the rest Darboux quaternion conj(q_i) q_j, and the squared components

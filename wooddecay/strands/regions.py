@@ -1,4 +1,4 @@
-"""Regions of the wood: where an inoculation starts or a load pulls (SPEC §3 "Inoculation",
+"""Regions of the wood: where an inoculation starts or a load pulls (docs/model.md §3 "Inoculation",
 §4 "Loads"; woodstock Fig. 17).
 
 A region is a box or sphere in world or wood-local coordinates (r, phi, s), a sphere around a

@@ -1,4 +1,4 @@
-"""Skeleton graph G of the scene (SPEC §1; woodstock §3, Fig. 3a).
+"""Skeleton graph G of the scene (docs/model.md §1; woodstock §3, Fig. 3a).
 
 A skeleton is a forest of nodes, each with an id, a 3D position, an optional parent and a
 planar cross-section profile (see :mod:`wooddecay.strands.profiles`). Roots may be anchored

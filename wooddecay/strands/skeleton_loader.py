@@ -1,4 +1,4 @@
-"""The scene's ``[skeleton]`` table -> a :class:`~wooddecay.strands.skeleton.Skeleton` (SPEC §1).
+"""The scene's ``[skeleton]`` table -> a :class:`~wooddecay.strands.skeleton.Skeleton` (docs/model.md §1).
 
 The nodes of the skeleton graph G (woodstock §3, Fig. 3a) come inline (``[[skeleton.node]]``),
 from a native TOML file with a ``[[node]]`` array, from a TreeQSM cylinder table

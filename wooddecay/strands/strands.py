@@ -1,6 +1,6 @@
 """Strands from root to tips: counts, packing, forks and terminations.
 
-Woodstock §5 (opening), Fig. 3a-b; SPEC §2. Each profile holds
+Woodstock §5 (opening), Fig. 3a-b; docs/model.md §2. Each profile holds
 floor(phi_pack * area / (pi r_s^2)) strands packed with PBD. Walking the skeleton from the
 roots, the strands of a node are carried to the next profile by a star-shaped map (the polar
 angle is kept, the radius rescaled by the ratio of the two profiles' ray extents), re-packed, and

@@ -1,7 +1,7 @@
 """Weak-point field W(x) in [0, 1]: Perlin noise in wood-local coordinates.
 
 Woodstock §6 (opening), Fig. 5, Table 3: W is a 3D Perlin noise evaluated in the local wood frame
-that modulates transport and growth (SPEC §3: rates scale by 1 + k_W (2W - 1)). Here the noise is
+that modulates transport and growth (docs/model.md §3: rates scale by 1 + k_W (2W - 1)). Here the noise is
 evaluated at the element's cross-section position (u, v) and its arc length s, with s divided
 by ``stretch`` so features are elongated along the grain, summed over ``octaves`` (fractal
 Brownian motion), mapped to [0, 1], and raised near branch junctions by

@@ -1,8 +1,8 @@
 """Studies beside the pipeline, never imported by it: the validation cases the paper checks
 against and their charts (``wooddecay chart``, ``benchmarks/``, ``tests/studies/``).
 
-* :mod:`.transport`: heat kernels and Fisher-KPP fronts on the rod graph (SPEC §7).
-* :mod:`.cantilever`: a single clamped strand: gravity sag, tip moment, buckling (SPEC §7
+* :mod:`.transport`: heat kernels and Fisher-KPP fronts on the rod graph (docs/model.md §7).
+* :mod:`.cantilever`: a single clamped strand: gravity sag, tip moment, buckling (docs/model.md §7
   "Mechanics"); :mod:`.elastica`: PyElastica's reference run; :mod:`.mechanics_chart`: cost
   against accuracy of the rod solver.
 * :mod:`.barrier`: the barrier effect (woodstock §9.4, Fig. 18).

@@ -5,7 +5,7 @@ lab-block setting of Bari et al. 2020 cited there) decays for ``days`` at a fixe
 the growth window, for inhibition-to-induction ratios beta/kappa in {0, 0.5, 1, 2}
 (beta_w = beta_b = ratio * kappa). The run uses the real biology step on the block's rod graph.
 
-Plateau (our definition, SPEC §7 asks for one): after the onset peak of the mass-loss rate, the
+Plateau (our definition, docs/model.md §7 asks for one): after the onset peak of the mass-loss rate, the
 longest stretch during which the rate stays below ``FRAC`` (30%) of that peak while the mass loss
 is still intermediate (below ``ML_MAX``, 50%). Exhaustion of the substrate at high mass loss is not a
 plateau; a stall at intermediate mass loss, ended by renewed growth or the end of the run, is.

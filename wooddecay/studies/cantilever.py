@@ -1,4 +1,4 @@
-"""Single-strand accuracy studies of the rod solver (SPEC §7 "Mechanics"; used by tests,
+"""Single-strand accuracy studies of the rod solver (docs/model.md §7 "Mechanics"; used by tests,
 ``benchmarks/cantilever.py`` and ``wooddecay chart mechanics``).
 
 The strand comes from the real pipeline: a two-node skeleton whose circular profile holds

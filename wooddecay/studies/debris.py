@@ -1,4 +1,4 @@
-"""Debris settling (woodstock §5.4, Fig. 12; SPEC §4): a log falls apart into its BSP blocks,
+"""Debris settling (woodstock §5.4, Fig. 12; docs/model.md §4): a log falls apart into its BSP blocks,
 is dropped onto the ground, and the pieces must come to rest without sinking into each other.
 
 Used by ``benchmarks/debris.py`` and ``tests/studies/test_debris.py``; docs/decisions.md ("Debris")

@@ -1,5 +1,5 @@
 """Cost against accuracy of the rod solver: the gravity cantilever over dt, substeps and
-iterations, with PyElastica's point on the same axes (issue 4, item 7; SPEC §7 "Mechanics").
+iterations, with PyElastica's point on the same axes (issue 4, item 7; docs/model.md §7 "Mechanics").
 
 The case is :func:`wooddecay.studies.cantilever.cantilever`: one strand of the real pipeline,
 L = 0.5 m free length, r_s = 6 mm, E = 1 GPa, 20 free elements, clamped at its root and sagging

@@ -1,4 +1,4 @@
-"""Pull test (woodstock Fig. 17; SPEC §4 "Loads"): the smallest horizontal pull that breaks a
+"""Pull test (woodstock Fig. 17; docs/model.md §4 "Loads"): the smallest horizontal pull that breaks a
 side branch, healthy and decayed, each found by bisection on a log scale.
 
 Used by ``benchmarks/pull.py`` (the branch through node ``b1_2`` of ``samples/tree.toml``, in the

@@ -1,4 +1,4 @@
-"""Transport accuracy studies on synthetic wood blocks (SPEC §7; used by tests and benchmarks).
+"""Transport accuracy studies on synthetic wood blocks (docs/model.md §7; used by tests and benchmarks).
 
 The rod graph is the real one (packing, random phases, staggered REG); only the wood frame is
 replaced by a constant one so that planar fronts and heat kernels have fixed principal axes.

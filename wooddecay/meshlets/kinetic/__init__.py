@@ -1,4 +1,4 @@
-"""Kinetic 2D Delaunay triangulation of a branch's strand sites along d_t (woodstock §8.1; SPEC §5).
+"""Kinetic 2D Delaunay triangulation of a branch's strand sites along d_t (woodstock §8.1; docs/model.md §5).
 
 For one branch, strand i crosses the cross-section at d_t in the site P_i(d_t) (branch frame, 2D),
 sampled at the sections ``d[0] < d[1] < ... < d[S-1]`` and linear in d_t between two of them

@@ -1,4 +1,4 @@
-"""Certificates of the kinetic Delaunay triangulation and their event times (woodstock §8.1; SPEC §5).
+"""Certificates of the kinetic Delaunay triangulation and their event times (woodstock §8.1; docs/model.md §5).
 
 Motion. On piece k (d_k <= d_t <= d_{k+1}) with local parameter s = (d_t - d_k) / (d_{k+1} - d_k)
 in [0, 1], x_i(s) = X_i + s V_i with X = P[k] and V = P[k+1] - P[k].

@@ -1,4 +1,4 @@
-"""The kinetic Delaunay triangulation of one branch and its sweep along d_t (woodstock §8.1; SPEC §5).
+"""The kinetic Delaunay triangulation of one branch and its sweep along d_t (woodstock §8.1; docs/model.md §5).
 
 Convex hull: one symbolic vertex at infinity (index n, never a real site). Every hull edge u -> v
 (outside on its left) carries the "infinite triangle" (u, v, inf), so the triangulation is always a

@@ -1,4 +1,4 @@
-"""Result of the kinetic Delaunay sweep: events, snapshots and replay (woodstock §8.1; SPEC §5).
+"""Result of the kinetic Delaunay sweep: events, snapshots and replay (woodstock §8.1; docs/model.md §5).
 
 Events are of the kinds of :data:`KIND_NAMES`:
 

@@ -1,4 +1,4 @@
-"""Roots of the kinetic certificates' polynomials (woodstock §8.1; SPEC §5).
+"""Roots of the kinetic certificates' polynomials (woodstock §8.1; docs/model.md §5).
 
 Coefficients are in ascending powers of the local parameter s of a piece (numba kernels, used by
 :mod:`.certificates`). The event time of a certificate is the first s >= s_0 (the current time)

@@ -1,4 +1,4 @@
-"""Contact between detached components and against colliders (woodstock §5.4, Eqs. 3-7; SPEC §4).
+"""Contact between detached components and against colliders (woodstock §5.4, Eqs. 3-7; docs/model.md §4).
 
 Rod element i is a capsule of radius r_i around the segment from particle ``first_particle[i]`` to
 ``first_particle[i] + 1``. Capsules of different components repel with the quadratic penalty of
