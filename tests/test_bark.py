@@ -145,12 +145,12 @@ def test_incremental_search_ends_where_a_full_one_finds_nothing(tiny_bark):
     sheet, b = tiny_bark.bark, tiny_bark.bark_setup
     st = cracks.CrackState.empty(sheet)
     eps = np.full(sheet.n_faces, 0.08)
-    _load(sheet, st, eps, tip_gain=b["tip_gain"], shadow=b["shadow"])
+    _load(sheet, st, eps, tip_gain=b.tip_gain, shadow=b.shadow)
     plus = cracks.tensile(cracks.relieved(cracks.loading(sheet, eps), st.shadow))
     l1, _, e1 = cracks.eig2(cracks.separation(sheet, plus))
     deg = cracks.crack_degree(sheet, st.cracked)
     assert st.cracked.any()
-    assert len(cracks._new_edges(sheet, st, deg, l1, e1, b["tip_gain"])) == 0
+    assert len(cracks._new_edges(sheet, st, deg, l1, e1, b.tip_gain)) == 0
 
 
 def test_zero_stress_never_cracks(tiny_bark):
@@ -200,7 +200,7 @@ def test_drying_adds_cracks():
 
 
 def test_grooves_keep_meshlets_closed_and_shared(tiny_bark):
-    model = replace(tiny_bark, bark_setup={**tiny_bark.bark_setup, "groove_width": 1e-4})
+    model = replace(tiny_bark, bark_setup=replace(tiny_bark.bark_setup, groove_width=1e-4))
     mesh = build_meshlets(model)
     st = cracks.CrackState.empty(model.bark)
     _load(model.bark, st, np.full(model.bark.n_faces, 0.1))
@@ -428,7 +428,7 @@ def test_crack_maps_show_each_frame_its_own_cracks(tiny_bark):
     # bounded by the widest crack, gives the nearest crack's profile
     s0, first_row, count = texture._branch_rows(sheet, texel)
     for k in (1, 3):
-        w_v = cracks.widths(sheet, cracked[k], float(tiny_bark.bark_setup["crack_width"]))
+        w_v = cracks.widths(sheet, cracked[k], float(tiny_bark.bark_setup.crack_width))
         pts, br, w = surface.crack_samples(sheet, cracked[k], w_v)
         for b in np.unique(br):
             on = br == b

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import fields, replace
 
 import numpy as np
 
@@ -23,9 +23,6 @@ from .scene import TISSUE_KEYS
 from .sim import biology, climate, contact, coupling, mechanics
 from .sim.biology import BioSetup
 from .sim.coupling import CouplingSetup
-from .sim.mechanics import Load, MechConfig, MechSetup
-from .sim.schedule import Tolerances
-from .sim.state import Inoculation
 from .strands import bsp as bsp_mod
 from .strands.elements import element_geometry, sample_strands
 from .strands.materials import Materials
@@ -45,6 +42,7 @@ from .strands.skeleton import Skeleton
 from .strands.strands import build_strands
 from .strands.topology import Topology, build_topology
 from .strands.weakpoints import weak_point_field
+from .wood import BarkSetup, Inoculation, Load, MechConfig, SceneInfo, TimeSpec, Tolerances, WoodModel
 
 #: random streams, one per build stage (index into the seed sequence)
 _STREAMS = {"strands": 1, "sampling": 2, "rings": 3, "bsp": 4, "weakpoints": 5, "bark": 6}
@@ -53,143 +51,6 @@ _STREAMS = {"strands": 1, "sampling": 2, "rings": 3, "bsp": 4, "weakpoints": 5, 
 def stage_rng(seed: int, stage: str) -> np.random.Generator:
     """Independent generator for one build stage, determined by the scene seed."""
     return np.random.default_rng([int(seed), _STREAMS[stage]])
-
-
-@dataclass(frozen=True)
-class SceneInfo:
-    """What outputs record of the scene a model was built from (USD customLayerData, glTF
-    extras, checkpoints): its name, seed and the hash of the resolved scene, and the hash of the
-    part the settled rods depend on (the settled-state cache's key)."""
-
-    name: str
-    seed: int
-    hash: str
-    settle_hash: str
-
-
-@dataclass(frozen=True)
-class TimeSpec:
-    """The schedule of a simulation (Algorithm 1): ``days`` simulated in macro steps of at most
-    ``dt_bio`` days, each with ``N_mech`` mechanics substeps; ``frames`` output frames played at
-    ``fps``; ``settle`` seconds of settling with damping ``settle_damping`` before the first step.
-    ``schedule`` "fixed" runs the N_mech substeps in every macro step, "adaptive" only when
-    :mod:`wooddecay.sim.schedule` finds them due, within ``tolerances``."""
-
-    days: float
-    dt_bio: float
-    frames: int
-    fps: float
-    N_mech: int
-    settle: float
-    settle_damping: float
-    schedule: str  # "adaptive" or "fixed" (sim/schedule.py)
-    tolerances: Tolerances  # of the adaptive schedule
-
-
-@dataclass(frozen=True, eq=False)
-class WoodModel:
-    """Structure of arrays; element arrays have length ``n_elements``, edge arrays ``n_edges``.
-
-    Public names follow docs/architecture.md: ``centers``, ``wood_coords`` (r, phi, s), ``frames`` (rows
-    e_r, e_t, e_l), ``tissue``, ``ring_age``, ``bsp_leaf``, ``reg_edges``, ``reg_theta``.
-    """
-
-    # strands and particles
-    particles: np.ndarray
-    particle_offsets: np.ndarray
-    element_offsets: np.ndarray
-    # elements
-    strand: np.ndarray
-    first_particle: np.ndarray
-    centers: np.ndarray
-    rest_length: np.ndarray
-    radius: np.ndarray
-    mass: np.ndarray
-    rest_quat: np.ndarray
-    frames: np.ndarray
-    wood_coords: np.ndarray
-    bark_distance: np.ndarray
-    ring_age: np.ndarray
-    tissue: np.ndarray
-    branch: np.ndarray
-    bsp_leaf: np.ndarray
-    W: np.ndarray
-    anchored: np.ndarray
-    # REG
-    reg_edges: np.ndarray
-    reg_rest_offset: np.ndarray
-    reg_rest_darboux: np.ndarray
-    reg_dir_weights: np.ndarray
-    reg_theta: np.ndarray
-    reg_indptr: np.ndarray
-    reg_indices: np.ndarray
-    reg_edge_of: np.ndarray
-    # transport graph = strand chains + cross-strand pairs within transport_reach * r_s
-    # (kind 0: a REG edge, 1: a chain link, 2: a wider transverse pair)
-    transport_edges: np.ndarray
-    transport_kind: np.ndarray
-    transport_indptr: np.ndarray
-    transport_indices: np.ndarray
-    transport_edge_of: np.ndarray
-    # strand control points in their node's cross-section frame (what the meshlets sweep, docs/model.md §5):
-    # strand k owns rows cp_offsets[k]:cp_offsets[k + 1]; cp_uv is the actual position (an end
-    # part-way along an edge interpolated), cp_s its distance to the root
-    cp_offsets: np.ndarray
-    cp_node: np.ndarray
-    cp_uv: np.ndarray
-    cp_s: np.ndarray
-    particle_s: np.ndarray  # (n_p,) distance to the root of each particle (linear in arc between cps)
-    # the skeleton graph and its topology (branches, node frames, s), and the strand radius r_s
-    skeleton: Skeleton
-    topology: Topology
-    r_s: float
-    bark_thickness: float  # 0: the wood has no bark (a board), its outer faces are wood
-    # the scene's identity and schedule
-    info: SceneInfo
-    time: TimeSpec
-    # per-tissue parameters, inoculations resolved on the elements, and the solvers' static data
-    materials: Materials
-    inoculations: tuple[Inoculation, ...] = ()
-    bark: BarkSheet | None = None  # the bark crack sheet ([bark] cracks, and the wood has bark)
-    bark_setup: dict = field(default_factory=dict)  # the resolved [bark] section
-    bio: BioSetup | None = None
-    mech: MechSetup | None = None
-    coupling: CouplingSetup | None = None
-    # bookkeeping
-    build_seconds: dict = field(default_factory=dict)
-    notes: tuple[str, ...] = ()  # what the build could not model as asked (:func:`narrow_notes`)
-
-    @property
-    def n_branches(self) -> int:
-        return self.topology.n_branches
-
-    @property
-    def n_elements(self) -> int:
-        return len(self.centers)
-
-    @property
-    def n_strands(self) -> int:
-        return len(self.element_offsets) - 1
-
-    @property
-    def n_edges(self) -> int:
-        return len(self.reg_edges)
-
-    @property
-    def reg_degree(self) -> np.ndarray:
-        return np.diff(self.reg_indptr)
-
-    @property
-    def bsp_cells(self) -> int:
-        return int(len(np.unique(self.bsp_leaf)))
-
-    @property
-    def nbytes(self) -> int:
-        return int(sum(v.nbytes for v in vars(self).values() if isinstance(v, np.ndarray)))
-
-    def tissue_counts(self) -> dict[str, int]:
-        counts = np.bincount(self.tissue, minlength=len(TISSUES))
-        return {name: int(c) for name, c in zip(TISSUES, counts)}
 
 
 @contextmanager
@@ -402,10 +263,10 @@ def build_model(scene) -> WoodModel:
         model = replace(model, bio=bio, mech=mech, coupling=coupling.prepare(model),
                         notes=model.notes + mechanics.load_notes(mech))
     with _timed(sec, "bark"):
-        bark = scene.bark.as_dict()
-        if bark["cracks"] and rg.bark_thickness > 0.0:
+        bark = BarkSetup(**{f.name: scene.bark[f.name] for f in fields(BarkSetup)})
+        if bark.cracks and rg.bark_thickness > 0.0:
             tree_years = int(years.max())
-            recent = np.array([recent_growth(cumulative_widths(int(y), rg.weibull_c, noise, tree_years), bark["bark_years"])
+            recent = np.array([recent_growth(cumulative_widths(int(y), rg.weibull_c, noise, tree_years), bark.bark_years)
                                for y in years])
             model = replace(model, bark=build_sheet(model, bark, recent, rg.eccentricity, stage_rng(scene.seed, "bark")),
                             bark_setup=bark)

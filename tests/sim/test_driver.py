@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 
 import wooddecay as wd
-from wooddecay.sim.state import Inoculation
+from wooddecay.wood import Inoculation
 
 from ..conftest import SAMPLES
 

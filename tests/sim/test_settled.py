@@ -40,7 +40,7 @@ def test_another_bark_loads_the_rods_and_cracks_its_own_bark(tmp_path):
     """[bark] is not in the key: of another crack threshold the rods are loaded and the bark is
     cracked again, the bits of a bake without the cache."""
     first = arrays(wd.Simulation(model(), settle_cache=tmp_path))
-    other = {"bark.threshold": 0.5 * model().bark_setup["threshold"]}
+    other = {"bark.threshold": 0.5 * model().bark_setup.threshold}
     again = wd.Simulation(model(**other), settle_cache=tmp_path)
     assert again.settled == "cached"
     a, b = arrays(again), arrays(wd.Simulation(model(**other)))

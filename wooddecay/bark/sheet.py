@@ -124,8 +124,8 @@ def build_sheet(model, bark, recent: np.ndarray, eccentricity: float, rng: np.ra
     """The sheet of ``model`` (module docstring) for the resolved [bark] section ``bark``;
     ``recent`` per skeleton node is :func:`recent_growth` of its profile's rings."""
     skel, topo = model.skeleton, model.topology
-    h = float(bark["spacing"]) * model.r_s
-    pattern = str(bark["pattern"])
+    h = float(bark.spacing) * model.r_s
+    pattern = str(bark.pattern)
     perim = np.array([polygon_perimeter(p.polygon) for p in skel.profiles])
     parts = []
     v_off = 0
@@ -160,12 +160,12 @@ def build_sheet(model, bark, recent: np.ndarray, eccentricity: float, rng: np.ra
         faces = np.vstack([f1, f2])
         up = np.stack([np.interp(s, s_n, topo.up2d[chain, k]) for k in (0, 1)], 1)
         ecc = 1.0 + eccentricity * (fm.cos(phi) * up[:, 0] + fm.sin(phi) * up[:, 1])
-        g_v = float(bark["growth"]) * np.interp(s, s_n, recent[chain]) * ecc
+        g_v = float(bark.growth) * np.interp(s, s_n, recent[chain]) * ecc
         cu, cv = NOISE_CELLS[pattern]
         period_u = max(1, int(round(n_phi / cu)))
         noise = _value_noise(phi / (2 * np.pi) * period_u, (s - s_n[0]) / (cv * h), period_u, rng)
-        thr = float(bark["threshold"]) * (1.0 + float(bark["noise"]) * (2.0 * noise - 1.0))
-        cells = max(1.0, np.sqrt(float(bark["plate_area"])) / h)
+        thr = float(bark.threshold) * (1.0 + float(bark.noise) * (2.0 * noise - 1.0))
+        cells = max(1.0, np.sqrt(float(bark.plate_area)) / h)
         period_b = max(1, int(round(n_phi / cells)))
         b_v = 1.0 + BOND_NOISE * (2.0 * _value_noise(phi / (2 * np.pi) * period_b, (s - s_n[0]) / (cells * h),
                                                       period_b, rng) - 1.0)

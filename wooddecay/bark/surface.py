@@ -58,7 +58,7 @@ def crack_fields(model, mesh, cracked: np.ndarray) -> tuple[np.ndarray, np.ndarr
     sheet, b = model.bark, model.bark_setup
     if sheet is None or not cracked.any():
         return crack, depth, width
-    w_v = widths(sheet, cracked, float(b["crack_width"]))
+    w_v = widths(sheet, cracked, float(b.crack_width))
     pts, br, w = crack_samples(sheet, cracked, w_v)
     trees = branch_trees(sheet.period, br, pts)
     on = np.flatnonzero(bark_vertices(mesh))
@@ -76,14 +76,14 @@ def crack_fields(model, mesh, cracked: np.ndarray) -> tuple[np.ndarray, np.ndarr
         c = np.clip(1.0 - d / (0.5 * wk + model.r_s), 0.0, 1.0)
         crack[on[sel]] = c
         width[on[sel]] = np.where(c > 0.0, wk, 0.0)
-    depth = np.minimum(float(b["crack_depth"]) * width * crack, model.bark_thickness)
+    depth = np.minimum(float(b.crack_depth) * width * crack, model.bark_thickness)
     return crack, depth, width
 
 
 def groove_offsets(model, mesh, depth: np.ndarray, width: np.ndarray) -> np.ndarray:
     """(V, 3) rest-position offsets that cut the grooves (module docstring)."""
     out = np.zeros((len(mesh.points), 3))
-    gw = float(model.bark_setup.get("groove_width", 0.0)) if model.bark is not None else 0.0
+    gw = float(model.bark_setup.groove_width) if model.bark is not None else 0.0
     cut = (width > gw) & (depth > 0.0) if gw > 0.0 else np.zeros(len(depth), dtype=bool)
     if not cut.any():
         return out

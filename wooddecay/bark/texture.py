@@ -93,7 +93,7 @@ def _profile(model, cracked: np.ndarray, texel: float, rows) -> np.ndarray:
     out = np.zeros((H, W), dtype=np.uint16)
     if not cracked.any():
         return out
-    w_v = widths(sheet, cracked, float(model.bark_setup["crack_width"]))
+    w_v = widths(sheet, cracked, float(model.bark_setup.crack_width))
     pts, br, w = crack_samples(sheet, cracked, w_v)
     for b, (tree, rows, y0) in branch_trees(sheet.period, br, pts).items():
         nrow = int(count[b])

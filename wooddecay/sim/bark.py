@@ -56,7 +56,7 @@ def drying_strain(sheet, M_face: np.ndarray) -> np.ndarray:
 
 
 def _strain(model, M_face: np.ndarray) -> np.ndarray:
-    return model.bark.growth + float(model.bark_setup["drying"]) * drying_strain(model.bark, M_face)
+    return model.bark.growth + float(model.bark_setup.drying) * drying_strain(model.bark, M_face)
 
 
 def _grow(model, st: BarkState, eps: np.ndarray, rose: bool | None = None) -> None:
@@ -69,7 +69,7 @@ def _grow(model, st: BarkState, eps: np.ndarray, rose: bool | None = None) -> No
         return
     st.eps_seen = np.maximum(st.eps_seen, eps)
     b = model.bark_setup
-    cracks.grow(model.bark, st.crack, eps, float(b["tip_gain"]), float(b["shadow"]))
+    cracks.grow(model.bark, st.crack, eps, float(b.tip_gain), float(b.shadow))
 
 
 def uncracked(model, state) -> BarkState | None:
@@ -102,8 +102,8 @@ def step(model, state, dt_days: float) -> bool:
         return False
     sheet, b = model.bark, model.bark_setup
     eps = np.empty(sheet.n_faces)
-    rose, loose = _faces(sheet.face_element, state.M, state.H_c, state.H_l, sheet.growth, float(b["drying"]),
-                         sheet.shrinkage, sheet.M_0, float(b["shedding"]), float(dt_days), st.eps_seen, st.bond,
+    rose, loose = _faces(sheet.face_element, state.M, state.H_c, state.H_l, sheet.growth, float(b.drying),
+                         sheet.shrinkage, sheet.M_0, float(b.shedding), float(dt_days), st.eps_seen, st.bond,
                          st.M_last, st.shed, eps)
     _grow(model, st, eps, rose > 0)
     if loose:  # else no plate comes off: its mean bond exceeds its least face's
@@ -154,10 +154,10 @@ def _shed(model, st: BarkState) -> None:
     and the pairs and links that let them fall (:mod:`wooddecay.bark.shedding`)."""
     sheet, b = model.bark, model.bark_setup
     label = shedding.plates(sheet, st.crack.cracked, st.shed)
-    label, off, breaks = shedding.falling(sheet, label, st.bond, float(b["plate_area"]))
+    label, off, breaks = shedding.falling(sheet, label, st.bond, float(b.plate_area))
     breaks = breaks[~st.crack.cracked[breaks]]
     st.crack.cracked[breaks] = True
-    cracks.cast_shadows(sheet, st.crack, breaks, float(b["shadow"]))
+    cracks.cast_shadows(sheet, st.crack, breaks, float(b.shadow))
     if off.any():
         st.shed |= off
         edge_cut, link_cut, _ = shedding.cuts(model, sheet, label, off)

@@ -34,6 +34,7 @@ import numba as nb
 import numpy as np
 
 from ..quaternion import conj_np, mul, mul_np, rotate
+from ..wood import Load, MechConfig
 from . import contact, failure, rods, sleep, strand_solve
 
 #: contact candidate pairs are searched with this margin (in r_s) and rebuilt once a particle
@@ -104,34 +105,6 @@ def _sweep_arrays(order, edge_ok, integrity, rest_offset, k_conn0, k_pb0, k_pt0,
         k_conn[t] = integrity[k] * k_conn0[t] if edge_ok[k, 0] else 0.0
         k_bend[t] = integrity[k] * k_pb0[t] if edge_ok[k, 1] else 0.0
         k_twist[t] = integrity[k] * k_pt0[t] if edge_ok[k, 2] else 0.0
-
-
-@dataclass(frozen=True)
-class MechConfig:
-    """The ``[mechanics]`` scalars the rod system is built with (docs/model.md §4; Table 3)."""
-
-    gravity: tuple
-    damping: float
-    dt_mech: float
-    iterations: int
-    strand_solver: str
-    inertia_scale: float
-    k_col: float
-    v_depenetration: float
-    mu_f: float
-    epsilon: float
-    sleep_speed: float
-    sleep_time: float
-
-
-@dataclass(frozen=True)
-class Load:
-    """A ``[[load]]``: ``force`` (N, world) on the elements of ``mask`` over days [day0, day1)."""
-
-    day0: float
-    day1: float
-    force: tuple
-    mask: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)

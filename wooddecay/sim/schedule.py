@@ -69,23 +69,13 @@ import numpy as np
 
 from . import failure, sleep
 from . import mechanics as mech
+from ..wood import Tolerances
 from .signature import MIN_PIECE
 
 #: a relaxing chunk brings a piece released from rest to this many times rest_speed (:func:`relax_substeps`)
 CHUNK_MARGIN = 1.15
 #: the reasons of :func:`due` that ask wood at rest to relax changed rest data
 RELAX = ("strain", "integrity_mass")
-
-
-@dataclass(frozen=True)
-class Tolerances:
-    """The ``[time]`` keys of the adaptive schedule (module docstring)."""
-
-    strain: float  # strain_tolerance
-    relative: float  # tolerance: integrity and mass
-    rest_speed: float  # m/s
-    hold_speed: float  # m/s (:func:`hold_still`; 0: never)
-    max_seconds: float  # max_mechanics, s per macro step
 
 
 def mark(model, ms: mech.MechState, t_days: float, quiet: bool) -> None:

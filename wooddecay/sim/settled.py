@@ -18,6 +18,7 @@ and without the cache.
 from __future__ import annotations
 
 import functools
+from dataclasses import asdict
 import json
 import os
 from pathlib import Path
@@ -68,7 +69,7 @@ def settle(model, state, folder: Path | None, run=None) -> str:
 
 def _bark_key(model) -> str | None:
     """What the day-0 cracks depend on beyond the wood: the resolved [bark] section."""
-    return None if model.bark is None else json.dumps(model.bark_setup, sort_keys=True, default=str)
+    return None if model.bark is None else json.dumps(asdict(model.bark_setup), sort_keys=True, default=str)
 
 
 def _bark_arrays(bark_state) -> dict:

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..wood import Inoculation
 from . import mechanics
 
 FIELDS = ("R_w", "R_b", "H_c", "H_l", "C", "M")
@@ -54,17 +55,6 @@ class SimState:
                         clamp_count=self.clamp_count, applied=set(self.applied),
                         mech=None if self.mech is None else self.mech.copy(),
                         bark=None if self.bark is None else self.bark.copy())
-
-
-@dataclass(frozen=True)
-class Inoculation:
-    """An inoculation resolved on the model: on ``day`` the activity of ``fungus`` ("white":
-    R_w, "brown": R_b) rises to ``activity`` on the elements of ``mask``."""
-
-    day: float
-    fungus: str
-    activity: float
-    mask: np.ndarray
 
 
 def initial_state(model, rods: bool = False) -> SimState:
