@@ -2,8 +2,8 @@
 ``bpy`` wheel.
 
 Every bpy step runs in a subprocess (``bpy`` bundles its own ``pxr``, which must not meet
-usd-core's in this interpreter). The extension is built with ``wooddecay addon build`` (Blender's
-own extension builder), installed from the zip with Blender's ``extension install-file`` into a
+usd-core's in this interpreter). The extension is built with ``wooddecay addon build`` (plain
+Python, checked against Blender's own extension builder), installed from the zip with Blender's ``extension install-file`` into a
 throw-away user folder (BLENDER_USER_RESOURCES), enabled, and driven through its operator
 ``bpy.ops.import_scene.wooddecay``. The bakes are made here with the Python API.
 
@@ -36,7 +36,8 @@ from .conftest import cracking_frames
 pytestmark = pytest.mark.blender
 
 ROOT = Path(__file__).resolve().parent.parent
-ADDON_DIR = ROOT / "blender_addon"
+#: the add-on's source, package data of wooddecay (wooddecay/blender_addon/)
+ADDON_DIR = addon.SOURCE
 MODULE = "bl_ext.user_default.wooddecay"
 #: seconds one bpy subprocess may take
 TIMEOUT = 300
@@ -520,18 +521,47 @@ def test_manifest():
     assert m["blender_version_min"] == "4.2.0"
     assert m["name"] and m["tagline"] and m["maintainer"]
     assert all(x.startswith("SPDX:") for x in m["license"])
+    assert addon.manifest_errors(m) == []
     with open(ROOT / "pyproject.toml", "rb") as f:
-        assert m["version"] == tomllib.load(f)["project"]["version"], "keep the add-on and package versions equal"
+        project = tomllib.load(f)["project"]
+    assert m["version"] == project["version"], "keep the add-on and package versions equal"
+    assert m["license"] == [f"SPDX:{project['license']}"], "keep the add-on and package licenses equal"
 
 
 def test_addon_build_zip(addon_zip):
-    """``wooddecay addon build`` writes <id>-<version>.zip with Blender's builder: the
-    manifest and the add-on modules at the top, no caches."""
+    """``wooddecay addon build`` writes <id>-<version>.zip: the manifest and the add-on modules
+    at the top, no caches."""
     names = zipfile.ZipFile(addon_zip).namelist()
     for f in ("blender_manifest.toml", "__init__.py", "importer.py", "shader.py", "material.py",
               "blender_import.py"):
         assert f in names
     assert not [n for n in names if "__pycache__" in n or n.endswith(".pyc")]
+
+
+def test_addon_build_is_blenders_zip(addon_zip, tmp_path):
+    """The zip ``wooddecay addon build`` makes without Blender holds the files, with the same
+    bytes, that Blender's ``extension build`` puts in its zip, and Blender's ``extension
+    validate`` accepts it."""
+    theirs = addon.blender_build(tmp_path / "blender", timeout=TIMEOUT)
+    assert theirs.name == addon_zip.name
+    with zipfile.ZipFile(addon_zip) as ours, zipfile.ZipFile(theirs) as blender:
+        assert sorted(ours.namelist()) == sorted(blender.namelist())
+        for name in blender.namelist():
+            assert ours.read(name) == blender.read(name), name
+    addon.validate(addon_zip, timeout=TIMEOUT)
+
+
+def test_addon_build_needs_no_bpy(tmp_path):
+    """``wooddecay addon build`` in a Python where ``bpy`` cannot be imported (as from a wheel
+    installed without the render extra)."""
+    code = ("import sys; sys.modules['bpy'] = None\n"
+            "from wooddecay.cli import main\n"
+            "main(['addon', 'build', '-o', sys.argv[1]])")
+    proc = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True,
+                          timeout=TIMEOUT)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert zipfile.ZipFile(tmp_path / addon.zip_name()).read("blender_manifest.toml") == \
+        (ADDON_DIR / "blender_manifest.toml").read_bytes()
 
 
 def test_pure_modules_have_no_bpy():

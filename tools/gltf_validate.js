@@ -1,6 +1,7 @@
 #!/usr/bin/env node
-// Validate a glTF/GLB file with the Khronos glTF-Validator (npm `gltf-validator`, installed by
-// `npm ci` at the repository root) and print its report as JSON on stdout.
+// Validate a glTF/GLB file with the Khronos glTF-Validator (npm `gltf-validator`, pinned in
+// tools/package.json and tools/package-lock.json, installed by `npm ci` in tools/) and print its
+// report as JSON on stdout.
 //
 //   node tools/gltf_validate.js FILE.glb
 //
@@ -15,7 +16,7 @@ try {
   validator = require("gltf-validator");
 } catch (err) {
   console.error("gltf_validate: the npm package 'gltf-validator' is not installed; run `npm ci` " +
-                "in the repository root (" + path.resolve(__dirname, "..") + ")");
+                "in " + __dirname);
   process.exit(2);
 }
 

