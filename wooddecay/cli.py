@@ -151,7 +151,11 @@ def _print_report(rep: dict) -> None:
 
 
 def _inspect_bake(folder: Path, as_json: bool) -> None:
-    """The per-frame signatures of the bake in ``folder`` (``summary.json``)."""
+    """The per-frame signatures of the bake in ``folder`` (``summary.json``); a bake whose stage is
+    of a newer format than this wooddecay reads is refused (:func:`wooddecay.export.usd.check_bake_format`)."""
+    from .export.usd import check_bake_format
+
+    check_bake_format(folder)
     path = folder / "summary.json"
     try:
         frames = json.loads(path.read_text())["frames"]
@@ -451,14 +455,15 @@ def diff(ctx: click.Context, a: str, b: str, rtol: float, atol: float) -> None:
 # --- wooddecay addon: the Blender extension (logic in wooddecay/addon.py) ---------------------
 @main.group()
 def addon() -> None:
-    """The Blender add-on (blender_addon/): build its installable extension zip."""
+    """The Blender add-on (shipped in the package, wooddecay/blender_addon/): build its installable extension zip."""
 
 
 @addon.command("build")
 @click.option("-o", "--output", "out", type=click.Path(file_okay=False), default="dist", show_default=True,
               help="Folder for the zip (created if missing).")
 def addon_build(out: str) -> None:
-    """Make <id>-<version>.zip with Blender's own extension builder (from the bpy wheel)."""
+    """Make <id>-<version>.zip, the zip Blender's `extension build` makes (no Blender or bpy needed):
+    install it in Blender with Edit > Preferences > Get Extensions > Install from Disk."""
     from .addon import AddonError, build
 
     try:

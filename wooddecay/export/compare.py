@@ -11,7 +11,9 @@
   anything else (tokens, strings, topology counts) exactly;
 * relationships (e.g. material bindings) by their targets.
 
-A file that cannot be opened raises :class:`~wooddecay.errors.InputError` (exit 2 in the CLI).
+A file that cannot be opened, or a stage of a newer format than this wooddecay reads
+(customLayerData ``format_version``, :func:`wooddecay.export.usd.stage_format`; a stage without it
+is format 1), raises :class:`~wooddecay.errors.InputError` (exit 2 in the CLI).
 """
 from __future__ import annotations
 
@@ -49,6 +51,9 @@ def _open(path):
         raise InputError(str(p), "", f"not a readable USD file: {str(err).splitlines()[-1].strip()}") from None
     if stage is None:
         raise InputError(str(p), "", "not a readable USD file")
+    from .usd import stage_format
+
+    stage_format(stage.GetRootLayer().customLayerData, p)  # a newer stage is refused, not compared
     return stage
 
 

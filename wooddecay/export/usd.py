@@ -3,8 +3,9 @@
 ``export_usd(path, model, mesh, frames)`` writes:
 
 * stage metadata: Z up, metersPerUnit 1, defaultPrim ``/World``, timeCodesPerSecond = ``time.fps``,
-  start/end time codes = the first and last frame index, customLayerData (wooddecay version, scene
-  name, seed, hash of the resolved scene, days per frame, frame days);
+  start/end time codes = the first and last frame index, customLayerData (``format_version``: the
+  stage's format :data:`FORMAT`, wooddecay version, scene name, seed, hash of the resolved scene,
+  days per frame, frame days);
 * ``/World/<scene>/Wood``: one Mesh of all meshlets as disjoint closed shells (triangles,
   subdivisionScheme none, static ``faceVertexIndices``), ``points`` and ``extent`` time-sampled (the skinned
   meshlets of :mod:`wooddecay.meshlets.skin`); vertex primvars H_c, H_l, M, R_w, R_b, C
@@ -28,6 +29,11 @@
   through a UsdPrimvarReader_float3, so any USD viewer shows the rot.
 
 Written atomically (:func:`wooddecay.export.stage.export_atomic`).
+
+Readers (``wooddecay diff``, ``wooddecay inspect BAKE_DIR``) check a stage's format with
+:func:`stage_format` / :func:`check_bake_format`: a stage without ``format_version`` was baked
+before the key existed and is format 1; one of a newer format than this wooddecay reads is refused
+in one line (:class:`~wooddecay.errors.InputError`, exit 2).
 """
 from __future__ import annotations
 
@@ -36,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from ..bark import surface, texture
+from ..errors import InputError
 from ..meshlets import skin as skin_mod
 from ..meshlets.visibility import NEVER, exposure
 from ..sim.state import FIELDS
@@ -45,6 +52,57 @@ from .png import write_png16
 
 #: the bark's vertex primvars (:mod:`wooddecay.bark.surface`)
 BARK_PRIMVARS = ("bark_crack", "bark_crack_depth")
+
+#: The baked stage's format, written as customLayerData ``format_version``. A change to what the
+#: stage holds or means (a prim, primvar or metadata key renamed, removed or reinterpreted) bumps it
+#: and is listed in CHANGELOG.md; readers refuse a stage of a newer format.
+FORMAT = 1
+#: the oldest stage format this wooddecay reads
+FORMAT_MIN = 1
+#: the format of a stage baked before ``format_version`` existed
+FORMAT_UNDECLARED = 1
+FORMAT_KEY = "format_version"
+
+
+def stage_format(custom_layer_data, file) -> int:
+    """The format of a baked stage from its root layer's ``custom_layer_data`` (a mapping):
+    ``format_version``, or :data:`FORMAT_UNDECLARED` for a stage baked before the key existed.
+    Raises :class:`~wooddecay.errors.InputError` (one line: ``file``, the key and the formats this
+    wooddecay reads) for a newer format or a value that is not a whole number."""
+    from .. import __version__
+
+    value = dict(custom_layer_data or {}).get(FORMAT_KEY, FORMAT_UNDECLARED)
+    allowed = f"formats [{FORMAT_MIN}, {FORMAT}]"
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise InputError(str(file), f"customLayerData.{FORMAT_KEY}",
+                         f"expected a whole number in [{FORMAT_MIN}, {FORMAT}], got {value!r:.40}")
+    if value > FORMAT:
+        raise InputError(str(file), f"customLayerData.{FORMAT_KEY}",
+                         f"stage format {int(value)} is newer than wooddecay {__version__} reads ({allowed}); "
+                         "upgrade wooddecay to read this stage")
+    if value < FORMAT_MIN:
+        raise InputError(str(file), f"customLayerData.{FORMAT_KEY}",
+                         f"stage format {int(value)} is older than wooddecay {__version__} reads ({allowed})")
+    return int(value)
+
+
+def check_bake_format(folder) -> None:
+    """:func:`stage_format` of every USD stage directly in the bake folder ``folder`` (its layer
+    metadata only; a file USD cannot open is left to the reader that opens it)."""
+    from pxr import Sdf, Tf
+
+    folder = Path(folder)
+    if not folder.is_dir():
+        return
+    for p in sorted(folder.iterdir()):
+        if p.suffix.lower() not in stage_mod.SUFFIXES or p.name.startswith(".") or not p.is_file():
+            continue
+        try:
+            layer = Sdf.Layer.OpenAsAnonymous(str(p), True)
+        except Tf.ErrorException:
+            continue
+        if layer is not None:
+            stage_format(layer.customLayerData, p)
 
 
 def crack_map_files(path) -> list[Path]:
@@ -73,7 +131,7 @@ def export_usd(path, model, mesh, frames, version: str = "") -> Path:
     stage.SetFramesPerSecond(float(model.time.fps))
     days = [float(f.t_days) for f in frames]
     stage.GetRootLayer().customLayerData = {
-        "wooddecay_version": version, "scene": model.info.name, "seed": int(model.info.seed),
+        FORMAT_KEY: FORMAT, "wooddecay_version": version, "scene": model.info.name, "seed": int(model.info.seed),
         "scene_hash": model.info.hash,
         "days_per_frame": float(model.time.days) / max(int(model.time.frames) - 1, 1),
         "frame_days": Vt.DoubleArray(days),

@@ -8,11 +8,14 @@ typical value as default. ``wooddecay.scene.describe()`` prints the parameters.
 * :mod:`~wooddecay.scene.validate`: values and tables against the schema; one-line errors.
 * :mod:`~wooddecay.scene.load`: reading, ``--set`` overrides, resolution.
 * :mod:`~wooddecay.scene.types`: the frozen :class:`Scene` and its read-only containers.
+* :mod:`~wooddecay.scene.docs`: docs/scene.md written from the schema
+  (``python scripts/write_scene_docs.py``).
 
 Sections
 --------
-``[scene]``        name (default: file stem), seed (int >= 0), quality (``draft`` | ``final``),
-                   description.
+``[scene]``        format (the scene file format, :data:`FORMAT`; default 1, a newer one is
+                   refused), name (default: file stem), seed (int >= 0), quality
+                   (``draft`` | ``final``), description.
 ``[skeleton]``     inline ``[[skeleton.node]]`` or ``file = ...`` (see
                    :func:`wooddecay.strands.skeleton_loader.load_skeleton`).
 ``[strands] [rings] [bsp] [weakpoints] [transport] [fungi] [moisture] [wood] [mechanics]
@@ -39,6 +42,7 @@ A region is a table with ``kind`` and ``space`` (``world`` | ``wood``, default `
 from wooddecay.scene.load import Overrides, load_scene, parse_scene, parse_set_option
 from wooddecay.scene.schema import (
     DRAFT_SCALE,
+    FORMAT,
     PARAMS,
     SECTIONS,
     TABLES,
@@ -71,6 +75,7 @@ __all__ = [
     "TISSUE_SECTIONS",
     "TISSUE_KEYS",
     "DRAFT_SCALE",
+    "FORMAT",
     "get_param",
     "describe",
     "format_range",

@@ -10,6 +10,8 @@ the other way round).
   :func:`parse_set_option`) are dotted keys (``strands.r_s``, ``tissue.heartwood.alpha_w0``,
   ``scene.seed``) applied to the parsed TOML *before* validation, so they are checked exactly
   like file values; errors about them name ``<overrides>`` / ``<--set>`` as the file.
+* ``[scene] format`` (:data:`~wooddecay.scene.schema.FORMAT`) is checked first: a scene of a
+  newer format than this wooddecay reads is refused in one line; a file without it is format 1.
 * ``strands.connect_radius`` defaults to ``2.5 * r_s`` and must be >= ``2 * r_s``.
 * Consistency: ``fungi.M_min < fungi.M_max``, ``moisture.M_2 < moisture.M_1`` and
   ``M_2 <= M_init <= M_1``, also for every tissue after its overrides.
@@ -48,6 +50,7 @@ from wooddecay.scene.schema import (
 from wooddecay.scene.types import FrozenMap, Scene, Section
 from wooddecay.scene.validate import (
     check_connect_radius,
+    check_format,
     check_moisture,
     unknown_key,
     validate_table,
@@ -276,6 +279,7 @@ def _apply_overrides(data: dict, overrides: Mapping[str, Any], ctx: _Ctx) -> Non
 
 def _resolve(data: dict, ctx: _Ctx, base_dir: Path, path: Path | None, default_name: str) -> Scene:
     file = ctx.file
+    fmt = check_format(data, ctx.src("scene.format"))  # first: a newer scene may have keys this one lacks
     for k in data:
         if k not in TOP_LEVEL:
             raise unknown_key(file, "", k, TOP_LEVEL)
@@ -342,6 +346,7 @@ def _resolve(data: dict, ctx: _Ctx, base_dir: Path, path: Path | None, default_n
     sections = {sec: Section(sec, values[sec]) for sec in SECTIONS if sec != "scene"}
     return Scene(
         name=name,
+        format=fmt,
         seed=scene_vals["seed"],
         quality=scene_vals["quality"],
         description=scene_vals["description"],

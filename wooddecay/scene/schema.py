@@ -20,8 +20,12 @@ Two kinds of table, one row format ``(name, default, unit, range, doc[, kind])``
   ``depth``), in ``world`` or wood-local (r, phi, s) coordinates (docs/model.md §3 inoculation); a
   collider (woodstock §5.1) is a ``plane``, ``box``, ``sphere`` or ``cylinder``.
 
-:func:`format_range` says in words what a :class:`Param` allows (``(0, 1] m``); :func:`describe`
-prints the scalar sections as Markdown.
+``[scene] format`` is the version of the scene file format (:data:`FORMAT`; a file without it is
+format 1, one of a newer format is refused, docs/scene.md "Format version").
+
+:func:`format_range` says in words what a :class:`Param` allows (``(0, 1] m``), :func:`default_text`
+its default; :func:`describe` prints the scalar sections as Markdown, and
+:func:`wooddecay.scene.docs.scene_docs` every table as docs/scene.md.
 """
 from __future__ import annotations
 
@@ -87,8 +91,17 @@ class Table:
 _T3 = "woodstock Table 3"
 #: days of a year of ``time.years``
 DAYS_PER_YEAR = 365.25
+#: The scene file format this wooddecay writes and the range it reads (``[scene] format``). A change
+#: to what a scene file means (a key renamed, removed or reinterpreted, a default changed) bumps
+#: FORMAT and is listed in CHANGELOG.md; a scene that declares a newer format is refused
+#: (:func:`wooddecay.scene.validate.check_format`). A file without the key was written before it
+#: existed: format 1 (:data:`FORMAT_UNDECLARED`), whatever FORMAT is by then.
+FORMAT = 1
+FORMAT_MIN = 1
+FORMAT_UNDECLARED = 1
 _SCHEMA: dict[str, list[tuple]] = {
     "scene": [
+        ("format", FORMAT_UNDECLARED, "", f"[{FORMAT_MIN}, {FORMAT}]", f"Version of the scene file format (CHANGELOG.md): a file without it is read as format {FORMAT_UNDECLARED}; one that declares a newer format than this wooddecay reads is refused. It says how the file is read, not what is simulated, so it is not part of the scene hash."),
         ("name", None, "", "", "Scene name used for output files and the USD prim; default: the scene file stem.", "str"),
         ("seed", 0, "", "[0, inf)", "Seed of the numpy Generator that drives every random choice (packing, rings, noise, BSP)."),
         ("quality", "final", "", "", "Quality preset: 'draft' multiplies strands.r_s, strands.rod_length (and connect_radius) by 1.5 after validation.", "enum:draft|final"),
@@ -505,6 +518,31 @@ def format_range(p: Param) -> str:
     return f"{lo}, {hi}{unit}"
 
 
+def _derived_default(p: Param) -> str:
+    """Words for a scalar key whose default is derived (``default`` None)."""
+    if p.key == "scene.name":
+        return "the file stem"
+    if p.key == "strands.connect_radius":
+        return f"{_num(CONNECT_FACTOR)} * r_s"
+    if p.section == "bark" and p.name in next(iter(BARK_SPECIES.values())):
+        return "from `species`"
+    raise AssertionError(f"no words for the derived default of {p.key}")  # pragma: no cover - schema bug
+
+
+def default_text(p: Param, required: bool = False) -> str:
+    """The default of ``p`` as the page shows it; ``required``: a ``None`` default means the key
+    must be given (entry tables)."""
+    if p.default is None:
+        return "required" if required else _derived_default(p)
+    if p.kind == "vec3":
+        return "[" + ", ".join(_num(c) for c in p.default) + "]"
+    if p.kind in ("list", "seasons"):
+        return "[]"
+    if isinstance(p.default, str):
+        return f'"{p.default}"'
+    return format_value(p.default, limit=200)
+
+
 def describe() -> str:
     """The scalar sections as a Markdown table each (for docs and ``wooddecay inspect``)."""
     lines: list[str] = []
@@ -514,15 +552,7 @@ def describe() -> str:
         lines.append("| key | default | allowed | meaning |")
         lines.append("|---|---|---|---|")
         for p in table.values():
-            if p.default is None:
-                default = "2.5 * r_s" if p.name == "connect_radius" else "file stem"
-            elif p.kind == "vec3":
-                default = "[" + ", ".join(_num(c) for c in p.default) + "]"
-            elif p.kind in ("list", "seasons"):
-                default = "[]"
-            else:
-                default = format_value(p.default)
-            lines.append(f"| `{p.name}` | {default} | {format_range(p)} | {p.doc} |")
+            lines.append(f"| `{p.name}` | {default_text(p)} | {format_range(p)} | {p.doc} |")
         lines.append("")
     lines += ["### Tissue defaults", "", "| tissue | key | default | why |", "|---|---|---|---|"]
     for tissue, table in TISSUE_DEFAULTS.items():

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any, Iterator
 
 from wooddecay.errors import did_you_mean
-from wooddecay.scene.schema import SECTIONS, TISSUE_DEFAULTS, TISSUE_KEYS
+from wooddecay.scene.schema import FORMAT_UNDECLARED, SECTIONS, TISSUE_DEFAULTS, TISSUE_KEYS
 from wooddecay.strands.rings import TISSUES
 
 
@@ -126,12 +126,14 @@ class Scene:
     inoculations: tuple[FrozenMap, ...]
     loads: tuple[FrozenMap, ...]
     colliders: tuple[FrozenMap, ...]
+    #: the scene file's format (``[scene] format``); how the file was read, not part of :attr:`hash`
+    format: int = FORMAT_UNDECLARED
 
     def section(self, name: str) -> Section:
-        """The :class:`Section` called ``name`` (``scene`` gives name/seed/quality/description)."""
+        """The :class:`Section` called ``name`` (``scene`` gives format/name/seed/quality/description)."""
         if name == "scene":
-            return Section("scene", {"name": self.name, "seed": self.seed, "quality": self.quality,
-                                     "description": self.description})
+            return Section("scene", {"format": self.format, "name": self.name, "seed": self.seed,
+                                     "quality": self.quality, "description": self.description})
         if name not in SECTIONS:
             raise KeyError(name)
         return getattr(self, name)
@@ -163,7 +165,9 @@ class Scene:
 
     def to_dict(self) -> dict:
         """The resolved scene as plain JSON-able data (values after the quality preset; not meant
-        to be fed back as a scene file)."""
+        to be fed back as a scene file). The file's ``format`` is left out: it says how the file
+        was read, not what is simulated, so :attr:`hash` (and the caches and stages that record
+        it) is the same whether a scene declares ``format = 1`` or not."""
         out: dict[str, Any] = {
             "scene": {"name": self.name, "seed": self.seed, "quality": self.quality,
                       "description": self.description},

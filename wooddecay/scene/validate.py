@@ -10,6 +10,9 @@ Booleans are not numbers; NaN and infinities are rejected.
 * :func:`validate_table`: one entry of an entry table (``[[inoculation]]``, ``[[load]]``,
   ``[[collider]]``, a ``region``): its keys, values and consistency (box min < max, a plane
   normal and a cylinder axis that are not zero, load days start < end).
+* :func:`check_format`: ``[scene] format`` first of all: a scene of a newer format than this
+  wooddecay reads is refused (``scene.format: format 2 is newer than wooddecay 0.1.0 reads
+  (formats [1, 1])...``).
 * :func:`check_connect_radius`, :func:`check_moisture`: the consistency of the sections
   (connect_radius >= 2 r_s; M_min < M_max, M_2 < M_1, M_2 <= M_init <= M_1 and M_init within
   the moisture schedule), naming every key involved.
@@ -23,7 +26,15 @@ from dataclasses import replace
 from typing import Any
 
 from wooddecay.errors import InputError, did_you_mean, format_value, type_name
-from wooddecay.scene.schema import CONNECT_MIN_FACTOR, DAYS_PER_YEAR, PARAMS, TABLES, Param, Table, format_range
+from wooddecay.scene.schema import (
+    CONNECT_MIN_FACTOR,
+    DAYS_PER_YEAR,
+    PARAMS,
+    TABLES,
+    Param,
+    Table,
+    format_range,
+)
 from wooddecay.scene.types import FrozenMap
 
 #: ``src(*keys)``: the file (or overrides source) the first of ``keys`` that was set came from.
@@ -205,6 +216,26 @@ def validate_value(p: Param, v: Any, file: str, key: str | None = None) -> Any:
     if kind == "interval":
         return _check_interval(p, v, file, key)
     raise AssertionError(f"unknown kind {kind!r}")  # pragma: no cover
+
+
+def check_format(raw: Any, file: str) -> int:
+    """The scene file format of the parsed TOML ``raw`` (its ``[scene] format``, else the format of
+    files written before the key existed). Checked before anything else in the file, so a scene
+    written for a newer wooddecay is refused for that (one line naming the file, the key and the
+    formats this one reads), not for the first key it does not know."""
+    p = PARAMS["scene"]["format"]
+    table = raw.get("scene") if isinstance(raw, Mapping) else None
+    if not isinstance(table, Mapping) or "format" not in table:
+        return p.default
+    v = table["format"]
+    f = _to_float(v) if _is_number(v) else None
+    whole = _is_number(v) and (isinstance(v, numbers.Integral) or (f is not None and f.is_integer()))
+    if whole and p.hi is not None and v > p.hi:
+        from wooddecay import __version__
+
+        raise InputError(file, p.key, f"format {format_value(v)} is newer than wooddecay {__version__} reads "
+                         f"(formats {format_range(p)}); upgrade wooddecay to read this scene")
+    return validate_value(p, v, file)
 
 
 # ---------------------------------------------------------------------------------------------
