@@ -21,7 +21,8 @@ import sys
 import numpy as np
 
 import wooddecay as wd
-from wooddecay.bark import cracks, shedding, surface
+from wooddecay.bark import cracks, shedding
+from wooddecay.export import bark_surface as surface
 from wooddecay.bark.sheet import build_sheet
 from wooddecay.meshlets.sweep import build_meshlets
 from wooddecay.sim import bark, biology

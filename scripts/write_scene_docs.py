@@ -11,7 +11,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from wooddecay.scene.docs import COMMAND, DOCS_PATH, scene_docs, write
+from wooddecay.scene_docs import COMMAND, DOCS_PATH, scene_docs, write
 
 ROOT = Path(__file__).resolve().parent.parent
 

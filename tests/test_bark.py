@@ -9,7 +9,9 @@ import pytest
 
 import wooddecay as wd
 from wooddecay.bake import bake
-from wooddecay.bark import cracks, shedding, surface, texture
+from wooddecay.bark import cracks, shedding
+from wooddecay.export import bark_surface as surface
+from wooddecay.export import bark_texture as texture
 from wooddecay.export.png import png16
 from wooddecay.bark.sheet import recent_growth
 from wooddecay.meshlets.checks import closed_oriented

@@ -196,7 +196,7 @@ def test_the_timestep_renders_are_compared_with_the_default_through_one_camera(t
 
     from wooddecay.gallery import sensitivity
 
-    runs = sensitivity.variants("fig12", quick=True)
+    runs = sensitivity.variants("fig12", quick=True, figures=FIGURES)
     changed = {k for k in runs["perturbed"] if runs["perturbed"][k] != runs["dt"].get(k)}
     assert changed == {"mechanics.k_col"} and runs["perturbed"]["mechanics.k_col"] == 1e7 * (1 + sensitivity.PERTURBATION)
     boxes = []

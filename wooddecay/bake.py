@@ -5,7 +5,7 @@ the rest meshlets (:func:`wooddecay.meshlets.sweep.build_meshlets`) and the expo
 into ``out``:
 
 * ``<name>.usdc`` (:func:`wooddecay.export.usd.export_usd`) with the bark's crack map
-  ``<name>_bark.<UDIM>.png`` beside it, a tile per frame (:mod:`wooddecay.bark.texture`),
+  ``<name>_bark.<UDIM>.png`` beside it, a tile per frame (:mod:`wooddecay.export.bark_texture`),
   ``<name>.glb`` (the last frame,
   :func:`wooddecay.export.gltf.export_gltf`) and ``summary.json`` (counts, seconds per stage (the
   simulation's summed over the runs a resumed bake continues), threads,
@@ -33,7 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__, budget
+from . import budget
+from .version import __version__
 from .atomic import write_bytes
 from .errors import InputError
 from .export.gltf import export_gltf

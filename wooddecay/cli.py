@@ -19,6 +19,7 @@ from pathlib import Path
 import click
 import numpy as np
 
+from .wood import WoodModel
 from . import budget
 from .atomic import write_bytes
 from .errors import InputError
@@ -87,7 +88,7 @@ def _load(scene_path: str, set_items: tuple[str, ...]):
     return load_scene(scene_path, overrides=parse_set_option(set_items))
 
 
-def inspect_report(model, estimate) -> dict:
+def inspect_report(model: WoodModel, estimate) -> dict:
     """The numbers ``wooddecay inspect`` prints (also its JSON), with the biology's explicit-step
     bound and substeps (``model.bio``) and the scene's size estimate (:mod:`wooddecay.budget`)."""
     deg = model.reg_degree
@@ -112,7 +113,7 @@ def inspect_report(model, estimate) -> dict:
     }
 
 
-def _bio_report(model) -> dict:
+def _bio_report(model: WoodModel) -> dict:
     from .sim.biology import substeps
 
     bio, dt_bio = model.bio, model.time.dt_bio
@@ -242,7 +243,7 @@ def inspect(scene_path: str, as_json: bool, strands_usd: Path | None, with_meshl
                            f"{1e3 * m['bark_distance_p99']:.1f} mm, max {1e3 * m['bark_distance_max']:.1f} mm")
 
 
-def _meshlets_report(model, usd_path: Path | None) -> dict:
+def _meshlets_report(model: WoodModel, usd_path: Path | None) -> dict:
     """``meshlets`` fields of the inspect report: count, closed fraction, volume error against
     the volume inside the bark surface, total volume, seconds (and the debug USD); for a skeleton
     built from a mesh, the meshlets against it (source_mesh: volumes, bark-to-mesh distances)."""
@@ -329,7 +330,7 @@ def bake(scene_path: str, out: str | None, days: float | None, years: float | No
         summary = run_bake(scene, out_dir, resume=resume, quality=quality, progress=progress, threads=n_threads,
                            max_memory=limit)
     sec = summary["seconds"]
-    from .bark.texture import file_name, tile_number
+    from .export.bark_texture import file_name, tile_number
 
     tiles = []
     for name, o in summary["outputs"].items():

@@ -13,6 +13,7 @@ from __future__ import annotations
 import time
 from contextlib import contextmanager
 from dataclasses import fields, replace
+from typing import cast
 
 import numpy as np
 
@@ -23,6 +24,7 @@ from .scene import TISSUE_KEYS
 from .sim import biology, climate, contact, coupling, mechanics
 from .sim.biology import BioSetup
 from .sim.coupling import CouplingSetup
+from .sim.mechanics import MechSetup
 from .strands import bsp as bsp_mod
 from .strands.elements import element_geometry, sample_strands
 from .strands.materials import Materials
@@ -148,6 +150,16 @@ def _time_spec(scene) -> TimeSpec:
                                           max_seconds=float(scene.time.max_mechanics)))
 
 
+def _climate(scene) -> climate.Climate:
+    """The :class:`Climate` of a validated scene: ``[climate] seasons`` if given, else its
+    ``preset``'s keyframes; the ground plane of ``[mechanics]``."""
+    c = scene.climate
+    rows = np.array(c.seasons if len(c.seasons) else climate.PRESETS[c.preset], dtype=np.float64)
+    ground = float(scene.mechanics.ground_height) if scene.mechanics.ground else None
+    return climate.Climate(days=rows[:, 0].copy(), start_day=float(c.start_day), w=rows[:, 1:].copy(), k_ground=float(c.k_ground),
+                   ground_z=ground, ground_depth=float(c.ground_depth))
+
+
 def retimed(model: WoodModel, scene) -> WoodModel:
     """The model of ``scene``, from the ``model`` of a scene with the same
     :attr:`~wooddecay.scene.types.Scene.model_hash` (it differs at most in [time], [export], its
@@ -249,13 +261,15 @@ def build_model(scene) -> WoodModel:
         skeleton=skel, topology=topo, r_s=float(st.r_s), bark_thickness=float(rg.bark_thickness),
         materials=materials,
         info=_scene_info(scene), time=_time_spec(scene), build_seconds=sec, notes=notes,
+        # the solvers' prepare() read only the wood arrays above; their setups replace these below
+        bio=cast(BioSetup, None), mech=cast(MechSetup, None), coupling=cast(CouplingSetup, None),
     )
     with _timed(sec, "solvers"):
         model = replace(model, inoculations=tuple(
             Inoculation(day=float(ino["day"]), fungus=str(ino["fungus"]), activity=float(ino["activity"]),
                         mask=region_mask(model, ino["region"])) for ino in scene.inoculations))
         bio = biology.prepare(model, phi_pack=float(st.phi_pack), k_W=float(scene.weakpoints.k_W),
-                              climate=climate.from_scene(scene))
+                              climate=_climate(scene))
         config = MechConfig(**{f.name: scene.mechanics[f.name] for f in fields(MechConfig)})
         loads = tuple(Load(day0=ld["days"][0], day1=ld["days"][1], force=tuple(ld["force"]),
                            mask=region_mask(model, ld["region"])) for ld in scene.loads)

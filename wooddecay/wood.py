@@ -202,12 +202,12 @@ class WoodModel:
     time: TimeSpec
     # per-tissue parameters, inoculations resolved on the elements, and the solvers' static data
     materials: Materials
+    bio: BioSetup  # sim/biology.py: transport operator, climate, tissue tables
+    mech: MechSetup  # sim/mechanics.py: the rod system
+    coupling: CouplingSetup  # sim/coupling.py: Eqs. 16-19, 21 per element and edge
     inoculations: tuple[Inoculation, ...] = ()
     bark: BarkSheet | None = None  # the bark crack sheet ([bark] cracks, and the wood has bark)
     bark_setup: BarkSetup | None = None  # the resolved [bark] section, with ``bark``
-    bio: BioSetup | None = None
-    mech: MechSetup | None = None
-    coupling: CouplingSetup | None = None
     # bookkeeping
     build_seconds: dict = field(default_factory=dict)
     notes: tuple[str, ...] = ()  # what the build could not model as asked (:func:`narrow_notes`)

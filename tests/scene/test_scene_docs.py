@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from wooddecay.scene import PARAMS, TABLES
-from wooddecay.scene.docs import COMMAND, DOCS_PATH, scene_docs
+from wooddecay.scene_docs import COMMAND, DOCS_PATH, scene_docs
 from wooddecay.strands.skeleton import NODE_KEYS
 from wooddecay.strands.skeleton_loader import TABLE_KEYS
 

@@ -22,10 +22,10 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from ..wood import DAYS_PER_YEAR, WoodModel
 from ..unionfind import labels, union
 from .cracks import crack_degree
 
-DAYS_PER_YEAR = 365.25
 #: a loose plate smaller than plate_area / MIN_PLATE_SHARE holds on (too small to come off alone)
 MIN_PLATE_SHARE = 8.0
 #: plates a loose sheet breaks into are this much longer along the grain than across
@@ -241,7 +241,7 @@ def _farthest_sites(xy, P, elongation, k, piece, near):
                 i, top = far[c], best[c]
 
 
-def cuts(model, sheet, label: np.ndarray, off: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def cuts(model: WoodModel, sheet, label: np.ndarray, off: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """REG pairs (m,) and strand links (n,) to cut so that the plates of the faces ``off`` come
     loose, and the plate each element goes with (n,; -1: it stays on the wood): those between an
     element of such a plate and any element not in the same plate. A strand link is cut by

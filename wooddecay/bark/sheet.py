@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..wood import WoodModel
 from .. import fmath as fm
 from ..strands.profiles import polygon_perimeter
 from ..strands.rings import BARK
@@ -120,7 +121,7 @@ def _padded(rows: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
     return out
 
 
-def build_sheet(model, bark, recent: np.ndarray, eccentricity: float, rng: np.random.Generator) -> BarkSheet:
+def build_sheet(model: WoodModel, bark, recent: np.ndarray, eccentricity: float, rng: np.random.Generator) -> BarkSheet:
     """The sheet of ``model`` (module docstring) for the resolved [bark] section ``bark``;
     ``recent`` per skeleton node is :func:`recent_growth` of its profile's rings."""
     skel, topo = model.skeleton, model.topology
@@ -294,13 +295,13 @@ def query(trees, branch: np.ndarray, xy: np.ndarray, period: np.ndarray) -> np.n
     return out
 
 
-def element_xy(model, period: np.ndarray) -> np.ndarray:
+def element_xy(model: WoodModel, period: np.ndarray) -> np.ndarray:
     """The elements' flat sheet coordinates (x around their branch, s)."""
     wc = model.wood_coords
     return np.stack([(wc[:, 1] % (2 * np.pi)) * period[model.branch] / (2 * np.pi), wc[:, 2]], 1)
 
 
-def _element_maps(model, fb, face_xy, period):
+def _element_maps(model: WoodModel, fb, face_xy, period):
     """Each face's element (nearest bark element of its branch, else nearest element) and the face
     over each element of the bark layer (module docstring)."""
     n = model.n_elements

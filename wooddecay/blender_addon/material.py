@@ -20,7 +20,7 @@ ATTRIBUTE_OUTPUT = {FLOAT: "Fac", VECTOR: "Vector", COLOR: "Color"}
 #: marks node groups made by this add-on (custom property) and the graph version
 GROUP_TAG = "wooddecay_group"
 GROUP_VERSION = 2  # 2: bark cracks (an older group is rebuilt, see group_ok)
-#: the UV map of the bake's crack map (wooddecay.bark.texture)
+#: the UV map of the bake's crack map (wooddecay.export.bark_texture)
 CRACK_UV = "barkUV"
 #: UDIM number of the crack map's tile of frame 0
 UDIM_FIRST = 1001
@@ -170,7 +170,7 @@ def build_material(attributes, name: str = MATERIAL_NAME, crack_map: str | None 
 
 
 def crack_map_nodes(tree, path: str):
-    """Nodes reading the crack map (wooddecay.bark.texture): ``path`` is its first UDIM tile
+    """Nodes reading the crack map (wooddecay.export.bark_texture): ``path`` is its first UDIM tile
     (``<stem>_bark.1001.png``), frame k's map is tile 1001 + k. The V-profile is read at
     ``barkUV`` moved into the tile of the current frame (a Value node driven by ``frame``, held to
     the first and last tile): u' = fract(u) + k mod 10, v' = v + floor(k / 10). Returns the output

@@ -15,7 +15,7 @@
   (VEC3, rest wood-local r, phi, s), ``_RING`` (ring age) and ``_FACE_KIND`` (0 bark, 1 side,
   2 cap, as a float: glTF has no per-face attributes, but every vertex here belongs to faces of
   one kind, see below), ``_BARK_CRACK`` and ``_BARK_DEPTH`` (the bark's cracks,
-  :mod:`wooddecay.bark.surface`; its grooves are in ``POSITION``);
+  :mod:`wooddecay.export.bark_surface`; its grooves are in ``POSITION``);
 * normals: a meshlet vertex is split into one copy per facet group it touches (face kind and
   neighbour element: the bark, each side wall, each cap), and each copy gets the area-weighted
   normal of its group's faces. Walls stay sharp, curved bark stays smooth, and the vertex count
@@ -36,8 +36,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..wood import WoodModel
 from ..atomic import check_output, write_bytes
-from ..bark import surface
+from . import bark_surface as surface
 from ..meshlets import skin as skin_mod
 from ..meshlets.visibility import visible_faces
 from ..sim.state import FIELDS
@@ -126,7 +127,7 @@ def glb_bytes(doc: dict, binary: bytes) -> bytes:
     return b"".join(out)
 
 
-def gltf_document(model, mesh, frame, version: str = "", link=None) -> tuple[dict, bytes]:
+def gltf_document(model: WoodModel, mesh, frame, version: str = "", link=None) -> tuple[dict, bytes]:
     """The glTF JSON document and its binary buffer for ``frame`` (module docstring)."""
     if link is None:
         link = skin_mod.links(model, mesh)

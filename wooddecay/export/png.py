@@ -1,4 +1,4 @@
-"""16-bit grey or RGB PNG (the bark's crack map, :mod:`wooddecay.bark.texture`), written atomically.
+"""16-bit grey or RGB PNG (the bark's crack map, :mod:`wooddecay.export.bark_texture`), written atomically.
 
 A PNG is a signature, an IHDR chunk (width, height, bit depth 16, colour type 0 = grey or 2 =
 RGB), IDAT (the zlib-compressed rows, each prefixed by filter type 0, samples big-endian) and

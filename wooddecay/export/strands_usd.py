@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..wood import WoodModel
 from . import stage as stage_mod
 
 #: display colour per tissue index (bark, sapwood, heartwood, pith), linear-ish RGB in [0, 1]
@@ -29,7 +30,7 @@ TISSUE_COLORS = np.array([
     [0.45, 0.05, 0.05],   # pith: dark red
 ], dtype=np.float32)
 
-def vertex_element(model) -> np.ndarray:
+def vertex_element(model: WoodModel) -> np.ndarray:
     """Index of the element whose values each particle takes (length ``n_particles``).
 
     Particle j of strand k (local index i) takes element ``element_offsets[k] + min(i, n_k - 1)``

@@ -10,9 +10,9 @@
   subdivisionScheme none, static ``faceVertexIndices``), ``points`` and ``extent`` time-sampled (the skinned
   meshlets of :mod:`wooddecay.meshlets.skin`); vertex primvars H_c, H_l, M, R_w, R_b, C
   (time-sampled, interpolated with the skinning weights), ``bark_crack`` and ``bark_crack_depth``
-  (time-sampled, :mod:`wooddecay.bark.surface`; the bark's grooves are in ``points``), the
+  (time-sampled, :mod:`wooddecay.export.bark_surface`; the bark's grooves are in ``points``), the
   face-varying ``barkUV`` into the crack map, one UDIM tile per frame ``<stem>_bark.<UDIM>.png``
-  written beside the stage (:mod:`wooddecay.bark.texture`; customLayerData ``bark_texture`` names
+  written beside the stage (:mod:`wooddecay.export.bark_texture`; customLayerData ``bark_texture`` names
   the set, tiles of an earlier bake there are removed) and ``displayColor`` (a rot preview, see
   :func:`wooddecay.export.colors.rot_color`); static ``wood`` (float3 rest wood-local r, phi, s)
   and ``ring``; uniform int ``element``, ``tissue``, ``faceKind`` (0 bark, 1 side, 2 cap),
@@ -41,7 +41,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..bark import surface, texture
+from . import bark_surface as surface
+from . import bark_texture as texture
 from ..errors import InputError
 from ..meshlets import skin as skin_mod
 from ..meshlets.visibility import NEVER, exposure
@@ -50,7 +51,7 @@ from . import stage as stage_mod
 from .colors import rot_color
 from .png import write_png16
 
-#: the bark's vertex primvars (:mod:`wooddecay.bark.surface`)
+#: the bark's vertex primvars (:mod:`wooddecay.export.bark_surface`)
 BARK_PRIMVARS = ("bark_crack", "bark_crack_depth")
 
 #: The baked stage's format, written as customLayerData ``format_version``. A change to what the
@@ -69,7 +70,7 @@ def stage_format(custom_layer_data, file) -> int:
     ``format_version``, or :data:`FORMAT_UNDECLARED` for a stage baked before the key existed.
     Raises :class:`~wooddecay.errors.InputError` (one line: ``file``, the key and the formats this
     wooddecay reads) for a newer format or a value that is not a whole number."""
-    from .. import __version__
+    from ..version import __version__
 
     value = dict(custom_layer_data or {}).get(FORMAT_KEY, FORMAT_UNDECLARED)
     allowed = f"formats [{FORMAT_MIN}, {FORMAT}]"
@@ -113,7 +114,7 @@ def crack_map_files(path) -> list[Path]:
         return []
     tiles = {p: texture.tile_number(p.name, path.stem) for p in path.parent.iterdir()}
     single = path.with_name(f"{path.stem}_bark.png")
-    return (sorted((p for p, k in tiles.items() if k is not None), key=tiles.get)
+    return ([p for k, p in sorted((k, p) for p, k in tiles.items() if k is not None)]
             + ([single] if single.exists() else []))
 
 

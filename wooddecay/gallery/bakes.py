@@ -14,9 +14,9 @@ from ..model import build_model
 from ..scene import load_scene
 from ..sim.threads import requested_threads
 from . import pool
+from .pool import SCENES
 
 #: the gallery's scenes
-SCENES = Path(__file__).resolve().parent.parent / "samples" / "gallery"
 #: panels smaller and with fewer samples than render_bake's defaults: a gallery renders dozens
 PANEL_OPTIONS = ("--width", "480", "--height", "270", "--samples", "12", "--max-kb", "90")
 
@@ -104,3 +104,10 @@ def frame_rows(summary: dict) -> list[dict]:
 def render_panel(usd: Path, png: Path, frame: int, options=()) -> None:
     """One panel of ``usd`` at ``frame`` (PANEL_OPTIONS, then ``options``)."""
     render.render_bake(usd, png, frame=frame, options=(*PANEL_OPTIONS, *options))
+
+
+def timed_bake(job: pool.Job, threads: int) -> float:
+    """One job in a worker of :func:`.pool.baking_ahead`; its wall seconds."""
+    t0 = time.perf_counter()
+    bake_scene(job.scene_file, job.overrides, job.folder, job.resume, threads=threads)
+    return time.perf_counter() - t0

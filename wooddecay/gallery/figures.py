@@ -16,9 +16,11 @@ from typing import Callable
 
 import numpy as np
 
+from ..wood import WoodModel
 from ..model import build_model
 from ..studies import barrier, pull
-from . import measures
+from . import measures, sensitivity
+from .measures import FIRST_CRACKS, first_cracks
 
 
 @dataclass(frozen=True)
@@ -52,16 +54,6 @@ class Figure:
     study_bakes: Callable | None = None
 
 
-#: Fig. 6's crack orientation is read on the first frame with this many broken connections: later
-#: breaks of the cracked section (along the grain, at the ends) blur it
-FIRST_CRACKS = 25
-
-
-def first_cracks(rows) -> int:
-    """The first frame with FIRST_CRACKS broken connections (the last if none has)."""
-    return next((i for i, f in enumerate(rows) if f["broken_connections"] >= FIRST_CRACKS), len(rows) - 1)
-
-
 def _orientation(m):
     """(r, t) shares of the broken connections at the first frame with FIRST_CRACKS of them."""
     r, t, _ = m["frames"][first_cracks(m["frames"])]["signature"]["crack_orientation"]
@@ -73,7 +65,7 @@ def _orientation(m):
 FEW_CRACKS = 6.0
 
 
-def _fig6_measure(model, frames):
+def _fig6_measure(model: WoodModel, frames):
     return measures.radial_cracks(model, frames[0], frames[-1])
 
 
@@ -103,7 +95,7 @@ def _fig6_decide(m):
     return fig6_orientations(m) and 0 < few <= FEW_CRACKS
 
 
-def _blocks(model, frames):
+def _blocks(model: WoodModel, frames):
     return measures.loose_blocks(model, frames[-1])
 
 
@@ -113,7 +105,7 @@ def _fig11_decide(m):
                 and b["median_block_length_m"] > a["median_block_length_m"] and d["blocks"] < a["blocks"])
 
 
-def _fig12_measure(model, frames):
+def _fig12_measure(model: WoodModel, frames):
     return {**measures.loose_blocks(model, frames[-1]), "fragment_share": measures.fragment_share(model, frames[-1])}
 
 
@@ -123,7 +115,7 @@ def _fig12_decide(m):
                 and b["signature"]["debris_centre_height_m"] < a["signature"]["debris_centre_height_m"])
 
 
-def _halves(model, frames):
+def _halves(model: WoodModel, frames):
     s = model.wood_coords[:, 2]
     mid = 0.5 * (s.min() + s.max())
     return {"root_end": measures.part(model, frames[-1], s < mid), "far_end": measures.part(model, frames[-1], s >= mid)}
@@ -210,20 +202,14 @@ def _fig18_study(out, quick, renders, log, resume):
 
 
 def _fig20_study(out, quick, renders, log, resume):
-    from . import sensitivity
-
-    return sensitivity.run(out, quick, renders, log, resume)
+    return sensitivity.run(out, quick, renders, log, resume, FIGURES)
 
 
 def _fig20_bakes(out, quick, resume):
-    from . import sensitivity
-
-    return sensitivity.jobs(out, quick, resume)
+    return sensitivity.jobs(out, quick, resume, FIGURES)
 
 
 def _fig20_decide(m):
-    from . import sensitivity
-
     return sensitivity.decide(m)
 
 

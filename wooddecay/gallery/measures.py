@@ -9,18 +9,30 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..wood import WoodModel
 from ..sim.diagnostics import mass_remaining
 from ..sim.signature import MIN_PIECE
 
 
-def crumbled(model, frame) -> np.ndarray:
+#: Fig. 6's crack orientation is read on the first frame with this many broken connections: later
+#: breaks of the cracked section (along the grain, at the ends) blur it
+FIRST_CRACKS = 25
+
+
+def first_cracks(rows) -> int:
+    """The first frame with FIRST_CRACKS broken connections (the last if none has)."""
+    return next((i for i, f in enumerate(rows) if f["broken_connections"] >= FIRST_CRACKS), len(rows) - 1)
+
+
+
+def crumbled(model: WoodModel, frame) -> np.ndarray:
     """Elements consumed by frame ``frame``: remaining mass (H_l + k_H H_c) / (1 + k_H) below
     m_crumble (:mod:`wooddecay.sim.coupling`; H only falls, so this is the bake's flag)."""
     cs, f = model.coupling, frame.fields
     return mass_remaining(f["H_c"], f["H_l"], cs.k_H) < cs.m_crumble
 
 
-def loose_blocks(model, frame, mask: np.ndarray | None = None) -> dict:
+def loose_blocks(model: WoodModel, frame, mask: np.ndarray | None = None) -> dict:
     """The pieces that came loose (every connected piece but the largest) of at least MIN_PIECE
     elements whose elements mostly lie in ``mask`` (default: anywhere): their count, median size
     (elements), median length along the grain and aspect (that length over the square root of the
@@ -49,7 +61,7 @@ def loose_blocks(model, frame, mask: np.ndarray | None = None) -> dict:
             "median_block_purity": med(purities)}
 
 
-def fragment_share(model, frame) -> float:
+def fragment_share(model: WoodModel, frame) -> float:
     """How finely the wood is broken: the weight-average fragment, sum_i w_i^2 / (sum_i w_i)^2 over
     the connected pieces of ``frame`` (every one, the largest and bits of one element included),
     w_i the remaining wood of piece i (volume times (H_l + k_H H_c) / (1 + k_H), crumbled elements
@@ -65,7 +77,7 @@ def fragment_share(model, frame) -> float:
 SECTORS = 36
 
 
-def radial_cracks(model, first, frame) -> dict:
+def radial_cracks(model: WoodModel, first, frame) -> dict:
     """Radial cracks of ``frame`` (woodstock Fig. 6): the broken REG connections across the
     rings' tangent (their offset mostly along e_t, ``reg_dir_weights``), each with its opening,
     how far its two intact elements' centres lie beyond the rest offset dp of Eq. 16 at the frame's
@@ -97,7 +109,7 @@ def radial_cracks(model, first, frame) -> dict:
             "effective_radial_cracks": total**2 / float(np.sum(opening**2)) if widest > 0 else 0.0}
 
 
-def part(model, frame, mask: np.ndarray) -> dict:
+def part(model: WoodModel, frame, mask: np.ndarray) -> dict:
     """The state of the elements in ``mask``: mass loss (volume-weighted, k_H as the signature),
     the crumbled share of their volume and their loose blocks (:func:`loose_blocks`)."""
     V, cs, f = model.bio.op.volume, model.coupling, frame.fields

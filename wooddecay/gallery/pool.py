@@ -19,11 +19,13 @@ import multiprocessing
 import os
 from contextlib import contextmanager
 from pathlib import Path
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 from ..budget import available_bytes, estimate
 from ..scene import load_scene
 
+#: the gallery's scenes (samples/gallery)
+SCENES = Path(__file__).resolve().parent.parent / "samples" / "gallery"
 #: bakes running or queued in the pool, by their resolved output folder
 _AHEAD: dict = {}
 
@@ -42,8 +44,6 @@ def workers_for(jobs: list[Job], requested: int | None) -> int:
     """Processes for ``jobs``: ``requested``, or for None (``auto``) one per core; never more than
     the jobs, nor more than can hold the largest bakes' estimated peak memory
     (:func:`wooddecay.budget.estimate`) at once."""
-    from .bakes import SCENES
-
     n = min(len(jobs), requested or os.cpu_count() or 1)
     if n <= 1:
         return max(n, 0)
@@ -65,20 +65,10 @@ def _init(threads: int) -> None:
     numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
 
 
-def _bake(job: Job, threads: int) -> float:
-    """One job in a worker; its wall seconds."""
-    import time
-
-    from .bakes import bake_scene
-
-    t0 = time.perf_counter()
-    bake_scene(job.scene_file, job.overrides, job.folder, job.resume, threads=threads)
-    return time.perf_counter() - t0
-
-
 @contextmanager
-def baking_ahead(jobs: list[Job], workers: int):
-    """Bake ``jobs`` on ``workers`` processes while the body runs (nothing with fewer than two);
+def baking_ahead(jobs: list[Job], workers: int, bake: Callable[[Job, int], float]):
+    """Bake ``jobs`` with ``bake(job, threads)`` (:func:`wooddecay.gallery.bakes.timed_bake`) on
+    ``workers`` processes while the body runs (nothing with fewer than two);
     :func:`take` hands each result to the figure that reads it. The body's own numba kernels (a
     study's, a model's build) run on one thread meanwhile: the cores are the workers', and a
     parallel region on a busy core waits for its descheduled threads (Fig. 17's pull study took
@@ -94,7 +84,7 @@ def baking_ahead(jobs: list[Job], workers: int):
     numba.set_num_threads(1)
     try:
         for job in jobs:
-            _AHEAD[Path(job.folder).resolve()] = pool.apply_async(_bake, (job, threads))
+            _AHEAD[Path(job.folder).resolve()] = pool.apply_async(bake, (job, threads))
         yield
     except BaseException:
         pool.terminate()

@@ -24,7 +24,7 @@ from ..atomic import write_bytes
 from ..errors import InputError
 from ..sim.threads import requested_threads
 from . import pool
-from .bakes import bake_scene, frame_rows, pending, render_panel
+from .bakes import bake_scene, frame_rows, pending, render_panel, timed_bake
 from .figures import FIGURES, Figure
 
 def select(names) -> list[Figure]:
@@ -128,7 +128,7 @@ def run_gallery(names, out, quick: bool = False, renders: bool = True, log=print
     n = pool.workers_for(jobs, workers)
     if n > 1:
         log(f"baking {len(jobs)} scenes ahead on {n} processes")
-    with pool.baking_ahead(jobs, n):
+    with pool.baking_ahead(jobs, n, timed_bake):
         for fig in figures:
             result[fig.key] = run_figure(fig, out, quick, renders, log, resume)
             write_bytes(path, json.dumps(result, indent=1).encode())

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..scene import load_scene
 from .bakes import SCENES, bake_scene, frame_rows, render_panel
-from .figures import FIGURES, first_cracks
+from .measures import first_cracks
 from .pool import Job
 from .ssim import ssim_png
 
@@ -41,16 +41,17 @@ COMPARED = ("dt", "dt_half", "perturbed")
 SSIM_OPTIONS = ("--no-labels", "--max-kb", "0")
 
 
-def run(out: Path, quick: bool, renders: bool, log, resume: bool) -> tuple[dict, list]:
+def run(out: Path, quick: bool, renders: bool, log, resume: bool, figures: dict) -> tuple[dict, list]:
     """The study (module docstring) into ``out``; measured per scene, and the chart. ``resume``
-    reuses the finished bakes in ``out`` (:func:`.bakes.bake_scene`)."""
+    reuses the finished bakes in ``out`` (:func:`.bakes.bake_scene`); ``figures`` is the gallery's
+    registry (:data:`.figures.FIGURES`), whose Fig. 12 and Fig. 14 entries the study reruns."""
     measured = {}
     for name in STUDIED:
-        scene_file = FIGURES[name].scene
+        scene_file = figures[name].scene
         runs, frames, usds, summaries = {}, {}, {}, {}
-        scene = load_scene(SCENES / scene_file, overrides=FIGURES[name].quick if quick else {})
-        for v, overrides in variants(name, quick).items():
-            reuse = own_bakes(name, out) if v == "dt" else ()
+        scene = load_scene(SCENES / scene_file, overrides=figures[name].quick if quick else {})
+        for v, overrides in variants(name, quick, figures).items():
+            reuse = own_bakes(name, out, figures) if v == "dt" else ()
             b = bake_scene(scene_file, overrides, out / name / v, resume, reuse)
             runs[v] = {"overrides": overrides, "signature": b.summary["frames"][-1]["signature"],
                        "seconds": round(b.seconds, 1), "elements": b.summary["counts"]["elements"], "reused": b.reused}
@@ -72,30 +73,30 @@ def run(out: Path, quick: bool, renders: bool, log, resume: bool) -> tuple[dict,
     return measured, [chart]
 
 
-def variants(name: str, quick: bool) -> dict[str, dict]:
+def variants(name: str, quick: bool, figures: dict) -> dict[str, dict]:
     """The overrides of figure ``name``'s scene for each run of the study: ``dt`` (the default
     step), ``dt_half``, ``perturbed`` (k_col changed by PERTURBATION), ``sparse2`` and
     ``sparse4`` (the figure's --quick ones under ``quick``)."""
-    base = FIGURES[name].quick if quick else {}
-    scene = load_scene(SCENES / FIGURES[name].scene, overrides=base)
+    base = figures[name].quick if quick else {}
+    scene = load_scene(SCENES / figures[name].scene, overrides=base)
     return {"dt": dict(base), "dt_half": {**base, "time.dt_bio": scene.time.dt_bio / 2},
             "perturbed": {**base, "mechanics.k_col": scene.mechanics.k_col * (1.0 + PERTURBATION)},
             "sparse2": {**base, "strands.r_s": scene.strands.r_s * math.sqrt(2.0)},
             "sparse4": {**base, "strands.r_s": scene.strands.r_s * 2.0}}
 
 
-def jobs(out: Path, quick: bool, resume: bool) -> list[Job]:
+def jobs(out: Path, quick: bool, resume: bool, figures: dict) -> list[Job]:
     """The study's bakes that :mod:`.pool` can make ahead into ``out``: all but the runs at the
     default step, which are the figures' own bakes (:func:`own_bakes`)."""
-    return [Job(FIGURES[name].scene, overrides, out / name / v, resume)
-            for name in STUDIED for v, overrides in variants(name, quick).items() if v != "dt"]
+    return [Job(figures[name].scene, overrides, out / name / v, resume)
+            for name in STUDIED for v, overrides in variants(name, quick, figures).items() if v != "dt"]
 
 
-def own_bakes(name: str, out: Path) -> tuple[Path, ...]:
+def own_bakes(name: str, out: Path, figures: dict) -> tuple[Path, ...]:
     """The folders where the gallery bakes figure ``name``'s variants without overrides of its own
     (``DIR/<fig>/<variant>``, ``out`` being ``DIR/fig20``): the study's run at the default step
     is that bake, so a gallery that made it does not bake it again."""
-    fig = FIGURES[name]
+    fig = figures[name]
     return tuple(out.parent / name / v.name for v in fig.variants if not v.overrides and v.scene in (None, fig.scene))
 
 

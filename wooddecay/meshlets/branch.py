@@ -49,6 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
+from ..wood import WoodModel
 from .. import fmath as fm
 from ..strands import profiles
 from ..strands.mesh_skeleton import contour_around
@@ -225,7 +226,7 @@ def section_frame(skel, topo, chain, s_chain, d):
     return origin, U, V
 
 
-def _foreign_sites(model, b: int, chain, s_chain, d: np.ndarray, k0: int, k1: int):
+def _foreign_sites(model: WoodModel, b: int, chain, s_chain, d: np.ndarray, k0: int, k1: int):
     """Where the strands that leave fork section ``k0`` into other branches than this one cross
     the sections ``k0..k1`` of branch ``b`` (uv in its frames; (k1 - k0 + 1, m, 2)), and those
     strands."""
@@ -264,7 +265,7 @@ def _branch_chain(topo, skel, b: int) -> np.ndarray:
     return nodes
 
 
-def setup_branch(model, b: int) -> Branch | None:
+def setup_branch(model: WoodModel, b: int) -> Branch | None:
     """Sections, sites (real, ghosts, far ring) and element bounds of branch ``b`` of ``model``
     (see the module docstring); None when no element lies in the branch (a twig thinner than
     a strand holds none: its strands end before it or pass it by as the parent's)."""

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..wood import WoodModel
 from ..strands.profiles import polygon_area, polygon_centroid, ray_extent
 
 
@@ -63,7 +64,7 @@ def volumes(mesh, points=None) -> np.ndarray:
     return np.bincount(mesh.face_element, weights=v, minlength=mesh.count)
 
 
-def bark_volume(model, samples_per_edge: int = 64, angles: int = 720) -> float:
+def bark_volume(model: WoodModel, samples_per_edge: int = 64, angles: int = 720) -> float:
     """Volume inside the bark surface of the model's skeleton (see the module docstring)."""
     skel, topo = model.skeleton, model.topology
     phi = np.linspace(-np.pi, np.pi, angles, endpoint=False)

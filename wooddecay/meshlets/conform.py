@@ -22,6 +22,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..wood import WoodModel
 from .skin import rest_skinning
 
 #: bark vertices farther than this many r_s from the surface move to this distance from it
@@ -34,7 +35,7 @@ def _normals(P, F):
     return np.cross(P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]])
 
 
-def conform_bark(model, mesh, bark: int):
+def conform_bark(model: WoodModel, mesh, bark: int):
     """``mesh`` with its bark vertices (on faces of kind ``bark``) within BAND r_s of
     ``model.skeleton.surface`` where that turns no face over (module docstring)."""
     from ..strands.mesh_input import surface_closest

@@ -22,6 +22,7 @@ import numba as nb
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..wood import WoodModel
 from .. import fmath as fm
 from ..strands import profiles
 
@@ -33,7 +34,7 @@ SURFACE = 2.0
 REACH = 3.0
 
 
-def junction_walls(model, mesh, bark: int, side: int, cap: int):
+def junction_walls(model: WoodModel, mesh, bark: int, side: int, cap: int):
     """``mesh`` with the bark faces (kind ``bark``) that another branch's meshlet covers turned
     into ``side`` faces facing it, and the open end caps (kind ``cap``, no neighbour) and faces
     across a fork's section that nothing covers turned into bark (module docstring);
@@ -85,7 +86,7 @@ def junction_walls(model, mesh, bark: int, side: int, cap: int):
     return replace(mesh, face_kind=kind, face_neighbour=neighbour)
 
 
-def _at_surface(model, mesh, faces: np.ndarray) -> np.ndarray:
+def _at_surface(model: WoodModel, mesh, faces: np.ndarray) -> np.ndarray:
     """Whether each face lies within SURFACE r_s of the wood's surface: its mean radius in its
     branch's section frame at least the profile's extent at its angle (the nearest node of the
     branch) less SURFACE r_s; deeper ones face a void inside the wood."""

@@ -37,6 +37,7 @@ from dataclasses import replace
 import numba as nb
 import numpy as np
 
+from ..wood import WoodModel
 from ..quaternion import conj_np, rotate, rotate_np
 from ..sim.coupling import crumble_scale, shrink_factor
 from ..sim.state import FIELDS
@@ -46,7 +47,7 @@ from ..strands.reg import edge_between
 ALWAYS, BY_COMPONENT, STRAND = -1, -2, -3
 
 
-def rest_skinning(model, points, skin_indptr, skin_element):
+def rest_skinning(model: WoodModel, points, skin_indptr, skin_element):
     """Rest skinning of ``points`` over their candidate elements (CSR ``skin_indptr``,
     ``skin_element``): the weights w_c = 1 / (|x_0 - c_c0|^2 + r_s^2) normalised per vertex, the
     rest local coordinates l_c (module docstring) and the weighted ring age. A numba kernel,
@@ -78,7 +79,7 @@ def _rest_kernel(indptr, points, cand, centers, rest_quat, ring_age, r2, weight,
         ring[v] = acc
 
 
-def rest_skinning_reference(model, points, skin_indptr, skin_element):
+def rest_skinning_reference(model: WoodModel, points, skin_indptr, skin_element):
     """Plain-numpy twin of :func:`rest_skinning`."""
     vrow = np.repeat(np.arange(len(points)), np.diff(skin_indptr))
     rel = points[vrow] - model.centers[skin_element]
@@ -90,7 +91,7 @@ def rest_skinning_reference(model, points, skin_indptr, skin_element):
     return weight, local, ring
 
 
-def links(model, mesh) -> np.ndarray:
+def links(model: WoodModel, mesh) -> np.ndarray:
     """Per skinning pair (``mesh.skin_element``): ALWAYS for the owner, STRAND for its strand
     neighbours, the REG edge joining owner and candidate, or BY_COMPONENT where none does."""
     rows = np.repeat(np.arange(len(mesh.points)), np.diff(mesh.skin_indptr))
@@ -107,7 +108,7 @@ def _accept(link, o, c, component, edge_ok, element_ok):
             | ((link >= 0) & edge_ok[np.maximum(link, 0), 0]) | ((link == BY_COMPONENT) & (component[c] == component[o])))
 
 
-def _centres(model, x, q, element_ok):
+def _centres(model: WoodModel, x, q, element_ok):
     """Per element the centre its meshlet is placed about: the midpoint of its particles, or for a
     failed element p_a + R (0, 0, l_0 / 2) (module docstring)."""
     fp, l0 = model.first_particle, model.rest_length
@@ -116,7 +117,7 @@ def _centres(model, x, q, element_ok):
     return np.where(element_ok[:, None], 0.5 * (a + b), rigid)
 
 
-def skin_reference(model, mesh, link, x, q, component, edge_ok, element_ok, scale, fields, lateral=None):
+def skin_reference(model: WoodModel, mesh, link, x, q, component, edge_ok, element_ok, scale, fields, lateral=None):
     """Plain-numpy twin of :func:`skin` (same maths, vectorised over skinning pairs)."""
     V = len(mesh.points)
     cnt = np.diff(mesh.skin_indptr)
@@ -196,7 +197,7 @@ def _skin_kernel(indptr, owner, cand, weight, local, link, first_particle, rest_
             out_f[v, j] = acc[j] / wsum
 
 
-def skin(model, mesh, link, x, q, component, edge_ok, element_ok, scale, fields, lateral=None):
+def skin(model: WoodModel, mesh, link, x, q, component, edge_ok, element_ok, scale, fields, lateral=None):
     """Skinned vertex positions (V, 3) and fields (V, k) of per-element ``fields`` (n, k) for the
     rod state (particles ``x``, quaternions ``q``, ``component``, ``edge_ok``, ``element_ok``),
     the meshlet sizes ``scale`` (n,) and the elements' sizes across their axis ``lateral`` (n,;
@@ -211,11 +212,11 @@ def skin(model, mesh, link, x, q, component, edge_ok, element_ok, scale, fields,
     return out_p, out_f
 
 
-def frame_arrays(model, mesh, link, frame, offset=None):
+def frame_arrays(model: WoodModel, mesh, link, frame, offset=None):
     """Skinned points (V, 3) and fields (V, 6, in the order of ``FIELDS``) of one frame; without
     mechanics (empty ``frame.mech``) the rest pose. Crumbled wood dwindles in both; brown-rotted
     wood shrinks across its elements with the rods (``lateral``), so not in the rest pose. ``offset``
-    (V, 3) moves the rest positions first (the bark's grooves, :mod:`wooddecay.bark.surface`)."""
+    (V, 3) moves the rest positions first (the bark's grooves, :mod:`wooddecay.export.bark_surface`)."""
     if offset is not None and offset.any():
         rows = np.repeat(np.arange(len(mesh.points)), np.diff(mesh.skin_indptr))
         local = mesh.skin_local + rotate_np(conj_np(model.rest_quat[mesh.skin_element]), offset[rows])

@@ -49,6 +49,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.spatial import ConvexHull
 
+from ..wood import WoodModel
 from .. import fmath as fm
 from .branch import Branch, section_frame, setup_branch
 from .checks import closed_oriented
@@ -475,7 +476,7 @@ def _embed(skel, topo, chain, s_chain, d, uv):
     return origin + uv[:, :1] * U + uv[:, 1:] * V
 
 
-def _strand_element(model, b: int, strand: np.ndarray, s: np.ndarray) -> np.ndarray:
+def _strand_element(model: WoodModel, b: int, strand: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Element of each ``strand`` (one that leaves branch ``b`` at a fork, or enters it there) at
     distance ``s`` to the root in the branch it runs in past the fork: the element whose span
     holds s, or the next one where that one is b's (it straddles the fork and is clipped there)."""
@@ -490,7 +491,7 @@ def _strand_element(model, b: int, strand: np.ndarray, s: np.ndarray) -> np.ndar
     return out
 
 
-def _branch_arrays(model, b: int, br, kin, bs):
+def _branch_arrays(model: WoodModel, b: int, br, kin, bs):
     """Vertices (3D, uv, d), face rows and each vertex's candidate skinning elements."""
     T = np.array(bs.vtri, dtype=np.int64).reshape(-1, 3)
     d = np.array(bs.vd, dtype=float)
@@ -516,7 +517,7 @@ def _branch_arrays(model, b: int, br, kin, bs):
     return xyz, uv, d, tri, elem, F[:, 6].astype(np.int8), nbr, cand_v, cand_e
 
 
-def build_meshlets(model) -> Meshlets:
+def build_meshlets(model: WoodModel) -> Meshlets:
     """Rest meshlets of every rod element of ``model`` (see the module docstring)."""
     t0 = time.perf_counter()
     parts, counts = [], {"flips": 0, "hull": 0, "inserts": 0, "deletes": 0, "repairs": 0,

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..wood import WoodModel
 from ..sim.coupling import crumble_scale
 from ..strands.reg import edge_between
 from .sweep import BARK, CAP
@@ -26,7 +27,7 @@ from .sweep import BARK, CAP
 NEVER = -1
 
 
-def exposure(model, mesh, frames) -> np.ndarray:
+def exposure(model: WoodModel, mesh, frames) -> np.ndarray:
     """(F,) int: for each face of ``mesh`` the index into ``frames`` (frame order; each a
     :class:`~wooddecay.sim.driver.Frame`, or None for intact wood) of the first frame that shows it
     (module docstring), NEVER if none does."""
@@ -51,12 +52,12 @@ def exposure(model, mesh, frames) -> np.ndarray:
     return first
 
 
-def visible_faces(model, mesh, frame) -> np.ndarray:
+def visible_faces(model: WoodModel, mesh, frame) -> np.ndarray:
     """(F,) bool: the faces of ``mesh`` that ``frame`` shows (None: intact wood)."""
     return exposure(model, mesh, [frame]) != NEVER
 
 
-def _shown(model, frame, o, n, cap, edge, has) -> np.ndarray:
+def _shown(model: WoodModel, frame, o, n, cap, edge, has) -> np.ndarray:
     """Whether ``frame`` shows the faces between elements ``o`` and ``n`` (caps where ``cap``,
     side faces across REG edge ``edge`` where ``has``): module docstring."""
     shown = np.zeros(len(o), dtype=bool)

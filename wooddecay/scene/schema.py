@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from wooddecay.errors import format_value
+from wooddecay.wood import DAYS_PER_YEAR
 
 
 @dataclass(frozen=True)
@@ -89,8 +90,6 @@ class Table:
 # "enum:a|b", "vec3", "list", "interval", "region", "node_id".
 # ---------------------------------------------------------------------------------------------
 _T3 = "woodstock Table 3"
-#: days of a year of ``time.years``
-DAYS_PER_YEAR = 365.25
 #: The scene file format this wooddecay writes and the range it reads (``[scene] format``). A change
 #: to what a scene file means (a key renamed, removed or reinterpreted, a default changed) bumps
 #: FORMAT and is listed in CHANGELOG.md; a scene that declares a newer format is refused
@@ -261,7 +260,7 @@ _SCHEMA: dict[str, list[tuple]] = {
         ("spacing", 1.0, "r_s", "[0.25, 10]", "Edge length of the bark crack mesh in strand radii."),
         ("crack_width", 0.008, "m", "(0, 0.1]", "Width of a crack in its middle (it narrows to its tips, woodification §5)."),
         ("crack_depth", 1.0, "", "(0, 10]", "Crack depth at its middle as a multiple of its width, at most the bark thickness (V-shaped profile)."),
-        ("groove_width", 0.0, "m", "[0, 0.1]", "Cracks wider than this are cut into the mesh as grooves (the bark vertices move in by the crack depth, wooddecay/bark/surface.py); 0 (the default): never, the crack map and the shader's bump draw them."),
+        ("groove_width", 0.0, "m", "[0, 0.1]", "Cracks wider than this are cut into the mesh as grooves (the bark vertices move in by the crack depth, wooddecay/export/bark_surface.py); 0 (the default): never, the crack map and the shader's bump draw them."),
         ("shedding", 0.2, "1/year", "[0, 100]", "Rate at which the bark's bond to the wood weakens with decay (1 - H) and wet/dry cycles (moisture change); a plate bounded by cracks falls when its bond is gone."),
         ("plate_area", 0.03, "m^2", "(0, 100]", "Largest piece of bark, bounded by cracks, that comes off as one plate."),
     ],

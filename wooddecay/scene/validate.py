@@ -231,7 +231,7 @@ def check_format(raw: Any, file: str) -> int:
     f = _to_float(v) if _is_number(v) else None
     whole = _is_number(v) and (isinstance(v, numbers.Integral) or (f is not None and f.is_integer()))
     if whole and p.hi is not None and v > p.hi:
-        from wooddecay import __version__
+        from wooddecay.version import __version__
 
         raise InputError(file, p.key, f"format {format_value(v)} is newer than wooddecay {__version__} reads "
                          f"(formats {format_range(p)}); upgrade wooddecay to read this scene")

@@ -17,7 +17,9 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from ..wood import DAYS_PER_YEAR, WoodModel
 from ..bark import cracks, shedding
+from .events import Events
 
 #: increments in which the growth strain is applied at day 0
 GROWTH_STAGES = 20
@@ -55,11 +57,11 @@ def drying_strain(sheet, M_face: np.ndarray) -> np.ndarray:
     return sheet.shrinkage * np.maximum(sheet.M_0 - M_face, 0.0)
 
 
-def _strain(model, M_face: np.ndarray) -> np.ndarray:
+def _strain(model: WoodModel, M_face: np.ndarray) -> np.ndarray:
     return model.bark.growth + float(model.bark_setup.drying) * drying_strain(model.bark, M_face)
 
 
-def _grow(model, st: BarkState, eps: np.ndarray, rose: bool | None = None) -> None:
+def _grow(model: WoodModel, st: BarkState, eps: np.ndarray, rose: bool | None = None) -> None:
     """Cracks under the loading ``eps``; none can start where no face's loading rose above what
     it already cracked under (each face's stress is linear in its loading, the shadows only grow),
     so then the search is skipped. ``rose``: whether any face's did, if the caller knows."""
@@ -72,7 +74,7 @@ def _grow(model, st: BarkState, eps: np.ndarray, rose: bool | None = None) -> No
     cracks.grow(model.bark, st.crack, eps, float(b.tip_gain), float(b.shadow))
 
 
-def uncracked(model, state) -> BarkState | None:
+def uncracked(model: WoodModel, state) -> BarkState | None:
     """The bark of ``state`` before any crack: whole, bonded, nothing shed; None without a sheet."""
     sheet = model.bark
     if sheet is None:
@@ -83,7 +85,7 @@ def uncracked(model, state) -> BarkState | None:
                      edge_cut=np.zeros(model.n_edges, dtype=bool), link_cut=np.zeros(model.n_elements, dtype=bool))
 
 
-def initial(model, state) -> BarkState | None:
+def initial(model: WoodModel, state) -> BarkState | None:
     """The bark at day 0 (module docstring); None without a sheet."""
     st = uncracked(model, state)
     if st is None:
@@ -94,7 +96,12 @@ def initial(model, state) -> BarkState | None:
     return st
 
 
-def step(model, state, dt_days: float) -> bool:
+def advance(model: WoodModel, state, dt: float) -> Events:
+    """The driver's bark solver (:mod:`~wooddecay.sim.events`): :func:`step` over ``dt`` days."""
+    return Events(searched=step(model, state, dt))
+
+
+def step(model: WoodModel, state, dt_days: float) -> bool:
     """One bark step after the biology and the coupling (module docstring); returns whether it
     searched for new cracks."""
     st: BarkState | None = state.bark
@@ -130,7 +137,7 @@ def _faces(fe, M, H_c, H_l, growth, drying, shrinkage, M_0, rate, dt_days, eps_s
         eps[f] = e
         if not e <= eps_seen[f]:
             rose += 1
-        decay = (1.0 - 0.5 * (H_c[fe[f]] + H_l[fe[f]])) * dt_days / shedding.DAYS_PER_YEAR
+        decay = (1.0 - 0.5 * (H_c[fe[f]] + H_l[fe[f]])) * dt_days / DAYS_PER_YEAR
         cycles = abs(m - M_last[f]) / (2.0 * max(M_0[f], 1e-6))
         bond[f] = bond[f] - rate * (decay + cycles)
         M_last[f] = m
@@ -149,7 +156,7 @@ def faces_reference(fe, M, H_c, H_l, growth, drying, shrinkage, M_0, rate, dt_da
     return int(np.count_nonzero(~(eps <= eps_seen))), int(np.count_nonzero(bond[~shed] <= 0.0))
 
 
-def _shed(model, st: BarkState) -> None:
+def _shed(model: WoodModel, st: BarkState) -> None:
     """The plates that come off now, the cracks where they broke from the rest of their plate
     and the pairs and links that let them fall (:mod:`wooddecay.bark.shedding`)."""
     sheet, b = model.bark, model.bark_setup
@@ -173,7 +180,7 @@ def apply_cuts(ms, st: BarkState) -> None:
     ms.limit_elem[st.link_cut] = 0.0
 
 
-def statistics(model, st: BarkState | None) -> dict:
+def statistics(model: WoodModel, st: BarkState | None) -> dict:
     """The bark's part of the signature: crack count, length (m), along-grain share and the shed
     share of the bark's area."""
     if st is None:

@@ -42,11 +42,13 @@ from dataclasses import dataclass, replace
 import numba as nb
 import numpy as np
 
+from ..wood import WoodModel
 from ..strands.rings import TISSUES
 from . import climate as climate_mod
 from . import fronts
 from .climate import Climate
-from .state import SimState
+from .events import Events
+from .state import SimState, inoculate
 from .transport import TransportOperator, assemble
 
 #: per-tissue parameters, in the column order of ``BioSetup.P``
@@ -96,7 +98,7 @@ def moisture_bounds(setup: BioSetup, t_days: float) -> np.ndarray:
     return np.array([[np.interp(t_days, d, m1), np.interp(t_days, d, m2)] for d, m1, m2 in setup.schedules])
 
 
-def prepare(model, phi_pack: float, k_W: float, climate: Climate) -> BioSetup:
+def prepare(model: WoodModel, phi_pack: float, k_W: float, climate: Climate) -> BioSetup:
     """Transport operator, per-tissue parameters (``model.materials``) and static per-element
     factors; ``phi_pack`` is the strands' packing fraction (an element's volume is
     pi r_s^2 l / phi_pack), ``k_W`` the weak-point gain and ``climate`` the environment."""
@@ -278,7 +280,7 @@ def _substep(h, indptr, indices, weight, share, spacing, volume, tissue, P, wfac
         M[i] = buf[i]
 
 
-def _advance(model, state: SimState, dt: float, n_sub: int, kernel) -> None:
+def _advance(model: WoodModel, state: SimState, dt: float, n_sub: int, kernel) -> None:
     setup = model.bio
     h = dt / n_sub
     x = model.particles if state.mech is None else state.mech.x
@@ -303,13 +305,21 @@ def _numba_kernel(setup: BioSetup, state: SimState, h: float, M12: np.ndarray, w
     state.clamp_count += int(clamp.sum())
 
 
-def step(model, state: SimState, dt: float, n_sub: int | None = None) -> int:
+def step(model: WoodModel, state: SimState, dt: float, n_sub: int | None = None) -> int:
     """Advance the biology of ``state`` by ``dt`` days (numba) with ``model.bio``. Substeps:
     ``n_sub`` if given (tests of the unstable regime), else the fewest that respect the stability
     bound. Returns the number of substeps taken."""
     n_sub = n_sub or substeps(dt, model.bio.bound)
     _advance(model, state, dt, n_sub, _numba_kernel)
     return n_sub
+
+
+def advance(model: WoodModel, state: SimState, dt: float) -> Events:
+    """The driver's biology solver (:mod:`~wooddecay.sim.events`): :func:`step` over ``dt`` days,
+    then the inoculations whose day has come."""
+    n_sub = step(model, state, dt)
+    inoculate(model, state)
+    return Events(substeps=n_sub)
 
 
 # ----------------------------------------------------------------------------- numpy reference
@@ -366,7 +376,7 @@ def _reference_kernel(setup: BioSetup, s: SimState, h: float, M12: np.ndarray, w
     s.M = _clamp_np(s.M + h * (f + op.apply(s.M, kappa_M)), box[:, 0], box[:, 1], s)
 
 
-def step_reference(model, state: SimState, dt: float, n_sub: int | None = None) -> int:
+def step_reference(model: WoodModel, state: SimState, dt: float, n_sub: int | None = None) -> int:
     """Plain numpy reference of :func:`step` (without inoculation)."""
     n_sub = n_sub or substeps(dt, model.bio.bound)
     _advance(model, state, dt, n_sub, _reference_kernel)

@@ -23,7 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..scene.schema import DAYS_PER_YEAR as YEAR_DAYS
+from ..wood import WoodModel
+from ..wood import DAYS_PER_YEAR as YEAR_DAYS
 
 #: seasonal keyframes [day of year, w_in, w_out, w_ground]; day 0 is 1 January (northern
 #: hemisphere). The factors scale the Table 3 exchange rates; a surface in equilibrium sits at
@@ -68,17 +69,7 @@ class Climate:
         return np.array([np.interp(t, d, w[:, j]) for j in range(3)])
 
 
-def from_scene(scene) -> Climate:
-    """The :class:`Climate` of a validated scene: ``[climate] seasons`` if given, else its
-    ``preset``'s keyframes; the ground plane of ``[mechanics]``."""
-    c = scene.climate
-    rows = np.array(c.seasons if len(c.seasons) else PRESETS[c.preset], dtype=np.float64)
-    ground = float(scene.mechanics.ground_height) if scene.mechanics.ground else None
-    return Climate(days=rows[:, 0].copy(), start_day=float(c.start_day), w=rows[:, 1:].copy(), k_ground=float(c.k_ground),
-                   ground_z=ground, ground_depth=float(c.ground_depth))
-
-
-def exposure_distance(model) -> np.ndarray:
+def exposure_distance(model: WoodModel) -> np.ndarray:
     """(n,) distance of each element to the nearest exposed surface: its bark distance, or
     along its strand to a cut end when the strand reaches one (the first node of a skeleton
     root that is not anchored in the ground, or a tip: a node without children)."""
@@ -97,7 +88,7 @@ def exposure_distance(model) -> np.ndarray:
     return np.minimum(model.bark_distance, np.maximum(0.0, np.minimum(to0, to1)))
 
 
-def ground_contact(model, climate: Climate, x: np.ndarray) -> np.ndarray:
+def ground_contact(model: WoodModel, climate: Climate, x: np.ndarray) -> np.ndarray:
     """(n,) 1.0 where an element's lowest point (its particles at ``x`` less its radius) lies
     within ``ground_depth`` of the ground, else 0.0 (all 0 without a ground)."""
     if climate.ground_z is None or climate.k_ground == 0.0:

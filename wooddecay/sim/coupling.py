@@ -53,9 +53,11 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from ..wood import WoodModel
 from .. import fmath as fm
 from .biology import moisture_bounds
 from .diagnostics import mass_remaining
+from .events import Events
 from .mechanics import set_masses, set_radius
 
 #: constraint types of L_0 and p_l, in column order (elements: 0, 1; pairs: 2, 3, 4)
@@ -84,7 +86,7 @@ class CouplingSetup:
     m_crumble: np.ndarray  # (n,)
 
 
-def prepare(model) -> CouplingSetup:
+def prepare(model: WoodModel) -> CouplingSetup:
     """Gains, limits and decay weights from the tissues' parameters (``model.materials``)."""
     per_element = model.materials.per_element
     i, j = model.reg_edges[:, 0], model.reg_edges[:, 1]
@@ -141,7 +143,14 @@ def integrity(k_c: np.ndarray, k_l: np.ndarray, H_c_pair: np.ndarray, H_l_pair: 
     return np.clip(I, 0.0, 1.0)
 
 
-def step(model, state) -> None:
+def advance(model: WoodModel, state, dt: float) -> Events:
+    """The driver's coupling solver (:mod:`~wooddecay.sim.events`): :func:`step` at the end of a
+    step of ``dt`` days (the coupling is instantaneous: it reads the fields as they are)."""
+    step(model, state)
+    return Events()
+
+
+def step(model: WoodModel, state) -> None:
     """Update the rods of ``state`` (``state.mech``: rest data, limits, integrity and masses)
     from its fields, with each tissue's M_1, M_2 on the day ``state.t_days``. The coupling is
     instantaneous, so unlike the other solvers it takes no dt. One parallel pass over elements
@@ -207,7 +216,7 @@ def _couple(M, H_c, H_l, tissue, M12, edges, link_next, M_0, L_knee, s, S_c, res
             limit_edge[k, c] = 0.5 * (L[i, c + 2] + L[j, c + 2]) * I
 
 
-def step_reference(model, state) -> dict[str, np.ndarray]:
+def step_reference(model: WoodModel, state) -> dict[str, np.ndarray]:
     """Plain-numpy :func:`step`: the rest lengths, rest offsets, radii, integrity and limits it sets."""
     cs, setup = model.coupling, model.mech
     M12, tissue = moisture_bounds(model.bio, state.t_days), model.bio.tissue

@@ -39,9 +39,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..wood import WoodModel
 from ..atomic import read_archive
 from . import bark, biology, coupling, schedule, settled
-from . import mechanics as mech
+from .mechanics import convergence, strain_excess
 from .diagnostics import diagnostics, mech_diagnostics
 from .signature import signature
 from .state import FIELDS, SimState, initial_state, inoculate
@@ -73,7 +74,7 @@ class Simulation:
     """``Simulation(model).run()`` yields :class:`Frame` objects (module docstring).
     ``history`` collects the diagnostics at day 0 and after every macro step."""
 
-    def __init__(self, model, mechanics: bool = True, checkpoint_dir=None, checkpoint_every: int = 0,
+    def __init__(self, model: WoodModel, mechanics: bool = True, checkpoint_dir=None, checkpoint_every: int = 0,
                  settle: bool = True, threads: ThreadChoice | None = None, settle_cache=None,
                  crack_bark: bool = True):
         self.model = model
@@ -97,7 +98,7 @@ class Simulation:
             self.state.bark = bark.initial(model, self.state)
         self.history: list[dict] = [self._diagnostics()]
         if mechanics:
-            self.history[0]["mechanics"]["strain_excess"] = mech.strain_excess(model.mech, self.state.mech)
+            self.history[0]["mechanics"]["strain_excess"] = strain_excess(model.mech, self.state.mech)
 
     @property
     def substeps(self) -> int:
@@ -110,6 +111,15 @@ class Simulation:
             d["mechanics"] = mech_diagnostics(self.state.mech)
         return d
 
+    @property
+    def solvers(self) -> tuple:
+        """The solvers of a macro step in Algorithm 1's order, each ``advance(model, state, dt) ->
+        Events`` (:mod:`~wooddecay.sim.events`): mechanics under the schedule, biology (with the
+        inoculations due), coupling, bark; without mechanics the biology and the bark."""
+        if self.mechanics:
+            return (schedule.advance, biology.advance, coupling.advance, bark.advance)
+        return (biology.advance, bark.advance)
+
     def macro_step(self, dt_bio: float) -> None:
         """Algorithm 1 lines 4-13 with a biology step of ``dt_bio`` days."""
         if self.threads is None:
@@ -120,33 +130,13 @@ class Simulation:
     def _macro_step(self, dt_bio: float) -> tuple:
         """:meth:`macro_step`; returns what it did, the work under which ``threads`` compares its
         time: the schedule's reason and chunks and whether the bark searched for cracks."""
-        model, state = self.model, self.state
-        step = {}
-        if self.mechanics:
-            step = self._mechanics()
-        biology.step(model, state, dt_bio)
-        inoculate(model, state)
-        if self.mechanics:
-            coupling.step(model, state)
-        searched = bark.step(model, state, dt_bio)
+        events = [solver(self.model, self.state, dt_bio) for solver in self.solvers]
         d = self._diagnostics()
-        if self.mechanics:
-            d["mechanics"].update(step)
         self.history.append(d)
-        return step.get("due"), step.get("chunks"), searched
-
-    def _mechanics(self) -> dict:
-        """Algorithm 1 lines 4-8 under ``model.time.schedule``: the N_mech substeps, or with
-        "adaptive" the chunks of them :mod:`~wooddecay.sim.schedule` finds due. Returns the
-        chunks run and why (None: skipped)."""
-        model, state, time = self.model, self.state, self.model.time
-        if time.schedule == "fixed":
-            schedule.wake_changed(model, state, time.tolerances)
-            mech.macro_step(model, state, time.N_mech)
-            schedule.mark(model, state.mech, state.t_days, quiet=True)
-            return {"chunks": 1, "due": "fixed"}
-        due = schedule.due(model, state, time.tolerances)
-        return {"chunks": 0 if due is None else schedule.solve(model, state, time.tolerances, due), "due": due}
+        if not self.mechanics:
+            return None, None, events[-1].searched
+        d["mechanics"].update({"chunks": events[0].chunks, "due": events[0].due})
+        return events[0].due, events[0].chunks, events[-1].searched
 
     def schedule_summary(self) -> dict:
         """The schedule and, over the macro steps run so far (``history``), how many ran
@@ -167,7 +157,7 @@ class Simulation:
         mechanics)."""
         if not self.mechanics:
             return None
-        return mech.convergence(self.model.mech, [self.history[0]["mechanics"]["strain_excess"]]
+        return convergence(self.model.mech, [self.history[0]["mechanics"]["strain_excess"]]
                                 + [f.diagnostics["mechanics"]["strain_excess"] for f in frames])
 
     def advance(self, days: float) -> None:
@@ -192,7 +182,7 @@ class Simulation:
         d = self._diagnostics()
         if self.mechanics:
             d["signature"] = signature(self.model, self.state) | bark.statistics(self.model, self.state.bark)
-            d["mechanics"]["strain_excess"] = mech.strain_excess(self.model.mech, self.state.mech)
+            d["mechanics"]["strain_excess"] = strain_excess(self.model.mech, self.state.mech)
         sheet = {} if self.state.bark is None else {"cracked": self.state.bark.crack.cracked.copy(),
                                                       "shed": self.state.bark.shed.copy()}
         return Frame(index=index, t_days=self.state.t_days,

@@ -33,6 +33,7 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
+from ..wood import WoodModel
 from ..quaternion import conj_np, mul, mul_np, rotate
 from ..wood import Load, MechConfig
 from . import contact, failure, rods, sleep, strand_solve
@@ -289,7 +290,7 @@ def _parity_sets(ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (np.ascontiguousarray(ids[ids % 2 == 0]), np.ascontiguousarray(ids[ids % 2 == 1]))
 
 
-def prepare(model, config: MechConfig, colliders: np.ndarray, loads: tuple[Load, ...]) -> MechSetup:
+def prepare(model: WoodModel, config: MechConfig, colliders: np.ndarray, loads: tuple[Load, ...]) -> MechSetup:
     """Stiffnesses (from the tissues' E, G, rho_dry in ``model.materials``), colour classes, rest
     data, ``colliders`` (rows of :func:`contact.collider_row`) and the particle forces of
     ``loads`` (each shared over its elements' particles in proportion to their dry mass)."""
@@ -356,7 +357,7 @@ def _conj_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return mul_np(conj_np(a), b)
 
 
-def initial_state(model) -> MechState:
+def initial_state(model: WoodModel) -> MechState:
     """Rest configuration, at rest, no external forces; masses and limits are set by
     :func:`coupling.step`."""
     setup = model.mech
@@ -613,7 +614,7 @@ def without_still(setup: MechSetup, moves: np.ndarray, kreg: RegStiffness, plan:
     return kreg, plan
 
 
-def substep(model, state, dt: float) -> int:
+def substep(model: WoodModel, state, dt: float) -> int:
     """One XPBD substep of ``state.mech`` with ``model.mech`` under the state's external forces
     (module docstring); returns the number of new failures."""
     return _substep(model.mech, state.mech, dt)
@@ -767,7 +768,7 @@ def _keep_overlaps(pairs_sep, pairs_rest, pairs_protect, sep_overlap):
             sep_overlap[pairs_sep[q]] = pairs_rest[q] + pairs_protect[q]
 
 
-def settle(model, state, seconds: float, damping: float, tol: float | None = None,
+def settle(model: WoodModel, state, seconds: float, damping: float, tol: float | None = None,
            max_seconds: float = 10.0, run=None) -> float:
     """Let the rods of ``state`` come to rest under gravity with infinite limits (only decayed
     connections and crumbled elements fail, tested on the first substep: whether they fail does
@@ -814,7 +815,7 @@ def settle(model, state, seconds: float, damping: float, tol: float | None = Non
     return done
 
 
-def advance(model, state, n_sub: int) -> int:
+def advance(model: WoodModel, state, n_sub: int) -> int:
     """``n_sub`` substeps of ``model.mech.dt`` under the state's external forces, gathering the
     :func:`stiffness` only when the failure flags change; returns the new failures."""
     return _advance(model.mech, state.mech, n_sub)[0]
@@ -866,7 +867,7 @@ def load_notes(setup: MechSetup) -> tuple[str, ...]:
     return tuple(notes)
 
 
-def macro_step(model, state, n_sub: int) -> int:
+def macro_step(model: WoodModel, state, n_sub: int) -> int:
     """Algorithm 1 lines 4-8: ``n_sub`` substeps of ``model.mech.dt`` under the loads of the day
     ``state.t_days``, each split in :func:`load_split` of them; returns new failures. With
     ``sleep_speed`` > 0 pieces that stopped moving sleep (:mod:`~wooddecay.sim.sleep`): the

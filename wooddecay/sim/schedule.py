@@ -35,7 +35,7 @@ g T / 2, and ends it at g T, which the chunk's length T puts above rest_speed) o
 kinetic energy share m_piece / m_wood v^2 above rest_speed^2 (a block that landed and rolls on at
 a few cm/s does not keep the solve going: it held the collapsing log's solves at their cap), or
 ``time.max_mechanics`` seconds have run. Pieces, not particles: single elements next to a crack
-swing in place at ~8e-2 m/s (docs/decisions.md, "Open points") and kept every solve of a
+swing in place at ~8e-2 m/s (docs/limits.md, "Single elements swing beside cracks") and kept every solve of a
 drying log running to its cap (4.4x the fixed schedule's substeps), while a piece that falls,
 rolls or rocks moves its centre of mass. A
 failure that splits no piece does not extend a solve: a crack that opens moves its piece.
@@ -67,9 +67,11 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
+from ..wood import WoodModel
 from . import failure, sleep
-from . import mechanics as mech
+from . import mechanics
 from ..wood import Tolerances
+from .events import Events
 from .signature import MIN_PIECE
 
 #: a relaxing chunk brings a piece released from rest to this many times rest_speed (:func:`relax_substeps`)
@@ -78,7 +80,7 @@ CHUNK_MARGIN = 1.15
 RELAX = ("strain", "integrity_mass")
 
 
-def mark(model, ms: mech.MechState, t_days: float, quiet: bool) -> None:
+def mark(model: WoodModel, ms: mechanics.MechState, t_days: float, quiet: bool) -> None:
     """Take the current rest data of the awake elements and of the REG pairs with an awake end
     as the state of the last solve, on day ``t_days``. A sleeping or held piece keeps the data
     it fell asleep or was held with, so its changes add up until they wake it
@@ -94,7 +96,7 @@ def mark(model, ms: mech.MechState, t_days: float, quiet: bool) -> None:
     ms.quiet = np.array([quiet])
 
 
-def active_loads(setup: mech.MechSetup, t_days: float) -> tuple[bool, ...]:
+def active_loads(setup: mechanics.MechSetup, t_days: float) -> tuple[bool, ...]:
     """Which ``[[load]]``s act on ``t_days``."""
     return tuple(d0 <= t_days < d1 for d0, d1, _ in setup.loads)
 
@@ -103,7 +105,7 @@ def active_loads(setup: mech.MechSetup, t_days: float) -> tuple[bool, ...]:
 CHANGE_REASONS = (None, "integrity_mass", "strain")
 
 
-def changed(model, ms: mech.MechState, tol: Tolerances) -> tuple[str | None, np.ndarray]:
+def changed(model: WoodModel, ms: mechanics.MechState, tol: Tolerances) -> tuple[str | None, np.ndarray]:
     """The elements whose rest data changed past the tolerances since the last solve (an element
     of a REG pair that did counts), and the first reason found: "strain" (a rest strain moved
     by more than ``tol.strain``), "integrity_mass" (an I_ij or a relative mass by more than
@@ -141,7 +143,7 @@ def _changed(edges, edge_length, rest_length, solved_rest_length, mass, solved_m
     return code
 
 
-def changed_reference(model, ms: mech.MechState, tol: Tolerances) -> tuple[str | None, np.ndarray]:
+def changed_reference(model: WoodModel, ms: mechanics.MechState, tol: Tolerances) -> tuple[str | None, np.ndarray]:
     """Plain-numpy :func:`changed`."""
     edges = model.mech.edges
     strain_e = np.abs(ms.rest_length - ms.solved_rest_length) > tol.strain * ms.rest_length
@@ -154,7 +156,7 @@ def changed_reference(model, ms: mech.MechState, tol: Tolerances) -> tuple[str |
     return reason, over
 
 
-def wake_changed(model, state, tol: Tolerances) -> str | None:
+def wake_changed(model: WoodModel, state, tol: Tolerances) -> str | None:
     """Wake the sleeping pieces whose rest data changed past the tolerances (:func:`changed`);
     returns the reason, or None."""
     reason, over = changed(model, state.mech, tol)
@@ -163,7 +165,7 @@ def wake_changed(model, state, tol: Tolerances) -> str | None:
     return reason
 
 
-def due(model, state, tol: Tolerances) -> str | None:
+def due(model: WoodModel, state, tol: Tolerances) -> str | None:
     """Why mechanics must run in the macro step starting at ``state.t_days``, or None (module
     docstring); wakes the sleeping and held pieces that changed. The failure test runs last, only
     when nothing else asks for a solve; failures it finds are kept and wake the pieces they touch
@@ -179,12 +181,12 @@ def due(model, state, tol: Tolerances) -> str | None:
         return reason
     pieces, flags = big_pieces(ms), (ms.element_ok.copy(), ms.edge_ok.copy())
     if failure.update(setup, ms) and big_pieces(ms) != pieces:
-        sleep.wake_failed(setup, ms, *flags, mech.refresh_pairs)
+        sleep.wake_failed(setup, ms, *flags, mechanics.refresh_pairs)
         return "failure"
     return None
 
 
-def big_pieces(ms: mech.MechState) -> int:
+def big_pieces(ms: mechanics.MechState) -> int:
     """Pieces of at least ``MIN_PIECE`` elements: a split that only frees a loose bit changes
     nothing the schedule waits for."""
     return int(np.count_nonzero(np.bincount(ms.component) >= MIN_PIECE))
@@ -199,7 +201,7 @@ class Motion(NamedTuple):
     v_mean: np.ndarray  # mean over the chunk
 
 
-def motion(setup: mech.MechSetup, ms: mech.MechState, x0: np.ndarray, seconds: float) -> Motion:
+def motion(setup: mechanics.MechSetup, ms: mechanics.MechState, x0: np.ndarray, seconds: float) -> Motion:
     """:class:`Motion` of every piece: its centre of mass (intact element centres weighted by
     mass) now and on average since the positions ``x0``, ``seconds`` ago."""
     fp, n = setup.fp, int(ms.component.max(initial=-1)) + 1
@@ -229,7 +231,7 @@ def moving(m: Motion, rest_speed: float) -> bool:
     return bool(np.any((v > rest_speed) & ((v_now > v_mean) | (share * v * v > rest_speed * rest_speed))))
 
 
-def hold_still(setup: mech.MechSetup, ms: mech.MechState, m: Motion, hold_speed: float) -> None:
+def hold_still(setup: mechanics.MechSetup, ms: mechanics.MechState, m: Motion, hold_speed: float) -> None:
     """Hold still, until the solve's next chunk, every awake piece (of any size) at rest: its
     centre of mass slower than ``hold_speed`` on average and at the end of the chunk
     (:class:`Motion`), unless a moving piece touches it whose momentum could set it moving at
@@ -252,14 +254,14 @@ def hold_still(setup: mech.MechSetup, ms: mech.MechState, m: Motion, hold_speed:
         sleep.hold(setup, ms)
 
 
-def release(setup: mech.MechSetup, ms: mech.MechState) -> None:
+def release(setup: mechanics.MechSetup, ms: mechanics.MechState) -> None:
     """Release every held piece."""
     if ms.held.any():
         ms.held[:] = False
         sleep.hold(setup, ms)
 
 
-def relax_substeps(model) -> int:
+def relax_substeps(model: WoodModel) -> int:
     """Substeps of ``mechanics.dt_mech`` in the first chunk of a solve that relaxes rest data
     (``RELAX``): the fewest in which a piece released from rest reaches ``CHUNK_MARGIN``
     rest_speed (g T), so that :func:`moving` sees it fall, and at most N_mech (N_mech without
@@ -275,7 +277,7 @@ def relax_substeps(model) -> int:
     return min(n, max(1, math.ceil(CHUNK_MARGIN * model.time.tolerances.rest_speed / (g * model.mech.dt))))
 
 
-def solve(model, state, tol: Tolerances, reason: str | None = None) -> int:
+def solve(model: WoodModel, state, tol: Tolerances, reason: str | None = None) -> int:
     """Chunks of N_mech substeps, the first :func:`relax_substeps` long when ``reason`` (from
     :func:`due`) is in ``RELAX``, until the wood is quiet or ``tol.max_seconds`` have run (module
     docstring); marks the result as solved. Returns the number of chunks."""
@@ -285,7 +287,7 @@ def solve(model, state, tol: Tolerances, reason: str | None = None) -> int:
     while not quiet and substeps * dt < tol.max_seconds - 1e-12:
         x0 = ms.x.copy()
         pieces = big_pieces(ms)
-        mech.macro_step(model, state, n_sub)
+        mechanics.macro_step(model, state, n_sub)
         chunks += 1
         substeps += n_sub
         m = motion(model.mech, ms, x0, n_sub * dt)
@@ -296,3 +298,18 @@ def solve(model, state, tol: Tolerances, reason: str | None = None) -> int:
         release(model.mech, ms)
     mark(model, ms, state.t_days, quiet)
     return chunks
+
+
+def advance(model: WoodModel, state, dt: float) -> Events:
+    """The driver's mechanics solver (:mod:`~wooddecay.sim.events`), Algorithm 1 lines 4-8 under
+    ``model.time.schedule``: "fixed" runs the N_mech substeps every macro step; "adaptive" runs
+    the chunks of them :func:`due` finds due, until the pieces are at rest (:func:`solve`). The
+    rods move in their own seconds; ``dt`` (days) is the biology's step they precede."""
+    time = model.time
+    if time.schedule == "fixed":
+        wake_changed(model, state, time.tolerances)
+        mechanics.macro_step(model, state, time.N_mech)
+        mark(model, state.mech, state.t_days, quiet=True)
+        return Events(due="fixed", chunks=1)
+    due_now = due(model, state, time.tolerances)
+    return Events(due=due_now, chunks=0 if due_now is None else solve(model, state, time.tolerances, due_now))

@@ -25,10 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..wood import WoodModel
 from ..atomic import cache_home, read_archive, replace_with, tree_hash
 from ..errors import InputError
 from . import bark
-from . import mechanics as mech
+from . import mechanics
 
 VERSION = 5
 #: environment variable naming the cache folder ("" or "off": no cache)
@@ -51,7 +52,7 @@ def default_folder() -> Path | None:
     return cache_home() / "settled"
 
 
-def settle(model, state, folder: Path | None, run=None) -> str:
+def settle(model: WoodModel, state, folder: Path | None, run=None) -> str:
     """Crack the bark of ``state`` at day 0 (:func:`bark.initial`) and settle its rods
     (:func:`mechanics.settle` with the model's time and damping, chunks through ``run``), or load
     them from ``folder``; store what was computed there. Returns "cached" (the rods loaded) or
@@ -61,13 +62,13 @@ def settle(model, state, folder: Path | None, run=None) -> str:
     if not cracks:
         state.bark = bark.initial(model, state)
     if not rods:
-        mech.settle(model, state, model.time.settle, model.time.settle_damping, run=run)
+        mechanics.settle(model, state, model.time.settle, model.time.settle_damping, run=run)
     if path is not None and not (rods and cracks):
         _save(path, model, state)
     return "cached" if rods else "settled"
 
 
-def _bark_key(model) -> str | None:
+def _bark_key(model: WoodModel) -> str | None:
     """What the day-0 cracks depend on beyond the wood: the resolved [bark] section."""
     return None if model.bark is None else json.dumps(asdict(model.bark_setup), sort_keys=True, default=str)
 

@@ -37,6 +37,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, QhullError
 
+from ..wood import WoodModel
 from ..strands.rings import TISSUES
 from .diagnostics import mass_loss
 
@@ -46,7 +47,7 @@ MIN_PIECE = 5
 MIN_CRACK = 5
 
 
-def signature(model, state) -> dict:
+def signature(model: WoodModel, state) -> dict:
     """The signature of ``state`` (module docstring); ``state.mech`` must hold the rods."""
     ms, V = state.mech, model.bio.op.volume
     comp = ms.component
@@ -87,7 +88,7 @@ def signature(model, state) -> dict:
     }
 
 
-def crack_clusters(model, broken: np.ndarray) -> int:
+def crack_clusters(model: WoodModel, broken: np.ndarray) -> int:
     """Cracks of at least MIN_CRACK of the ``broken`` REG connections (module docstring)."""
     n = model.n_elements
     i, j = model.reg_edges[broken, 0], model.reg_edges[broken, 1]

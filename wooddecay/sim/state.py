@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..wood import WoodModel
 from ..wood import Inoculation
 from . import mechanics
 
@@ -57,7 +58,7 @@ class SimState:
                         bark=None if self.bark is None else self.bark.copy())
 
 
-def initial_state(model, rods: bool = False) -> SimState:
+def initial_state(model: WoodModel, rods: bool = False) -> SimState:
     """Fields at day 0 from the tissues (``model.materials``), then the inoculations of day 0;
     with ``rods`` also the rods at rest (:func:`wooddecay.sim.mechanics.initial_state`, before
     any coupling)."""
@@ -74,7 +75,7 @@ def initial_state(model, rods: bool = False) -> SimState:
     return state
 
 
-def inoculate(model, state: SimState) -> None:
+def inoculate(model: WoodModel, state: SimState) -> None:
     """Apply every inoculation of ``model.inoculations`` whose day has come and that was not
     applied yet."""
     for k, ino in enumerate(model.inoculations):

@@ -60,6 +60,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..wood import WoodModel
 from ..model import build_model
 from ..scene import Scene, load_scene, parse_scene
 from ..sim import coupling, mechanics
@@ -199,7 +200,7 @@ class PullCase:
     settled_seconds: float  # mechanics seconds of its own settling (converged to SETTLE_TOL)
 
 
-def branch_elements(model, node: str = "b1_2", junction: float = 1.5) -> np.ndarray:
+def branch_elements(model: WoodModel, node: str = "b1_2", junction: float = 1.5) -> np.ndarray:
     """(n,) bool: the elements of the branch through ``node`` and its side branches, and those
     of the wood within ``junction`` times the fork node's radius of the fork (the connection of
     the branch to its parent)."""

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..wood import WoodModel
 from ..arrays import best_rotation
 
 #: adaptive settings: strain_tolerance, tolerance and rest_speed all times each factor
@@ -76,7 +77,7 @@ def run(path, schedule: str, factor: float = 1.0, overrides: dict | None = None,
                x=frame.mech["x"], piece=particle_piece(model, frame.mech["component"]))
 
 
-def particle_piece(model, component: np.ndarray) -> np.ndarray:
+def particle_piece(model: WoodModel, component: np.ndarray) -> np.ndarray:
     """The piece of each particle: that of the element it starts, else of the one it ends."""
     fp = model.mech.fp
     piece = np.empty(model.mech.n_particles, dtype=np.int64)

@@ -19,6 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..wood import WoodModel
 from ..model import build_model
 from ..scene.schema import TISSUE_DEFAULTS, TISSUE_KEYS
 from ..sim import biology
@@ -57,7 +58,7 @@ def block(length, width, thickness, rod, alpha=1.0, D=1e-3):
     return scene, build_model(scene)
 
 
-def constant_frame_model(model, scene, direction):
+def constant_frame_model(model: WoodModel, scene, direction):
     """``model`` whose biology transport uses a constant wood frame (FRAMES[direction])."""
     setup = model.bio
     n = model.n_elements
@@ -140,7 +141,7 @@ def fisher_speed_ratio(direction: str, alpha: float = 1.0, q: float | None = Non
     return float(v / (2 * np.sqrt(alpha * D_dir))), s.clamp_count
 
 
-def front_resolution(model) -> dict[str, dict[str, float]]:
+def front_resolution(model: WoodModel) -> dict[str, dict[str, float]]:
     """Per fungus ("white", "brown") and direction (l, r, t) the median over the elements of q =
     h sqrt(g / (D a_dir)): h the element spacing (the rod length along the grain, 2 r_s across
     it), g the fastest linear growth at a front's leading edge (Eqs. 8-9 at R -> 0 on sound wood

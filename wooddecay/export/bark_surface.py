@@ -20,9 +20,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..wood import WoodModel
 from ..meshlets.sweep import BARK
-from .cracks import widths
-from .sheet import branch_trees
+from ..bark.cracks import widths
+from ..bark.sheet import branch_trees
 
 #: crack samples per sheet edge
 SAMPLES = 5
@@ -50,7 +51,7 @@ def crack_samples(sheet, cracked: np.ndarray, w_v: np.ndarray):
     return np.stack([x.ravel(), y.ravel()], 1), np.repeat(br, SAMPLES), w.ravel()
 
 
-def crack_fields(model, mesh, cracked: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def crack_fields(model: WoodModel, mesh, cracked: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(V,) ``bark_crack``, ``bark_crack_depth`` (m) and the crack width (m) at every meshlet
     vertex for the cracked sheet edges ``cracked`` (module docstring); zeros off the bark."""
     V = len(mesh.points)
@@ -80,7 +81,7 @@ def crack_fields(model, mesh, cracked: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return crack, depth, width
 
 
-def groove_offsets(model, mesh, depth: np.ndarray, width: np.ndarray) -> np.ndarray:
+def groove_offsets(model: WoodModel, mesh, depth: np.ndarray, width: np.ndarray) -> np.ndarray:
     """(V, 3) rest-position offsets that cut the grooves (module docstring)."""
     out = np.zeros((len(mesh.points), 3))
     gw = float(model.bark_setup.groove_width) if model.bark is not None else 0.0
@@ -109,7 +110,7 @@ def groove_offsets(model, mesh, depth: np.ndarray, width: np.ndarray) -> np.ndar
     return out
 
 
-def frame_bark(model, mesh, frame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def frame_bark(model: WoodModel, mesh, frame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``bark_crack``, ``bark_crack_depth`` (V,) and the groove offsets (V, 3) of one
     :class:`~wooddecay.sim.driver.Frame` (zeros without a bark sheet)."""
     cracked = frame.bark.get("cracked")

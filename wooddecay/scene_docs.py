@@ -121,7 +121,7 @@ def _check_skeleton_rows() -> None:
     for table, key, *_ in SKELETON_ROWS:
         have.setdefault(table, set()).add(key)
     if have != want:
-        raise AssertionError(f"wooddecay/scene/docs.py SKELETON_ROWS {have} != the skeleton loader's keys {want}")
+        raise AssertionError(f"wooddecay/scene_docs.py SKELETON_ROWS {have} != the skeleton loader's keys {want}")
 
 
 _INTRO = f"""\

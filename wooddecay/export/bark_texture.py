@@ -25,9 +25,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from .cracks import widths
-from .sheet import branch_trees
-from .surface import crack_samples
+from ..wood import WoodModel
+from ..bark.cracks import widths
+from ..bark.sheet import branch_trees
+from .bark_surface import crack_samples
 
 #: texels per sheet edge length
 TEXELS_PER_EDGE = 4
@@ -63,7 +64,7 @@ def _branch_rows(sheet, texel: float) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return s0, np.concatenate([[0], np.cumsum(count)[:-1]]), count
 
 
-def crack_maps(model, frames) -> list[np.ndarray] | None:
+def crack_maps(model: WoodModel, frames) -> list[np.ndarray] | None:
     """Per frame of ``frames`` (at most :data:`MAX_TILES`: module docstring) the (H, W) uint16
     crack map (the V-profile x 65535); None without a bark sheet or without the frames' cracks."""
     sheet = model.bark
@@ -84,7 +85,7 @@ def crack_maps(model, frames) -> list[np.ndarray] | None:
     return tiles
 
 
-def _profile(model, cracked: np.ndarray, texel: float, rows) -> np.ndarray:
+def _profile(model: WoodModel, cracked: np.ndarray, texel: float, rows) -> np.ndarray:
     """(H, W) uint16 V-profile of the nearest of the cracked sheet edges ``cracked`` per texel
     (``rows``: :func:`_branch_rows`)."""
     sheet = model.bark
@@ -110,7 +111,7 @@ def _profile(model, cracked: np.ndarray, texel: float, rows) -> np.ndarray:
     return out
 
 
-def bark_uv(model, mesh, faces: np.ndarray) -> np.ndarray:
+def bark_uv(model: WoodModel, mesh, faces: np.ndarray) -> np.ndarray:
     """(len(faces) * 3, 2) atlas coordinates of every corner of ``faces`` (module docstring;
     (0, 0) where the model has no bark sheet)."""
     sheet = model.bark
