@@ -1,19 +1,15 @@
-"""SSIM of two 480 x 270 renders (wooddecay.gallery.ssim) against the per-pixel reference of
-tests/test_ssim.py on a 48 x 27 crop: seconds (median and spread of 7 runs) and the difference.
+"""SSIM of two 480 x 270 renders (wooddecay.gallery.ssim) against its per-pixel reference
+(ssim_reference) on a 48 x 27 crop: seconds (median and spread of 7 runs) and the difference.
 
     python benchmarks/ssim.py
 """
 from __future__ import annotations
 
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from tests.test_ssim import _reference  # noqa: E402
-from wooddecay.gallery.ssim import ssim  # noqa: E402
+from wooddecay.gallery.ssim import ssim, ssim_reference
 
 
 def main() -> None:
@@ -29,7 +25,7 @@ def main() -> None:
     print(f"ssim_480x270_ms {np.median(t):.2f} (min {t.min():.2f}, max {t.max():.2f}, 7 runs)")
     c = (slice(0, 27), slice(0, 48))
     t0 = time.perf_counter()
-    ref = _reference(x[c], y[c])
+    ref = ssim_reference(x[c], y[c])
     t_ref = time.perf_counter() - t0
     print(f"reference_48x27_s {t_ref:.2f}; ssim_vs_reference_difference {abs(ssim(x[c], y[c]) - ref):.2e}")
 

@@ -39,6 +39,24 @@ def ssim(x: np.ndarray, y: np.ndarray) -> float:
     return float(s.mean())
 
 
+def ssim_reference(x: np.ndarray, y: np.ndarray) -> float:
+    """Per-pixel SSIM with an explicit normalised Gaussian window over a reflected border (the
+    same window as scipy's gaussian_filter: radius int(TRUNCATE * SIGMA + 0.5))."""
+    r = int(TRUNCATE * SIGMA + 0.5)
+    k = np.exp(-0.5 * (np.arange(-r, r + 1) / SIGMA) ** 2)
+    w = np.outer(k, k) / np.outer(k, k).sum()
+    px, py = (np.pad(a, r, mode="symmetric") for a in (x, y))
+    out = np.empty(x.shape)
+    for i in range(x.shape[0]):
+        for j in range(x.shape[1]):
+            a, b = px[i:i + 2 * r + 1, j:j + 2 * r + 1], py[i:i + 2 * r + 1, j:j + 2 * r + 1]
+            mx, my = (w * a).sum(), (w * b).sum()
+            vx, vy = (w * a * a).sum() - mx * mx, (w * b * b).sum() - my * my
+            cxy = (w * a * b).sum() - mx * my
+            out[i, j] = (2 * mx * my + C1) * (2 * cxy + C2) / ((mx * mx + my * my + C1) * (vx + vy + C2))
+    return float(out.mean())
+
+
 def ssim_png(a, b) -> float:
     """SSIM of two PNG files (their luminance)."""
     from PIL import Image

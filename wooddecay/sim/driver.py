@@ -6,8 +6,9 @@ Each macro step: ``N_mech`` mechanics substeps of ``dt_mech`` (lines 4-8,
 (lines 12-13, :mod:`wooddecay.sim.coupling`) and the bark (:mod:`wooddecay.sim.bark`: cracks,
 bonds, plates that shed). ``mechanics=False`` runs the biology alone (years of
 decay on a static model). Frames are yielded at ``model.time.frames`` times evenly spaced over
-[0, model.time.days] (the first frame is the initial state when frames > 1). Every solver has
-the shape ``solver(model, state, dt)``: the model holds everything static (``model.bio``,
+[0, model.time.days] (the first frame is the initial state when frames > 1). Every solver of a
+macro step has the shape ``advance(model, state, dt) -> Events`` (:mod:`wooddecay.sim.events`,
+``dt`` in days; :attr:`Simulation.solvers`): the model holds everything static (``model.bio``,
 ``model.mech``, ``model.coupling``, ``model.time``, ``model.inoculations``), the
 :class:`~wooddecay.sim.state.SimState` everything that changes.
 
@@ -36,13 +37,14 @@ import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
 from ..wood import WoodModel
 from ..atomic import read_archive
 from . import bark, biology, coupling, schedule, settled
-from .mechanics import convergence, strain_excess
+from .mechanics import MechState, convergence, strain_excess
 from .diagnostics import diagnostics, mech_diagnostics
 from .signature import signature
 from .state import FIELDS, SimState, initial_state, inoculate
@@ -93,11 +95,13 @@ class Simulation:
             if settle:  # the bark's day-0 cracks and the settled rods, or both from the cache
                 self.settled = settled.settle(model, self.state, settle_cache,
                                               run=None if threads is None else threads.run)
+            assert self.state.mech is not None  # initial_state(rods=True)
             schedule.mark(model, self.state.mech, self.state.t_days, quiet=settle)
         if self.settled == "no" and crack_bark:  # False: the caller restores a later bark (resume)
             self.state.bark = bark.initial(model, self.state)
         self.history: list[dict] = [self._diagnostics()]
         if mechanics:
+            assert self.state.mech is not None
             self.history[0]["mechanics"]["strain_excess"] = strain_excess(model.mech, self.state.mech)
 
     @property
@@ -149,7 +153,7 @@ class Simulation:
                 reasons[h["due"]] = reasons.get(h["due"], 0) + 1
         return {"schedule": self.model.time.schedule, "macro_steps": len(steps),
                 "solves": sum(reasons.values()), "chunks": sum(h["chunks"] for h in steps),
-                "mechanics_seconds": self.state.mech.t_seconds if self.mechanics else 0.0, "due": reasons,
+                "mechanics_seconds": cast(MechState, self.state.mech).t_seconds if self.mechanics else 0.0, "due": reasons,
                 "settled": self.settled}
 
     def convergence(self, frames) -> dict | None:
@@ -182,6 +186,7 @@ class Simulation:
         d = self._diagnostics()
         if self.mechanics:
             d["signature"] = signature(self.model, self.state) | bark.statistics(self.model, self.state.bark)
+            assert self.state.mech is not None
             d["mechanics"]["strain_excess"] = strain_excess(self.model.mech, self.state.mech)
         sheet = {} if self.state.bark is None else {"cracked": self.state.bark.crack.cracked.copy(),
                                                       "shed": self.state.bark.shed.copy()}
@@ -207,14 +212,15 @@ class Simulation:
         s = self.state
         arrays = {f"field_{f}": getattr(s, f) for f in FIELDS}
         if self.mechanics:
+            assert s.mech is not None
             arrays.update({f"mech_{k}": v for k, v in s.mech.arrays().items()})
         if s.bark is not None:
             arrays.update({f"bark_{k}": v for k, v in s.bark.arrays().items()})
         meta = {"version": CHECKPOINT_VERSION, "scene_hash": self.model.info.hash, "mechanics": self.mechanics,
                 "frame": self.last_frame, "t_days": s.t_days, "clamp_count": s.clamp_count,
                 "applied": sorted(s.applied), "history": self.history,
-                "t_seconds": s.mech.t_seconds if self.mechanics else 0.0,
-                "failures": s.mech.failures if self.mechanics else 0, "wall_seconds": self.wall_seconds}
+                "t_seconds": cast(MechState, s.mech).t_seconds if self.mechanics else 0.0,
+                "failures": cast(MechState, s.mech).failures if self.mechanics else 0, "wall_seconds": self.wall_seconds}
         tmp = path.with_name(path.name + ".tmp")
         with open(tmp, "wb") as fh:
             np.savez(fh, meta=np.array(json.dumps(meta)), **arrays)
@@ -237,6 +243,7 @@ class Simulation:
             setattr(s, f, arrays[f"field_{f}"])
         s.t_days, s.clamp_count, s.applied = meta["t_days"], meta["clamp_count"], set(meta["applied"])
         if sim.mechanics:
+            assert s.mech is not None
             s.mech.restore({k: arrays[f"mech_{k}"] for k in s.mech.arrays()}, meta["t_seconds"], meta["failures"])
         sheet = bark.uncracked(model, s)
         if sheet is not None:
