@@ -13,7 +13,7 @@ from __future__ import annotations
 import time
 from contextlib import contextmanager
 from dataclasses import fields, replace
-from typing import cast
+from typing import NamedTuple, cast
 
 import numpy as np
 
@@ -167,6 +167,64 @@ def retimed(model: WoodModel, scene) -> WoodModel:
     return replace(model, info=_scene_info(scene), time=_time_spec(scene), build_seconds={})
 
 
+class Rings(NamedTuple):
+    """What the rings stage gives the elements (docs/model.md §2): control points' profile
+    positions ``cp_uv`` (K, 2) m and distances to the root ``cp_s`` (K,) m, the particles'
+    ``particle_s`` (P,) m, and per element its profile position ``uv`` (n, 2) m, bark distance
+    ``bd`` (n,) m, ring age (n,) years and tissue (n,) int8; per node its profile's years, and the
+    year-width noise the bark's growth strain reads."""
+
+    cp_uv: np.ndarray
+    cp_s: np.ndarray
+    particle_s: np.ndarray
+    uv: np.ndarray
+    bd: np.ndarray
+    age: np.ndarray
+    tissue: np.ndarray
+    years: np.ndarray
+    noise: np.ndarray
+
+
+def _rings(skel: Skeleton, topo, strands, samp, node_a: np.ndarray, node_b: np.ndarray, edge_t: np.ndarray, rg,
+           rng: np.random.Generator) -> Rings:
+    """Rings and tissues of the elements: bark distance and radial coordinate q on every control
+    point in its node's profile (a strand end between two profiles interpolated), then each
+    element's ring age and tissue (:mod:`wooddecay.strands.rings`)."""
+    # bark distance and radial coordinate q on every control point, in its node's profile
+    n_cp = len(strands.node)
+    cp_bd, cp_q = np.zeros(n_cp), np.zeros(n_cp)
+    years = np.array([profile_years(p, rg.ring_width) for p in skel.profiles])
+    noise = year_noise(int(years.max()) + 1, rg.width_noise, rng)
+    for i, rows in enumerate(group_rows(strands.node, len(skel.ids))):
+        if len(rows):
+            prof, pts = skel.profiles[i], strands.uv[rows]
+            cp_bd[rows] = signed_distance(prof.polygon, pts)
+            cp_q[rows] = radial_coordinate(prof, topo.up2d[i], rg.eccentricity, rg.pith_blend, pts)
+    part = np.flatnonzero(strands.frac < 1.0)  # strand ends between two profiles
+    f = strands.frac[part]
+    cp_uv = strands.uv.copy()
+    for v in (cp_bd, cp_q, cp_uv):
+        fv = f.reshape(f.shape + (1,) * (v.ndim - 1))
+        v[part] = (1.0 - fv) * v[part - 1] + fv * v[part]
+    cp, t = samp.cp, samp.t
+    cp_prev = np.where(part > 0, strands.node[np.maximum(part - 1, 0)], 0)
+    cp_s = topo.s[strands.node].astype(float)
+    cp_s[part] = (1.0 - f) * topo.s[cp_prev] + f * topo.s[strands.node[part]]
+    particle_s = _particle_s(strands, samp, cp_s)
+    uv = _lerp(cp_uv[cp], cp_uv[cp + 1], t)
+    bd = _lerp(cp_bd[cp], cp_bd[cp + 1], t)
+    q = _lerp(cp_q[cp], cp_q[cp + 1], t)
+    age_a, age_b = np.zeros(len(q)), np.zeros(len(q))
+    for i, (ra, rb) in enumerate(zip(group_rows(node_a, len(skel.ids)), group_rows(node_b, len(skel.ids)))):
+        age_a[ra] = age_of(q[ra], years[i], rg.weibull_c, noise, int(years.max()))
+        age_b[rb] = age_of(q[rb], years[i], rg.weibull_c, noise, int(years.max()))
+    age = _lerp(age_a, age_b, edge_t)
+    elem_years = _lerp(years[node_a].astype(float), years[node_b].astype(float), edge_t)
+    tissue = classify_tissue(bd, age, elem_years, bark_thickness=rg.bark_thickness,
+                             sapwood_rings=rg.sapwood_rings, pith_rings=rg.pith_rings)
+    return Rings(cp_uv, cp_s, particle_s, uv, bd, age, tissue, years, noise)
+
+
 def build_model(scene) -> WoodModel:
     """Build the wood model of a validated :class:`wooddecay.scene.Scene`."""
     sec: dict[str, float] = {}
@@ -184,38 +242,8 @@ def build_model(scene) -> WoodModel:
         edge_t = samp.t * strands.frac[samp.cp + 1]  # a strand's end lies part-way along its edge
         geo = element_geometry(samp, node_a, node_b, edge_t, skel.positions, topo.frames, topo.s)
     with _timed(sec, "rings"):
-        # bark distance and radial coordinate q on every control point, in its node's profile
-        n_cp = len(strands.node)
-        cp_bd, cp_q = np.zeros(n_cp), np.zeros(n_cp)
-        years = np.array([profile_years(p, rg.ring_width) for p in skel.profiles])
-        noise = year_noise(int(years.max()) + 1, rg.width_noise, stage_rng(scene.seed, "rings"))
-        for i, rows in enumerate(group_rows(strands.node, len(skel.ids))):
-            if len(rows):
-                prof, pts = skel.profiles[i], strands.uv[rows]
-                cp_bd[rows] = signed_distance(prof.polygon, pts)
-                cp_q[rows] = radial_coordinate(prof, topo.up2d[i], rg.eccentricity, rg.pith_blend, pts)
-        part = np.flatnonzero(strands.frac < 1.0)  # strand ends between two profiles
-        f = strands.frac[part]
-        cp_uv = strands.uv.copy()
-        for v in (cp_bd, cp_q, cp_uv):
-            fv = f.reshape(f.shape + (1,) * (v.ndim - 1))
-            v[part] = (1.0 - fv) * v[part - 1] + fv * v[part]
-        cp, t = samp.cp, samp.t
-        cp_prev = np.where(part > 0, strands.node[np.maximum(part - 1, 0)], 0)
-        cp_s = topo.s[strands.node].astype(float)
-        cp_s[part] = (1.0 - f) * topo.s[cp_prev] + f * topo.s[strands.node[part]]
-        particle_s = _particle_s(strands, samp, cp_s)
-        uv = _lerp(cp_uv[cp], cp_uv[cp + 1], t)
-        bd = _lerp(cp_bd[cp], cp_bd[cp + 1], t)
-        q = _lerp(cp_q[cp], cp_q[cp + 1], t)
-        age_a, age_b = np.zeros(len(q)), np.zeros(len(q))
-        for i, (ra, rb) in enumerate(zip(group_rows(node_a, len(skel.ids)), group_rows(node_b, len(skel.ids)))):
-            age_a[ra] = age_of(q[ra], years[i], rg.weibull_c, noise, int(years.max()))
-            age_b[rb] = age_of(q[rb], years[i], rg.weibull_c, noise, int(years.max()))
-        age = _lerp(age_a, age_b, edge_t)
-        elem_years = _lerp(years[node_a].astype(float), years[node_b].astype(float), edge_t)
-        tissue = classify_tissue(bd, age, elem_years, bark_thickness=rg.bark_thickness,
-                                 sapwood_rings=rg.sapwood_rings, pith_rings=rg.pith_rings)
+        cp_uv, cp_s, particle_s, uv, bd, age, tissue, years, noise = _rings(
+            skel, topo, strands, samp, node_a, node_b, edge_t, rg, stage_rng(scene.seed, "rings"))
         wood_coords = np.stack([fm.hypot(uv[:, 0], uv[:, 1]), fm.arctan2(uv[:, 1], uv[:, 0]), geo.s], axis=1)
         materials = Materials({k: tuple(scene.tissue_param(t, k) for t in TISSUES) for k in TISSUE_KEYS}, tissue)
         mass = (materials.per_element("rho_dry") * (1.0 + materials.per_element("M_init")) * np.pi * st.r_s**2

@@ -18,9 +18,11 @@ copy of a shared vertex alike, so the meshlets stay closed and keep sharing thei
 """
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 
-from ..wood import WoodModel
+from ..wood import BarkSetup, WoodModel
 from ..meshlets.sweep import BARK
 from ..bark.cracks import widths
 from ..bark.sheet import branch_trees
@@ -59,6 +61,7 @@ def crack_fields(model: WoodModel, mesh, cracked: np.ndarray) -> tuple[np.ndarra
     sheet, b = model.bark, model.bark_setup
     if sheet is None or not cracked.any():
         return crack, depth, width
+    assert b is not None  # set together with the sheet
     w_v = widths(sheet, cracked, float(b.crack_width))
     pts, br, w = crack_samples(sheet, cracked, w_v)
     trees = branch_trees(sheet.period, br, pts)
@@ -84,7 +87,7 @@ def crack_fields(model: WoodModel, mesh, cracked: np.ndarray) -> tuple[np.ndarra
 def groove_offsets(model: WoodModel, mesh, depth: np.ndarray, width: np.ndarray) -> np.ndarray:
     """(V, 3) rest-position offsets that cut the grooves (module docstring)."""
     out = np.zeros((len(mesh.points), 3))
-    gw = float(model.bark_setup.groove_width) if model.bark is not None else 0.0
+    gw = float(cast(BarkSetup, model.bark_setup).groove_width) if model.bark is not None else 0.0
     cut = (width > gw) & (depth > 0.0) if gw > 0.0 else np.zeros(len(depth), dtype=bool)
     if not cut.any():
         return out

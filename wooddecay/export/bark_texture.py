@@ -88,13 +88,14 @@ def crack_maps(model: WoodModel, frames) -> list[np.ndarray] | None:
 def _profile(model: WoodModel, cracked: np.ndarray, texel: float, rows) -> np.ndarray:
     """(H, W) uint16 V-profile of the nearest of the cracked sheet edges ``cracked`` per texel
     (``rows``: :func:`_branch_rows`)."""
-    sheet = model.bark
+    sheet, setup = model.bark, model.bark_setup
+    assert sheet is not None and setup is not None  # the texture is made only with a sheet
     s0, first, count = rows
     H, W = int(count.sum()), int(np.ceil(sheet.period.max() / texel))
     out = np.zeros((H, W), dtype=np.uint16)
     if not cracked.any():
         return out
-    w_v = widths(sheet, cracked, float(model.bark_setup.crack_width))
+    w_v = widths(sheet, cracked, float(setup.crack_width))
     pts, br, w = crack_samples(sheet, cracked, w_v)
     for b, (tree, rows, y0) in branch_trees(sheet.period, br, pts).items():
         nrow = int(count[b])

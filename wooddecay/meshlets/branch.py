@@ -285,17 +285,17 @@ def setup_branch(model: WoodModel, b: int) -> Branch | None:
     c0, c1 = segs[first_seg], segs[last_seg] + 1
     # keep the strands that own at least one element in this branch
     e_br = model.branch
-    rows, e0s, ns = [], [], []
+    keep, e0s, ns = [], [], []
     for k, st in enumerate(strands):
         e = np.arange(model.element_offsets[st], model.element_offsets[st + 1])
         mine = e[e_br[e] == b]
         if len(mine):
-            rows.append(k)
+            keep.append(k)
             e0s.append(mine[0])
             ns.append(len(mine))
-    if not rows:
+    if not keep:
         return None
-    rows = np.array(rows, dtype=np.int64)
+    rows = np.array(keep, dtype=np.int64)
     strands, c0, c1 = strands[rows], c0[rows], c1[rows]
     s0, s1 = model.cp_s[c0], model.cp_s[c1]
     # forks: where side branches leave this branch (inner chain nodes) and where it starts as a
@@ -307,13 +307,13 @@ def setup_branch(model: WoodModel, b: int) -> Branch | None:
               for j in fork_at}
     # the junction sections past a fork: its rise, and where the source surface gives the
     # branch's own section, every JUNCTION r_s up to the next node
-    s_junction = {}
+    s_junction: dict[float, np.ndarray] = {}
     for j in fork_at:
-        k, v = float(s_chain[j]), s_rise[float(s_chain[j])]
-        if s0.min() <= k and v <= s1.max():
-            every = (np.arange(k + JUNCTION * r_s, s_chain[j + 1] - 0.5 * JUNCTION * r_s, JUNCTION * r_s)
+        sk, v = float(s_chain[j]), s_rise[float(s_chain[j])]
+        if s0.min() <= sk and v <= s1.max():
+            every = (np.arange(sk + JUNCTION * r_s, s_chain[j + 1] - 0.5 * JUNCTION * r_s, JUNCTION * r_s)
                      if skel.surface is not None else np.zeros(0))
-            s_junction[k] = np.union1d(every, [v])
+            s_junction[sk] = np.union1d(every, [v])
     d = np.unique(np.concatenate([s_chain[(s_chain >= s0.min()) & (s_chain <= s1.max())], s0, s1,
                                   *s_junction.values()]))
     n = len(strands)
@@ -367,9 +367,9 @@ def setup_branch(model: WoodModel, b: int) -> Branch | None:
         parted = {}  # the surface's own section where it no longer holds a leaving strand
         if skel.surface is not None:
             for kj, origin, U, V in zip(rows, *section_frame(skel, topo, chain, s_chain, d[rows])):
-                poly = contour_around(skel.surface, origin, U, V, P[kj, on[alive[kj, on]]], r_s)
-                if poly is not None and not profiles.contains(poly, X[kj - k][near]).any():
-                    parted[int(kj)] = poly
+                contour = contour_around(skel.surface, origin, U, V, P[kj, on[alive[kj, on]]], r_s)
+                if contour is not None and not profiles.contains(contour, X[kj - k][near]).any():
+                    parted[int(kj)] = contour
         kr = min(parted, default=kr)  # the leaving strands bound the cells until the sections part
         leaving += [(k, kr, X[:kr - k + 1, j], int(other[j])) for j in np.flatnonzero(near)]
         for kj, poly in parted.items() if parted else [(kr, hull)]:
@@ -455,8 +455,8 @@ def setup_branch(model: WoodModel, b: int) -> Branch | None:
         g = np.zeros((len(d), 2))
         g[k:kr + 1] = x
         ghost(g, -1, np.arange(k, kr + 1), strand)
-    G = np.stack(G, axis=1) if G else np.zeros((len(d), 0, 2))
-    ghost_of, foreign = np.array(ghost_of, dtype=np.int64), np.array(foreign, dtype=np.int64)
+    G_all = np.stack(G, axis=1) if G else np.zeros((len(d), 0, 2))
+    ghost_ids, foreign_ids = np.array(ghost_of, dtype=np.int64), np.array(foreign, dtype=np.int64)
     # a far ring keeps every real cell bounded even where no mirror reaches: per section, around
     # the box of its real sites, FAR_MARGIN r_s beyond the farthest of them
     real = alive[:, :n, None]
@@ -466,7 +466,7 @@ def setup_branch(model: WoodModel, b: int) -> Branch | None:
     reach = np.where(alive[:, :n], np.linalg.norm(P - centre[:, None], axis=2), 0.0).max(axis=1) + FAR_MARGIN * r_s
     ang = 2.0 * np.pi * np.arange(FAR_RING) / FAR_RING
     ring = centre[:, None] + reach[:, None, None] * np.stack([fm.cos(ang), fm.sin(ang)], 1)[None]
-    P = np.concatenate([P, G, ring], axis=1)
+    P = np.concatenate([P, G_all, ring], axis=1)
     alive = np.concatenate([alive, np.array(ghost_alive, dtype=bool).reshape(-1, len(d)).T,
                             np.ones((len(d), FAR_RING), dtype=bool)], axis=1)
     bounds = []
@@ -475,4 +475,4 @@ def setup_branch(model: WoodModel, b: int) -> Branch | None:
         inner = model.particle_s[model.first_particle[e[:-1]] + 1]
         bounds.append(inner[(inner > s0[i]) & (inner < s1[i])])
     return Branch(chain=chain, s_chain=s_chain, d=d, P=P, alive=alive, strand=strands,
-                   ghost_of=ghost_of, foreign=foreign, bounds=bounds, elem0=np.array(e0s), n_elem=np.array(ns))
+                   ghost_of=ghost_ids, foreign=foreign_ids, bounds=bounds, elem0=np.array(e0s), n_elem=np.array(ns))

@@ -162,13 +162,15 @@ class _BranchSweep:
 
     def __init__(self, br: Branch):
         self.br, self.nr = br, br.n_real
-        self.vkey = {}  # (triangle, d) -> vertex id
-        self.vtri, self.vd, self.vfourth = [], [], []  # sites, d and (at a flip) the fourth site
-        self.star = {}  # site -> set of live triangles with at least one real site
-        self.tris = set()  # all of them
-        self.strips = {}
-        self.done = []
-        self.faces = []
+        self.vkey: dict[tuple, int] = {}  # (triangle, d) -> vertex id
+        self.vtri: list[tuple] = []  # sites, d and (at a flip) the fourth site
+        self.vd: list[float] = []
+        self.vfourth: list[int] = []
+        self.star: dict[int, set[tuple]] = {}  # site -> set of live triangles with at least one real site
+        self.tris: set[tuple] = set()  # all of them
+        self.strips: dict[tuple, _Strip] = {}
+        self.done: list[tuple[tuple, _Strip]] = []
+        self.faces: list[tuple] = []
         self.unmatched = 0  # neighbour cells that changed beyond a single run at an event
 
     # ---- vertices and faces ----------------------------------------------------------------
@@ -520,6 +522,7 @@ def _branch_arrays(model: WoodModel, b: int, br, kin, bs):
 def build_meshlets(model: WoodModel) -> Meshlets:
     """Rest meshlets of every rod element of ``model`` (see the module docstring)."""
     t0 = time.perf_counter()
+    counts: dict[str, float]
     parts, counts = [], {"flips": 0, "hull": 0, "inserts": 0, "deletes": 0, "repairs": 0,
                          "sections": 0, "unmatched": 0, "branches": 0}
     off = 0
@@ -597,7 +600,7 @@ def hull_repair(mesh: Meshlets) -> Meshlets:
         blocks.append(("new", e, tri + vo[e]))
         last = fo[e + 1]
     blocks.append(("keep", last, len(mesh.faces)))
-    parts = {k: [] for k in ("faces", "face_element", "face_kind", "face_neighbour")}
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("faces", "face_element", "face_kind", "face_neighbour")}
     for kind, a, b in blocks:
         if kind == "keep":
             for k in parts:

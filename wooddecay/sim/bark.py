@@ -58,6 +58,7 @@ def drying_strain(sheet, M_face: np.ndarray) -> np.ndarray:
 
 
 def _strain(model: WoodModel, M_face: np.ndarray) -> np.ndarray:
+    assert model.bark is not None and model.bark_setup is not None
     return model.bark.growth + float(model.bark_setup.drying) * drying_strain(model.bark, M_face)
 
 
@@ -71,6 +72,7 @@ def _grow(model: WoodModel, st: BarkState, eps: np.ndarray, rose: bool | None = 
         return
     st.eps_seen = np.maximum(st.eps_seen, eps)
     b = model.bark_setup
+    assert b is not None
     cracks.grow(model.bark, st.crack, eps, float(b.tip_gain), float(b.shadow))
 
 
@@ -90,6 +92,7 @@ def initial(model: WoodModel, state) -> BarkState | None:
     st = uncracked(model, state)
     if st is None:
         return None
+    assert model.bark is not None  # uncracked gave a state: there is a sheet
     for k in range(1, GROWTH_STAGES + 1):
         _grow(model, st, model.bark.growth * (k / GROWTH_STAGES))
     _grow(model, st, _strain(model, st.M_last))
@@ -108,6 +111,7 @@ def step(model: WoodModel, state, dt_days: float) -> bool:
     if st is None:
         return False
     sheet, b = model.bark, model.bark_setup
+    assert sheet is not None and b is not None  # a BarkState exists only with a sheet
     eps = np.empty(sheet.n_faces)
     rose, loose = _faces(sheet.face_element, state.M, state.H_c, state.H_l, sheet.growth, float(b.drying),
                          sheet.shrinkage, sheet.M_0, float(b.shedding), float(dt_days), st.eps_seen, st.bond,
@@ -160,6 +164,7 @@ def _shed(model: WoodModel, st: BarkState) -> None:
     """The plates that come off now, the cracks where they broke from the rest of their plate
     and the pairs and links that let them fall (:mod:`wooddecay.bark.shedding`)."""
     sheet, b = model.bark, model.bark_setup
+    assert sheet is not None and b is not None
     label = shedding.plates(sheet, st.crack.cracked, st.shed)
     label, off, breaks = shedding.falling(sheet, label, st.bond, float(b.plate_area))
     breaks = breaks[~st.crack.cracked[breaks]]
@@ -186,6 +191,7 @@ def statistics(model: WoodModel, st: BarkState | None) -> dict:
     if st is None:
         return {"bark_crack_count": 0, "bark_crack_length_m": 0.0, "bark_crack_along_grain": 0.0,
                 "bark_shed_fraction": 0.0}
+    assert model.bark is not None  # a BarkState exists only with a sheet
     out = cracks.statistics(model.bark, st.crack.cracked)
     area = model.bark.face_area
     out["bark_shed_fraction"] = round(float(area[st.shed].sum() / area.sum()), 6)

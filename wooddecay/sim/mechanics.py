@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, fields, replace
 from functools import cached_property
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 import numba as nb
 import numpy as np
@@ -79,7 +79,8 @@ class RegSweep:
         """dp, connection, pair bend and pair twist stiffness (base times I_ij, zero where
         failed) of the current state, in colour order, and the edges that keep any
         (:func:`rods.active_edges`)."""
-        out = tuple(np.empty(len(self.order)) for _ in range(4))
+        out = cast("tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]",
+                   tuple(np.empty(len(self.order)) for _ in range(4)))
         _sweep_arrays(self.order, ms.edge_ok, ms.integrity, ms.rest_offset, self.k_conn0, self.k_pb0, self.k_pt0,
                       *out)
         return RegStiffness(*out, *rods.active_edges(self.ptr, *out[1:]))
@@ -149,8 +150,8 @@ class MechSetup:
     mu_f: float
     epsilon: float
     loads: tuple  # of (day0, day1, (P, 3) particle forces)
-    I_fail_elem: np.ndarray = None  # (n,) integrity below which the strand link e, e + 1 fails
-    I_fail_edge: np.ndarray = None  # (m,) integrity below which a REG connection fails
+    I_fail_elem: np.ndarray | None = None  # (n,) integrity below which the strand link e, e + 1 fails
+    I_fail_edge: np.ndarray | None = None  # (m,) integrity below which a REG connection fails
     sleep_speed: float = 0.0  # :mod:`~wooddecay.sim.sleep` (0: never)
     sleep_time: float = 0.2
 
@@ -679,6 +680,7 @@ def strain_excess(setup: MechSetup, ms: MechState) -> float:
     Stage 1 and 2 from them gives each constraint's
     dlambda = -(C + alpha~ lambda) / (W + alpha~) (alpha~ = 1 / (k dt^2), W and k as in
     :mod:`~wooddecay.sim.rods`). ``ms`` is left untouched."""
+    lam: dict[str, np.ndarray]
     probe, lam, dt = ms.copy(), {}, setup.dt / load_split(setup, ms.w_p, ms.force)
     _substep(setup, probe, dt, lam=lam)
     before = {k: v.copy() for k, v in lam.items()}

@@ -195,7 +195,7 @@ def big_pieces(ms: mechanics.MechState) -> int:
 class Motion(NamedTuple):
     """Each piece's element count, mass and centre-of-mass speeds over a chunk (:func:`motion`)."""
 
-    count: np.ndarray
+    count: np.ndarray  # type: ignore[assignment]  # a NamedTuple field may shadow tuple.count; kept for its callers
     mass: np.ndarray
     v_now: np.ndarray  # at the chunk's end
     v_mean: np.ndarray  # mean over the chunk

@@ -22,10 +22,11 @@ from dataclasses import asdict
 import json
 import os
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
-from ..wood import WoodModel
+from ..wood import BarkSetup, WoodModel
 from ..atomic import cache_home, read_archive, replace_with, tree_hash
 from ..errors import InputError
 from . import bark
@@ -70,7 +71,7 @@ def settle(model: WoodModel, state, folder: Path | None, run=None) -> str:
 
 def _bark_key(model: WoodModel) -> str | None:
     """What the day-0 cracks depend on beyond the wood: the resolved [bark] section."""
-    return None if model.bark is None else json.dumps(asdict(model.bark_setup), sort_keys=True, default=str)
+    return None if model.bark is None else json.dumps(asdict(cast(BarkSetup, model.bark_setup)), sort_keys=True, default=str)
 
 
 def _bark_arrays(bark_state) -> dict:

@@ -12,12 +12,16 @@ activity at its day.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..wood import WoodModel
 from ..wood import Inoculation
 from . import mechanics
+
+if TYPE_CHECKING:
+    from .bark import BarkState
 
 FIELDS = ("R_w", "R_b", "H_c", "H_l", "C", "M")
 
@@ -35,8 +39,8 @@ class SimState:
     t_days: float = 0.0
     clamp_count: int = 0
     applied: set = field(default_factory=set)  # inoculations already applied (by index)
-    mech: object = None  # the rods' MechState (wooddecay.sim.mechanics), None for biology only
-    bark: object = None  # the bark's BarkState (wooddecay.sim.bark), None without a bark sheet
+    mech: mechanics.MechState | None = None  # the rods' MechState (wooddecay.sim.mechanics), None for biology only
+    bark: BarkState | None = None  # the bark's BarkState (wooddecay.sim.bark), None without a bark sheet
 
     @property
     def integrity(self):

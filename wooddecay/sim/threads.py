@@ -101,7 +101,7 @@ class LoadMonitor:
 
     def __init__(self, window: float = WINDOW, first: float = FIRST_WINDOW):
         self.window, self.first = window, first
-        self.other = None
+        self.other: float | None = None
         self.cpus: list[int] = []
         try:
             self._process = psutil.Process()
@@ -134,6 +134,7 @@ class LoadMonitor:
     def __call__(self) -> float:
         """The other processes' cores, updated when a window has passed."""
         if self._last is None:
+            assert self.other is not None  # 0.0 whenever there is no sample
             return self.other
         if self.other is None:
             time.sleep(max(0.0, self._last[0] + self.first - time.perf_counter()))
@@ -155,9 +156,11 @@ class ThreadChoice:
     the other processes' cores (a :class:`LoadMonitor` for ``auto`` unless given)."""
 
     def __init__(self, requested: int | None = None, available: int | None = None, load=None):
-        self.available = int(numba.config.NUMBA_NUM_THREADS if available is None else available)
+        self.available = int(numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]  # set at runtime, not in numba's stubs
+                             if available is None else available)
         self.load = None if requested is not None else load if load is not None else LoadMonitor()
         self.requested = requested
+        self.candidates: tuple[int, ...]
         if requested is not None:
             self.candidates = (min(int(requested), self.available),)
         else:
