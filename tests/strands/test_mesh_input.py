@@ -19,9 +19,9 @@ from wooddecay.scene import load_scene
 from wooddecay.strands.mesh_input import load_mesh, surface_distance
 from wooddecay.strands.mesh_skeleton import mesh_skeleton
 
-from .conftest import refused_in_one_line
+from ..conftest import refused_in_one_line
 
-SAMPLES = Path(__file__).resolve().parent.parent / "wooddecay" / "samples" / "meshes"
+SAMPLES = Path(__file__).resolve().parent.parent.parent / "wooddecay" / "samples" / "meshes"
 R, LENGTH, PLACE = 0.12, 0.8, np.array([3.0, 2.0, 0.12])
 
 

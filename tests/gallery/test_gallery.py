@@ -5,11 +5,11 @@ add-on, and the command's errors.
 CI bakes the seven figures whose quick scenes bake within about 2 min each (CI_FIGURES, about
 5 min in all on one thread beside the other worker, 2026-11-27) and decides them; of Fig. 6 it
 also asserts the first cracks' orientation per shrinkage ratio and that every section's radial
-cracks open (docs/gallery.md). Fig. 12 is decided in tests/test_gallery_fig12.py and Figs. 16 and
-19 in tests/test_gallery_trees.py. Fig. 20's study is decided by the full gallery (at quick size it
+cracks open (docs/gallery.md). Fig. 12 is decided in tests/gallery/test_gallery_fig12.py and Figs. 16 and
+19 in tests/gallery/test_gallery_trees.py. Fig. 20's study is decided by the full gallery (at quick size it
 bakes for about 11 min beside Figs. 12 and 14, the quick log at half the step alone 358 s,
 2026-11-27); its scenes are loaded here, and the part of it that holds at quick size is asserted
-in tests/test_gallery_fig20.py."""
+in tests/gallery/test_gallery_fig20.py."""
 from __future__ import annotations
 
 import json
@@ -24,7 +24,7 @@ from wooddecay.gallery.bakes import SCENES
 from wooddecay.gallery.figures import fig6_orientations
 from wooddecay.scene import load_scene
 
-from .conftest import refused_in_one_line
+from ..conftest import refused_in_one_line
 
 CI_FIGURES = ("fig6", "fig11", "fig13", "fig14", "fig15", "fig17", "fig18")
 

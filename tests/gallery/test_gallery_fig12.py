@@ -1,5 +1,5 @@
 """Fig. 12 in CI (``wooddecay gallery 12 --quick``, about 2 min on 2 cores, a file of its own so
-that it runs beside tests/test_gallery.py): sixteen times the fungal activity from the ground takes
+that it runs beside tests/gallery/test_gallery.py): sixteen times the fungal activity from the ground takes
 more of the log's mass, breaks its wood finer (a smaller weight-average fragment,
 ``measures.fragment_share``) and leaves a lower pile (the mean height of its wood). The quick logs
 on seeds 7 (the scene's), 2 and 3 (one bake each, 2026-12-05): fragment share 0.496 -> 0.371,

@@ -15,9 +15,9 @@ from wooddecay.strands.mesh_input import load_mesh, surface_distance
 from wooddecay.strands.mesh_skeleton import mesh_skeleton
 from wooddecay.strands.point_cloud import loft, read_points
 
-from .conftest import refused_in_one_line
+from ..conftest import refused_in_one_line
 
-SAMPLES = Path(__file__).resolve().parent.parent / "wooddecay" / "samples" / "meshes"
+SAMPLES = Path(__file__).resolve().parent.parent.parent / "wooddecay" / "samples" / "meshes"
 R, LENGTH = 0.1, 0.8
 
 

@@ -7,7 +7,7 @@ import numpy as np
 from wooddecay.gallery import measures
 from wooddecay.sim.driver import Frame
 
-from .conftest import sample
+from ..conftest import sample
 
 
 def _frame(model, M, broken):

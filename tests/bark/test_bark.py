@@ -19,7 +19,7 @@ from wooddecay.meshlets.sweep import build_meshlets
 from wooddecay.sim import bark
 from wooddecay.sim.driver import Simulation
 
-from .conftest import SAMPLES
+from ..conftest import SAMPLES
 
 
 def _model(**sets):
