@@ -48,7 +48,7 @@ def test_a_resumed_plan_leaves_out_the_finished_bakes_of_variants_and_studies(tm
 def test_a_bad_bake_ahead_raises_its_one_line_error_where_it_is_read(tmp_path):
     bad = pool.Job("fig6.toml", {"strands.r_s": -1.0}, tmp_path / "bad")
     with pytest.raises(InputError) as err:
-        with pool.baking_ahead([bad], 2):
+        with pool.baking_ahead([bad], 2, bakes.timed_bake):
             pool.take(bad.folder)
     assert err.value.key == "strands.r_s" and "\n" not in str(err.value)
     assert pool.take(bad.folder) is None and not (tmp_path / "bad").exists()
