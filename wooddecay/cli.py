@@ -248,7 +248,7 @@ def _meshlets_report(model: WoodModel, usd_path: Path | None) -> dict:
     the volume inside the bark surface, total volume, seconds (and the debug USD); for a skeleton
     built from a mesh, the meshlets against it (source_mesh: volumes, bark-to-mesh distances)."""
     from .meshlets import checks
-    from .meshlets.sweep import BARK, build_meshlets
+    from .meshlets.sweep import FACE_BARK, build_meshlets
 
     mesh = build_meshlets(model)
     closed = checks.closed_oriented(mesh)
@@ -268,7 +268,7 @@ def _meshlets_report(model: WoodModel, usd_path: Path | None) -> dict:
     if surface is not None:
         from .strands.mesh_input import surface_distance
 
-        bark = np.unique(mesh.faces[mesh.face_kind == BARK])
+        bark = np.unique(mesh.faces[mesh.face_kind == FACE_BARK])
         d = surface_distance(surface, mesh.points[bark], model.r_s)
         rep["source_mesh"] = {"volume": float(surface.volume), "volume_error": float(vol.sum() / surface.volume - 1.0),
                               "bark_distance_max": float(d.max()), "bark_distance_mean": float(d.mean()),

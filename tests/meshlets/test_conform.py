@@ -12,7 +12,7 @@ import trimesh
 
 from wooddecay.meshlets import checks
 from wooddecay.meshlets.conform import BAND, conform_bark
-from wooddecay.meshlets.sweep import BARK, CAP, SIDE, Meshlets
+from wooddecay.meshlets.sweep import FACE_BARK, FACE_CAP, FACE_SIDE, Meshlets
 
 R_S = 0.005
 
@@ -38,7 +38,7 @@ def _two_cells(apex_z: float):
         P = G[ids]
         tri = _oriented(P, np.array([[0, 1, 2], [0, 1, 3], [1, 2, 3], [2, 0, 3]]))
         faces.append(tri + 4 * e)
-        kinds += [BARK, SIDE, CAP, CAP]  # the top is bark, (b, c, apex) the shared wall
+        kinds += [FACE_BARK, FACE_SIDE, FACE_CAP, FACE_CAP]  # the top is bark, (b, c, apex) the shared wall
         nbr += [-1, 1 - e, -1, -1]
         elem += [e] * 4
         points.append(P)
@@ -59,13 +59,13 @@ def _two_cells(apex_z: float):
 
 
 def _conform(model, mesh):
-    return conform_bark(model, mesh, BARK)
+    return conform_bark(model, mesh, FACE_BARK)
 
 
 def test_bark_comes_into_the_band_and_copies_move_alike():
     model, mesh = _two_cells(apex_z=-0.02)
     out = _conform(model, mesh)
-    bark = np.unique(out.faces[out.face_kind == BARK])
+    bark = np.unique(out.faces[out.face_kind == FACE_BARK])
     assert np.allclose(out.points[bark, 2], BAND * R_S)  # 10 mm above the surface -> the band's edge
     for g in np.unique(out.vertex_shared):
         copies = out.points[out.vertex_shared == g]
@@ -93,6 +93,6 @@ def test_a_move_that_would_turn_a_cell_over_is_held_short():
 def test_meshlets_without_bark_are_left_as_they_are():
     # no bark face (all walls and caps): nothing to pull
     model, mesh = _two_cells(apex_z=-0.02)
-    sawn = replace(mesh, face_kind=np.where(mesh.face_kind == BARK, SIDE, mesh.face_kind))
+    sawn = replace(mesh, face_kind=np.where(mesh.face_kind == FACE_BARK, FACE_SIDE, mesh.face_kind))
     out = _conform(model, sawn)
     assert np.array_equal(out.points, mesh.points) and out.stats["conformed"] == 0

@@ -13,7 +13,7 @@ import trimesh
 from wooddecay.meshlets import checks
 from wooddecay.meshlets.branch import OUTSIDE_GAP, _mirrors
 from wooddecay.meshlets.junction import _winding, _winding_reference
-from wooddecay.meshlets.sweep import BARK, SIDE, build_meshlets
+from wooddecay.meshlets.sweep import FACE_BARK, FACE_SIDE, build_meshlets
 from wooddecay.meshlets.visibility import visible_faces
 from wooddecay.model import build_model
 from wooddecay.scene import load_scene
@@ -54,10 +54,10 @@ def test_forked_branch_walls_face_the_other_branch():
     model = build_model(load_scene(SAMPLES / "forked_branch.toml"))
     mesh = build_meshlets(model)
     walls = mesh.stats["junction_walls"]
-    wall = (mesh.face_kind == SIDE) & (mesh.face_neighbour >= 0)
+    wall = (mesh.face_kind == FACE_SIDE) & (mesh.face_neighbour >= 0)
     wall &= model.branch[mesh.face_element] != model.branch[np.maximum(mesh.face_neighbour, 0)]
     print(f"{wall.sum()} walls between branches ({walls} from the junction pass) of "
-          f"{int((mesh.face_kind == BARK).sum()) + wall.sum()} bark faces")
+          f"{int((mesh.face_kind == FACE_BARK).sum()) + wall.sum()} bark faces")
     # the sweep's faces against the strands that leave at the fork, and the junction pass's
     assert wall.sum() > walls > 0
     # each lies against its neighbour's wood: within 2 r_s of that meshlet's surface

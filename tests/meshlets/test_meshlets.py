@@ -16,7 +16,7 @@ from click.testing import CliRunner
 import wooddecay as wd
 from wooddecay.cli import main
 from wooddecay.meshlets import checks, skin
-from wooddecay.meshlets.sweep import BARK, CAP, SIDE, build_meshlets
+from wooddecay.meshlets.sweep import FACE_BARK, FACE_CAP, FACE_SIDE, build_meshlets
 from wooddecay.quaternion import mul_np
 from wooddecay.strands.rings import BARK as BARK_TISSUE
 from wooddecay.strands.profiles import signed_distance
@@ -90,7 +90,7 @@ def test_meshlets_partition_the_wood(name):
     print(f"{name}: sum of meshlet volumes {vol.sum():.6f} m^3, inside the bark {ref:.6f} m^3, error {err:.2e}")
     assert abs(err) < 5e-3
     # overlaps of neighbouring meshlets (manifold3d booleans on a sample of side faces)
-    side = np.flatnonzero((mesh.face_kind == SIDE) & (mesh.face_neighbour >= 0))
+    side = np.flatnonzero((mesh.face_kind == FACE_SIDE) & (mesh.face_neighbour >= 0))
     rng = np.random.default_rng(1)
     worst = 0.0
     for f in rng.choice(side, 40, replace=False):
@@ -106,7 +106,7 @@ def test_meshlets_partition_the_wood(name):
 def test_bark_stays_within_r_s_of_the_profile(name):
     scene, model, mesh = meshed(name)
     skel = scene.skeleton
-    bark = np.unique(mesh.faces[mesh.face_kind == BARK])
+    bark = np.unique(mesh.faces[mesh.face_kind == FACE_BARK])
     r, phi, s = mesh.wood[bark].T
     uv = np.stack([r * np.cos(phi), r * np.sin(phi)], axis=1)
     t = np.clip((s - skel.positions[0, 0]) / (skel.positions[-1, 0] - skel.positions[0, 0]), 0, 1)
@@ -133,9 +133,9 @@ def test_faces_are_bark_only_where_there_is_bark():
     barked = build_meshlets(wd.build_model(wd.load_scene(SAMPLES / "board.toml",
                                                          overrides={"rings.bark_thickness": 0.004})))
     np.testing.assert_array_equal(barked.faces, mesh.faces)
-    outer = barked.face_kind == BARK
-    assert (mesh.face_kind != BARK).all() and outer.sum() > 1000
-    assert (mesh.face_kind[outer] == SIDE).all() and (mesh.face_neighbour[outer] == -1).all()
+    outer = barked.face_kind == FACE_BARK
+    assert (mesh.face_kind != FACE_BARK).all() and outer.sum() > 1000
+    assert (mesh.face_kind[outer] == FACE_SIDE).all() and (mesh.face_neighbour[outer] == -1).all()
     np.testing.assert_array_equal(mesh.face_kind[~outer], barked.face_kind[~outer])
 
 
@@ -143,20 +143,20 @@ def test_side_faces_are_shared_with_their_tagged_neighbour():
     _, model, mesh = meshed("log")
     g = mesh.vertex_shared[mesh.faces]
     key = {}
-    for f in np.flatnonzero(mesh.face_kind == SIDE):
+    for f in np.flatnonzero(mesh.face_kind == FACE_SIDE):
         a, b, c = g[f]
         key[(mesh.face_element[f], a, b, c)] = f
     rng = np.random.default_rng(2)
     # strip faces (not horizontal: horizontal side faces are where a neighbour strand ends, facing
     # its end cap)
     d = mesh.wood[mesh.faces, 2]
-    side = np.flatnonzero((mesh.face_kind == SIDE) & (mesh.face_neighbour >= 0) & (np.ptp(d, axis=1) > 0))
+    side = np.flatnonzero((mesh.face_kind == FACE_SIDE) & (mesh.face_neighbour >= 0) & (np.ptp(d, axis=1) > 0))
     for f in rng.choice(side, 500, replace=False):
         a, b, c = g[f]
         n = mesh.face_neighbour[f]
         twins = [(n, a, c, b), (n, c, b, a), (n, b, a, c)]
         assert any(t in key for t in twins), f"side face {f} has no reversed twin in element {n}"
-    caps = mesh.face_kind == CAP
+    caps = mesh.face_kind == FACE_CAP
     inner = caps & (mesh.face_neighbour >= 0)
     assert (model.strand[mesh.face_neighbour[inner]] == model.strand[mesh.face_element[inner]]).all()
     assert (np.abs(mesh.face_neighbour[inner] - mesh.face_element[inner]) == 1).all()
@@ -321,7 +321,7 @@ def test_tapering_branch_bark_cuts_no_chords():
     scene = wd.parse_scene({"scene": {"name": "cone", "seed": 1}, "skeleton": {"node": nodes},
                             "strands": {"r_s": 0.005, "rod_length": 0.04}, "time": {"days": 1}})
     mesh = build_meshlets(wd.build_model(scene))
-    bark = np.unique(mesh.faces[mesh.face_kind == BARK])
+    bark = np.unique(mesh.faces[mesh.face_kind == FACE_BARK])
     r, _, s = mesh.wood[bark].T
     radius = np.interp(s, scene.skeleton.positions[:, 0], [p.equivalent_radius for p in scene.skeleton.profiles])
     print(f"cone: bark up to {1e3 * (radius - r).max():.1f} mm inside its circle, {1e3 * (r - radius).max():.1f} mm outside")

@@ -9,7 +9,7 @@ import pytest
 
 import wooddecay as wd
 from wooddecay.export.gltf import gltf_document
-from wooddecay.meshlets.sweep import BARK, CAP
+from wooddecay.meshlets.sweep import FACE_BARK, FACE_CAP
 from wooddecay.meshlets.visibility import NEVER, exposure, visible_faces
 from wooddecay.sim.coupling import crumble_scale
 
@@ -42,19 +42,19 @@ def test_each_face_shows_from_the_frame_that_cuts_it(cracking):
     edge_first = first_break([f.mech["edge_ok"][:, 0] for f in frames])
     element_first = first_break([f.mech["element_ok"] for f in frames])
     pair = {(min(a, b), max(a, b)): j for j, (a, b) in enumerate(model.reg_edges)}
-    side = np.flatnonzero((kind != BARK) & (kind != CAP) & (n >= 0))
+    side = np.flatnonzero((kind != FACE_BARK) & (kind != FACE_CAP) & (n >= 0))
     across = [(f, pair[(min(o[f], n[f]), max(o[f], n[f]))]) for f in side if (min(o[f], n[f]), max(o[f], n[f])) in pair]
     assert len(across) > 1000
     for f, j in across:
         assert first[f] == edge_first[j], (f, j)
-    caps = np.flatnonzero((kind == CAP) & (n >= 0))
+    caps = np.flatnonzero((kind == FACE_CAP) & (n >= 0))
     np.testing.assert_array_equal(first[caps], element_first[np.minimum(o[caps], n[caps])])
-    assert (first[(kind == BARK) | (n < 0)] == 0).all()
+    assert (first[(kind == FACE_BARK) | (n < 0)] == 0).all()
     for k, f in enumerate(frames):
         np.testing.assert_array_equal((first != NEVER) & (first <= k), visible_faces(model, mesh, f))
     counts = np.bincount(first[first != NEVER])
     assert len(counts) == 3 and counts[1:].min() > 1000, counts  # faces open at every frame
-    assert np.array_equal(visible_faces(model, mesh, None), (kind == BARK) | (n < 0))  # intact wood
+    assert np.array_equal(visible_faces(model, mesh, None), (kind == FACE_BARK) | (n < 0))  # intact wood
 
 
 def test_faces_round_dwindling_wood_show(cracking):

@@ -110,14 +110,14 @@ def test_sample_scan_against_the_mesh_it_came_from():
     """samples/meshes/bent_log_scan.toml: the meshlets built from 6,000 scanned points fill the
     original mesh's volume within 2% and their bark lies on average within r_s of it."""
     from wooddecay.meshlets import checks
-    from wooddecay.meshlets.sweep import BARK, build_meshlets
+    from wooddecay.meshlets.sweep import FACE_BARK, build_meshlets
     from wooddecay.model import build_model
 
     scene = load_scene(SAMPLES / "bent_log_scan.toml")
     truth = load_mesh(SAMPLES / "bent_log.obj").mesh
     meshlets = build_meshlets(build_model(scene))
     volume = checks.volumes(meshlets).sum()
-    bark = np.unique(meshlets.faces[meshlets.face_kind == BARK])
+    bark = np.unique(meshlets.faces[meshlets.face_kind == FACE_BARK])
     d = surface_distance(truth, meshlets.points[bark], scene.strands.r_s)
     print(f"scan: meshlets {volume:.5f} m^3 vs mesh {truth.volume:.5f} m^3, bark to mesh mean {1e3 * d.mean():.1f} mm, "
           f"p99 {1e3 * np.percentile(d, 99):.1f} mm, max {1e3 * d.max():.1f} mm")

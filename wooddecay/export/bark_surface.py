@@ -23,7 +23,7 @@ from typing import cast
 import numpy as np
 
 from ..wood import BarkSetup, WoodModel
-from ..meshlets.sweep import BARK
+from ..meshlets.sweep import FACE_BARK
 from ..bark.cracks import widths
 from ..bark.sheet import branch_trees
 
@@ -34,7 +34,7 @@ SAMPLES = 5
 def bark_vertices(mesh) -> np.ndarray:
     """(V,) bool: the meshlet vertex is (a copy of) a vertex of a bark face."""
     shared = np.zeros(int(mesh.vertex_shared.max(initial=-1)) + 1, dtype=bool)
-    shared[mesh.vertex_shared[mesh.faces[mesh.face_kind == BARK].ravel()]] = True
+    shared[mesh.vertex_shared[mesh.faces[mesh.face_kind == FACE_BARK].ravel()]] = True
     return shared[mesh.vertex_shared]
 
 
@@ -91,7 +91,7 @@ def groove_offsets(model: WoodModel, mesh, depth: np.ndarray, width: np.ndarray)
     cut = (width > gw) & (depth > 0.0) if gw > 0.0 else np.zeros(len(depth), dtype=bool)
     if not cut.any():
         return out
-    F = mesh.faces[mesh.face_kind == BARK]
+    F = mesh.faces[mesh.face_kind == FACE_BARK]
     P = mesh.points
     n = np.cross(P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]])  # area-weighted, outward
     shared = mesh.vertex_shared

@@ -59,7 +59,7 @@ from .kinetic import FLIP, REPAIR, SECTION, perturbation, sweep
 from .skin import rest_skinning
 
 #: face kinds (docs/architecture.md "USD stage": uniform int faceKind)
-BARK, SIDE, CAP = 0, 1, 2
+FACE_BARK, FACE_SIDE, FACE_CAP = 0, 1, 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -76,7 +76,7 @@ class Meshlets:
     points: np.ndarray  # (V, 3) rest positions
     faces: np.ndarray  # (F, 3) vertex indices
     face_element: np.ndarray  # (F,)
-    face_kind: np.ndarray  # (F,) BARK / SIDE / CAP
+    face_kind: np.ndarray  # (F,) FACE_BARK / FACE_SIDE / FACE_CAP
     face_neighbour: np.ndarray  # (F,)
     vertex_element: np.ndarray  # (V,) owner
     vertex_shared: np.ndarray  # (V,) the rest-partition vertex this copy is (shared by neighbours)
@@ -174,7 +174,8 @@ class _BranchSweep:
         self.unmatched = 0  # neighbour cells that changed beyond a single run at an event
 
     # ---- vertices and faces ----------------------------------------------------------------
-    def V(self, t, d):
+    def vertex(self, t, d):
+        """The id of the sweep vertex at triangle ``t`` and depth ``d`` (created on first use)."""
         v = self.vkey.get((t, d))
         if v is None:
             v = self.vkey[(t, d)] = len(self.vd)
@@ -190,7 +191,7 @@ class _BranchSweep:
             self.faces.append((ids[0], ids[k], ids[k + 1], site, side, d, kind, other, other_side))
 
     def cell(self, j, d):
-        return [self.V(t, d) for t in _cycle(self.star[j], j)]
+        return [self.vertex(t, d) for t in _cycle(self.star[j], j)]
 
     # ---- triangulation updates ----------------------------------------------------------
     def apply(self, removed, added, d, kind):
@@ -204,7 +205,7 @@ class _BranchSweep:
             return
         flip = kind == FLIP
         if flip:  # the four circumcentres coincide: one vertex, skinned by all four sites
-            v = self.V(removed[0], d)
+            v = self.vertex(removed[0], d)
             for t in removed[1:] + added:
                 self.vkey[(t, d)] = v
             self.vfourth[v] = next(iter({s for t in removed + added for s in t} - set(removed[0])), -1)
@@ -215,10 +216,10 @@ class _BranchSweep:
         ended = {j for j in had if j not in stays and self.star[j] <= rem_set}
         before = {} if flip else {j: _cycle(self.star[j], j) for j in had if j < nr}
         for j in sorted(j for j in ended if j < nr):
-            self.polygon([self.V(t, d) for t in before[j]], j, -1, d, CAP, -1, 0)
+            self.polygon([self.vertex(t, d) for t in before[j]], j, -1, d, FACE_CAP, -1, 0)
         hit = {}
         for t in removed:
-            v = self.V(t, d)
+            v = self.vertex(t, d)
             for e, slot in _edges(t):
                 st = self.strips.get(e)
                 if st is not None:
@@ -235,7 +236,7 @@ class _BranchSweep:
                 st.rung(d)
                 self.done.append((e, st))
         for t in added:
-            v = self.V(t, d)
+            v = self.vertex(t, d)
             for e, slot in _edges(t):
                 if e[0] >= nr:
                     continue
@@ -259,7 +260,7 @@ class _BranchSweep:
                     st.rung(d)
         started = {j for j in touched if j not in had}
         for j in sorted(j for j in started if j < nr):
-            self.polygon(self.cell(j, d)[::-1], j, +1, d, CAP, -1, 0)
+            self.polygon(self.cell(j, d)[::-1], j, +1, d, FACE_CAP, -1, 0)
         if before:
             self.event_faces(before, d, ended, started)
 
@@ -277,8 +278,8 @@ class _BranchSweep:
             if not common:
                 self.unmatched += 1
                 kind, other, side = self._other(j, B + A, ended, started)
-                self.polygon([self.V(t, d) for t in B], j, 0, d, kind, other, side)
-                self.polygon([self.V(t, d) for t in A[::-1]], j, 0, d, kind, other, side)
+                self.polygon([self.vertex(t, d) for t in B], j, 0, d, kind, other, side)
+                self.polygon([self.vertex(t, d) for t in A[::-1]], j, 0, d, kind, other, side)
                 continue
             pos_a = {t: i for i, t in enumerate(A)}
             nb, na = len(B), len(A)
@@ -294,7 +295,7 @@ class _BranchSweep:
                     arun.append(A[a % na])
                     a += 1
                 kind, other, side = self._other(j, run + arun, ended, started)
-                ids = [self.V(t, d) for t in run] + [self.V(t, d) for t in arun[::-1]]
+                ids = [self.vertex(t, d) for t in run] + [self.vertex(t, d) for t in arun[::-1]]
                 self.polygon(ids, j, 0, d, kind, other, side)
 
     def _other(self, j, tris, ended, started):
@@ -302,12 +303,12 @@ class _BranchSweep:
         or began there (a ghost: bark)."""
         cand = sorted({s for t in tris for s in t if s != j and (s in ended or s in started)})
         if not cand:
-            return SIDE, -1, 0
+            return FACE_SIDE, -1, 0
         real = [s for s in cand if s < self.nr]
         if not real:
-            return BARK, -1, 0
+            return FACE_BARK, -1, 0
         k = real[0]
-        return SIDE, k, (-1 if k in ended else +1)
+        return FACE_SIDE, k, (-1 if k in ended else +1)
 
     # ---- samples between events -----------------------------------------------------------
     def _sides(self, e):
@@ -321,12 +322,12 @@ class _BranchSweep:
         """Samples of every live triangle at a node section (the motion bends there)."""
         for e, st in self.strips.items():
             for slot, t in self._sides(e):
-                st.push(slot, self.V(t, d))
+                st.push(slot, self.vertex(t, d))
 
     def boundary(self, j, d):
         """Element boundary of real site j at d: samples, rungs on j's strips, two caps."""
         for t in self.star[j]:
-            v = self.V(t, d)
+            v = self.vertex(t, d)
             for e, slot in _edges(t):
                 st = self.strips.get(e)
                 if st is not None:
@@ -336,18 +337,18 @@ class _BranchSweep:
                 if j in e:
                     self.strips[e].rung(d)
         ids = self.cell(j, d)
-        self.polygon(ids, j, -1, d, CAP, j, +1)
-        self.polygon(ids[::-1], j, +1, d, CAP, j, -1)
+        self.polygon(ids, j, -1, d, FACE_CAP, j, +1)
+        self.polygon(ids[::-1], j, +1, d, FACE_CAP, j, -1)
 
     def close(self, d):
         """The branch's last section: top caps and the last rung of every strip."""
         for j in range(self.nr):
             if self.star.get(j):
-                self.polygon(self.cell(j, d), j, -1, d, CAP, -1, 0)
+                self.polygon(self.cell(j, d), j, -1, d, FACE_CAP, -1, 0)
         for e in list(self.strips):
             st = self.strips.pop(e)
             for slot, t in self._sides(e):
-                st.push(slot, self.V(t, d))
+                st.push(slot, self.vertex(t, d))
             st.rung(d)
             self.done.append((e, st))
 
@@ -371,13 +372,13 @@ class _BranchSweep:
                     if tri[0] == tri[1] or tri[1] == tri[2] or tri[0] == tri[2]:
                         continue
                     if q < nr:
-                        self.faces.append((tri[0], tri[1], tri[2], p, 0, dm, SIDE, q, 0))
-                        self.faces.append((tri[0], tri[2], tri[1], q, 0, dm, SIDE, p, 0))
+                        self.faces.append((tri[0], tri[1], tri[2], p, 0, dm, FACE_SIDE, q, 0))
+                        self.faces.append((tri[0], tri[2], tri[1], q, 0, dm, FACE_SIDE, p, 0))
                     elif q - nr < len(self.br.foreign) and self.br.foreign[q - nr] >= 0:
                         # another branch's strand: a wall to its element
-                        self.faces.append((tri[0], tri[1], tri[2], p, 0, dm, SIDE, q, 0))
+                        self.faces.append((tri[0], tri[1], tri[2], p, 0, dm, FACE_SIDE, q, 0))
                     else:
-                        self.faces.append((tri[0], tri[1], tri[2], p, 0, dm, BARK, -1, 0))
+                        self.faces.append((tri[0], tri[1], tri[2], p, 0, dm, FACE_BARK, -1, 0))
 
     def element(self, site, side, d):
         """Element of real ``site`` at d (see the class docstring); arrays in, array out."""
@@ -568,11 +569,11 @@ def build_meshlets(model: WoodModel) -> Meshlets:
         skin_indptr=skin_indptr, skin_element=skin_element, skin_weight=skin_weight,
         skin_local=skin_local, stats=counts,
     )
-    mesh = junction_walls(model, hull_repair(mesh), BARK, SIDE, CAP)
+    mesh = junction_walls(model, hull_repair(mesh), FACE_BARK, FACE_SIDE, FACE_CAP)
     if model.skeleton.surface is not None:
-        mesh = conform_bark(model, mesh, BARK)
+        mesh = conform_bark(model, mesh, FACE_BARK)
     if model.bark_thickness == 0.0:
-        mesh = replace(mesh, face_kind=np.where(mesh.face_kind == BARK, SIDE, mesh.face_kind).astype(mesh.face_kind.dtype))
+        mesh = replace(mesh, face_kind=np.where(mesh.face_kind == FACE_BARK, FACE_SIDE, mesh.face_kind).astype(mesh.face_kind.dtype))
     counts["seconds"] = time.perf_counter() - t0
     return mesh
 
@@ -608,7 +609,7 @@ def hull_repair(mesh: Meshlets) -> Meshlets:
         else:
             parts["faces"].append(b)
             parts["face_element"].append(np.full(len(b), a, dtype=mesh.face_element.dtype))
-            parts["face_kind"].append(np.full(len(b), SIDE, dtype=mesh.face_kind.dtype))
+            parts["face_kind"].append(np.full(len(b), FACE_SIDE, dtype=mesh.face_kind.dtype))
             parts["face_neighbour"].append(np.full(len(b), -1, dtype=mesh.face_neighbour.dtype))
     new = {k: np.concatenate(v) for k, v in parts.items()}
     new["face_offsets"] = np.searchsorted(new["face_element"], np.arange(mesh.count + 1))

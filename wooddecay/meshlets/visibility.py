@@ -21,7 +21,7 @@ import numpy as np
 from ..wood import WoodModel
 from ..sim.coupling import crumble_scale
 from ..strands.reg import edge_between
-from .sweep import BARK, CAP
+from .sweep import FACE_BARK, FACE_CAP
 
 #: :func:`exposure` of a face that no frame shows
 NEVER = -1
@@ -33,12 +33,12 @@ def exposure(model: WoodModel, mesh, frames) -> np.ndarray:
     (module docstring), NEVER if none does."""
     frames = list(frames)
     o, n, kind = mesh.face_element, mesh.face_neighbour, mesh.face_kind
-    first = np.where((kind == BARK) | (n < 0), 0, NEVER)
+    first = np.where((kind == FACE_BARK) | (n < 0), 0, NEVER)
     if not frames:
         return first
     inner = np.flatnonzero(first == NEVER)
     edge, has = edge_between(model.reg_edges, model.n_elements, o[inner], n[inner])
-    cap = kind[inner] == CAP
+    cap = kind[inner] == FACE_CAP
     # monotone: the last frame shows every face some frame shows; the rest is when each first does
     shown = _shown(model, frames[-1], o[inner], n[inner], cap, edge, has)
     inner, edge, has, cap = inner[shown], edge[shown], has[shown], cap[shown]
