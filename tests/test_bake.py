@@ -288,6 +288,7 @@ def test_gallery_bake_reuses_a_finished_bake_of_the_same_scene_elsewhere(tmp_pat
     from pathlib import Path
 
     from wooddecay.gallery.bakes import bake_scene
+    from wooddecay.gallery.figures import FIGURES
     from wooddecay.gallery.sensitivity import own_bakes
 
     short = {"time.days": 1.0, "time.frames": 2, "mechanics.iterations": 1}  # the bakes, not the section's cracks
@@ -298,5 +299,5 @@ def test_gallery_bake_reuses_a_finished_bake_of_the_same_scene_elsewhere(tmp_pat
     other = bake_scene("fig6.toml", {**short, "mechanics.S_R": 0.5}, tmp_path / "c", reuse=(tmp_path / "a",))
     assert not other.reused and (tmp_path / "c" / "fig6.usdc").is_file()
     out = Path("DIR") / "fig20"
-    assert own_bakes("fig12", out) == (Path("DIR/fig12/uniform"),)
-    assert own_bakes("fig14", out) == (Path("DIR/fig14/trunk"),)
+    assert own_bakes("fig12", out, FIGURES) == (Path("DIR/fig12/uniform"),)
+    assert own_bakes("fig14", out, FIGURES) == (Path("DIR/fig14/trunk"),)
