@@ -17,7 +17,7 @@ def test_quick_trunk_cracks_alike_at_half_the_step(tmp_path):
     crack by the same frame, and its first frame with FIRST_CRACKS broken connections renders
     alike through one camera, SSIM >= SSIM_TARGET[0] (the paper: 0.9984)."""
     scene_file = FIGURES["fig14"].scene
-    runs = variants("fig14", quick=True)
+    runs = variants("fig14", quick=True, figures=FIGURES)
     scene = load_scene(SCENES / scene_file, overrides=runs["dt"])
     days = 2.0 * scene.time.days / (scene.time.frames - 1)
     bakes = {v: bake_scene(scene_file, {**runs[v], "time.days": days, "time.frames": 3}, tmp_path / v)
