@@ -463,7 +463,7 @@ def test_crack_maps_keep_the_last_frame_past_udim(tiny_bark, monkeypatch):
 
 def test_bark_uv_unwraps_faces_across_the_seam(tiny_bark):
     mesh = build_meshlets(tiny_bark)
-    F = mesh.faces[mesh.face_kind == surface.BARK]
+    F = mesh.faces[mesh.face_kind == surface.FACE_BARK]
     uv = texture.bark_uv(tiny_bark, mesh, F).reshape(-1, 3, 2)
     assert np.ptp(uv[..., 0], axis=1).max() < 0.25  # no face stretches around the branch
     assert uv[..., 1].min() >= 0.0 and uv[..., 1].max() <= 1.0
