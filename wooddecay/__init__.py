@@ -18,4 +18,4 @@ from .sim.driver import Simulation
 
 __all__ = ["InputError", "Meshlets", "compare_usd", "export_gltf", "export_usd", "Scene", "WoodModel", "build_meshlets", "build_model", "load_scene",
            "parse_scene", "Simulation"]
-from .version import __version__
+from .version import __version__ as __version__

@@ -19,7 +19,7 @@ import numpy as np
 
 from . import fmath as fm
 from .arrays import group_rows
-from .bark.sheet import BarkSheet, build_sheet, recent_growth
+from .bark.sheet import build_sheet, recent_growth
 from .scene import TISSUE_KEYS
 from .sim import biology, climate, contact, coupling, mechanics
 from .sim.biology import BioSetup
@@ -42,7 +42,7 @@ from .strands.rings import (
 )
 from .strands.skeleton import Skeleton
 from .strands.strands import build_strands
-from .strands.topology import Topology, build_topology
+from .strands.topology import build_topology
 from .strands.weakpoints import weak_point_field
 from .wood import BarkSetup, Inoculation, Load, MechConfig, SceneInfo, TimeSpec, Tolerances, WoodModel
 

@@ -6,7 +6,8 @@ from __future__ import annotations
 import pytest
 
 from wooddecay.gallery.bakes import SCENES, bake_scene, frame_rows
-from wooddecay.gallery.figures import FIGURES, FIRST_CRACKS, first_cracks
+from wooddecay.gallery.figures import FIGURES
+from wooddecay.gallery.measures import FIRST_CRACKS, first_cracks
 from wooddecay.gallery.sensitivity import SSIM_TARGET, ssim_at, variants
 from wooddecay.scene import load_scene
 

@@ -20,7 +20,7 @@ from ..wood import WoodModel
 from ..model import build_model
 from ..studies import barrier, pull
 from . import measures, sensitivity
-from .measures import FIRST_CRACKS, first_cracks
+from .measures import first_cracks
 
 
 @dataclass(frozen=True)

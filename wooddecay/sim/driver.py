@@ -47,7 +47,7 @@ from . import bark, biology, coupling, schedule, settled
 from .mechanics import MechState, convergence, strain_excess
 from .diagnostics import diagnostics, mech_diagnostics
 from .signature import signature
-from .state import FIELDS, SimState, initial_state, inoculate
+from .state import FIELDS, SimState, initial_state
 from .threads import ThreadChoice
 
 CHECKPOINT_VERSION = 9

@@ -61,7 +61,6 @@ one.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import NamedTuple
 
 import numba as nb

@@ -17,7 +17,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..wood import WoodModel
-from ..wood import Inoculation
 from . import mechanics
 
 if TYPE_CHECKING:
