@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 from scipy.spatial import ConvexHull
@@ -60,6 +61,42 @@ from .skin import rest_skinning
 
 #: face kinds (docs/architecture.md "USD stage": uniform int faceKind)
 FACE_BARK, FACE_SIDE, FACE_CAP = 0, 1, 2
+
+
+class SweepFace(NamedTuple):
+    """One triangle the sweep emits, over global sweep vertex ids.
+
+    The element of ``site`` at depth ``d`` is resolved later by :meth:`_BranchSweep.element`
+    (``side`` -1: the element ending at d, +1: the one starting at d, 0: the one containing d);
+    ``other``/``other_side`` name the site across the face the same way (-1: none).
+    """
+
+    v0: int
+    v1: int
+    v2: int
+    site: int
+    side: int
+    d: float
+    kind: int  # FACE_BARK / FACE_SIDE / FACE_CAP
+    other: int
+    other_side: int
+
+
+_COL = {name: k for k, name in enumerate(SweepFace._fields)}
+
+
+class _BranchMesh(NamedTuple):
+    """One branch's sweep as arrays: vertices, their faces and skinning candidates."""
+
+    xyz: np.ndarray  # (v, 3) float64, m: sweep vertices
+    uv: np.ndarray  # (v, 2) float64, m: section coordinates
+    d: np.ndarray  # (v,) float64, m: depth along the branch
+    tri: np.ndarray  # (f, 3) int64: sweep vertex ids
+    elem: np.ndarray  # (f,) int64: the face's element
+    kind: np.ndarray  # (f,) int8: FACE_BARK / FACE_SIDE / FACE_CAP
+    nbr: np.ndarray  # (f,) int64: the element across the face, -1 none
+    cand_v: np.ndarray  # (c,) int64: skinning candidate pairs, vertex ...
+    cand_e: np.ndarray  # (c,) int64: ... and element
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,9 +192,7 @@ class _Strip:
 class _BranchSweep:
     """Walks the kinetic events of one branch and emits faces over global vertex ids.
 
-    Faces are rows (v0, v1, v2, site, element side, d, kind, other site, other side): the
-    element of a site at d is resolved later by :meth:`element` (side -1: the element ending at d,
-    +1: the one starting at d, 0: the one containing d).
+    Faces are :class:`SweepFace` rows.
     """
 
     def __init__(self, br: Branch):
@@ -170,7 +205,7 @@ class _BranchSweep:
         self.tris: set[tuple] = set()  # all of them
         self.strips: dict[tuple, _Strip] = {}
         self.done: list[tuple[tuple, _Strip]] = []
-        self.faces: list[tuple] = []
+        self.faces: list[SweepFace] = []
         self.unmatched = 0  # neighbour cells that changed beyond a single run at an event
 
     # ---- vertices and faces ----------------------------------------------------------------
@@ -188,7 +223,7 @@ class _BranchSweep:
         """Fan of a convex polygon of vertex ids (repeated ids dropped)."""
         ids = [v for k, v in enumerate(ids) if v != ids[k - 1]] if len(ids) > 1 else ids
         for k in range(1, len(ids) - 1):
-            self.faces.append((ids[0], ids[k], ids[k + 1], site, side, d, kind, other, other_side))
+            self.faces.append(SweepFace(ids[0], ids[k], ids[k + 1], site, side, d, kind, other, other_side))
 
     def cell(self, j, d):
         return [self.vertex(t, d) for t in _cycle(self.star[j], j)]
@@ -372,13 +407,13 @@ class _BranchSweep:
                     if tri[0] == tri[1] or tri[1] == tri[2] or tri[0] == tri[2]:
                         continue
                     if q < nr:
-                        self.faces.append((tri[0], tri[1], tri[2], p, 0, dm, FACE_SIDE, q, 0))
-                        self.faces.append((tri[0], tri[2], tri[1], q, 0, dm, FACE_SIDE, p, 0))
+                        self.faces.append(SweepFace(tri[0], tri[1], tri[2], p, 0, dm, FACE_SIDE, q, 0))
+                        self.faces.append(SweepFace(tri[0], tri[2], tri[1], q, 0, dm, FACE_SIDE, p, 0))
                     elif q - nr < len(self.br.foreign) and self.br.foreign[q - nr] >= 0:
                         # another branch's strand: a wall to its element
-                        self.faces.append((tri[0], tri[1], tri[2], p, 0, dm, FACE_SIDE, q, 0))
+                        self.faces.append(SweepFace(tri[0], tri[1], tri[2], p, 0, dm, FACE_SIDE, q, 0))
                     else:
-                        self.faces.append((tri[0], tri[1], tri[2], p, 0, dm, FACE_BARK, -1, 0))
+                        self.faces.append(SweepFace(tri[0], tri[1], tri[2], p, 0, dm, FACE_BARK, -1, 0))
 
     def element(self, site, side, d):
         """Element of real ``site`` at d (see the class docstring); arrays in, array out."""
@@ -494,17 +529,17 @@ def _strand_element(model: WoodModel, b: int, strand: np.ndarray, s: np.ndarray)
     return out
 
 
-def _branch_arrays(model: WoodModel, b: int, br, kin, bs):
+def _branch_arrays(model: WoodModel, b: int, br, kin, bs) -> _BranchMesh:
     """Vertices (3D, uv, d), face rows and each vertex's candidate skinning elements."""
     T = np.array(bs.vtri, dtype=np.int64).reshape(-1, 3)
     d = np.array(bs.vd, dtype=float)
     uv = _vertex_uv(kin, T, d)
     xyz = _embed(model.skeleton, model.topology, br.chain, br.s_chain, d, uv)
-    F = np.array(bs.faces, dtype=float).reshape(-1, 9)
+    F = np.array(bs.faces, dtype=float).reshape(-1, len(SweepFace._fields))
     tri = F[:, :3].astype(np.int64)
-    site, side, fd = F[:, 3].astype(np.int64), F[:, 4].astype(np.int64), F[:, 5]
+    site, side, fd = F[:, _COL["site"]].astype(np.int64), F[:, _COL["side"]].astype(np.int64), F[:, _COL["d"]]
     elem = bs.element(site, side, fd)
-    other, oside = F[:, 7].astype(np.int64), F[:, 8].astype(np.int64)
+    other, oside = F[:, _COL["other"]].astype(np.int64), F[:, _COL["other_side"]].astype(np.int64)
     nbr = np.full(len(F), -1, dtype=np.int64)
     has = (other >= 0) & (other < br.n_real)
     nbr[has] = bs.element(other[has], oside[has], fd[has])
@@ -517,7 +552,7 @@ def _branch_arrays(model: WoodModel, b: int, br, kin, bs):
     sides = np.tile([-1, 1], 4 * len(d))
     real = (ss >= 0) & (ss < br.n_real)
     cand_v, cand_e = vs[real], bs.element(ss[real], sides[real], d[vs[real]])
-    return xyz, uv, d, tri, elem, F[:, 6].astype(np.int8), nbr, cand_v, cand_e
+    return _BranchMesh(xyz, uv, d, tri, elem, F[:, _COL["kind"]].astype(np.int8), nbr, cand_v, cand_e)
 
 
 def build_meshlets(model: WoodModel) -> Meshlets:
@@ -536,11 +571,10 @@ def build_meshlets(model: WoodModel) -> Meshlets:
             counts[k] += v
         counts["unmatched"] += bs.unmatched
         counts["branches"] += 1
-        xyz, uv, d, tri, elem, kind, nbr, cv, ce = _branch_arrays(model, b, br, kin, bs)
-        parts.append((xyz, uv, d, tri + off, elem, kind, nbr, cv + off, ce))
-        off += len(d)
-    cat = [np.concatenate([p[i] for p in parts]) for i in range(9)]
-    gxyz, guv, gd, tri, elem, kind, nbr, cv, ce = cat
+        part = _branch_arrays(model, b, br, kin, bs)
+        parts.append(part._replace(tri=part.tri + off, cand_v=part.cand_v + off))
+        off += len(part.d)
+    gxyz, guv, gd, tri, elem, kind, nbr, cv, ce = (np.concatenate(col) for col in zip(*parts))
     n = model.n_elements
     # faces sorted by element; each meshlet gets its own copy of every vertex it uses
     order = np.argsort(elem, kind="stable")
