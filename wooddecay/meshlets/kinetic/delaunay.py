@@ -578,25 +578,40 @@ def _check_runs(alive):
         raise ValueError(f"alive must be one contiguous run per site; sites {bad[:10].tolist()} have several")
 
 
-def sweep(d, P, alive=None, *, eta: float = ETA, tau: float = TAU, max_events: int | None = None) -> KineticResult:
-    """Kinetic Delaunay triangulation of one branch's moving sites along d_t (woodstock §8.1).
+class _EventLog:
+    """The events of a sweep in the order they happen: their d_t, kinds, the real triangles each
+    removed and added, and the whole triangulation at a ``section`` or ``repair`` event (its
+    snapshot, :class:`~.result.KineticResult`)."""
 
-    Parameters
-    ----------
-    d : (S,) strictly increasing cross-section parameters d_t (distance to the root).
-    P : (S, n, 2) site P_i(d_k) in the branch's cross-section frame (ignored where not alive).
-    alive : (S, n) bool, one contiguous run per site (default: where P is finite).
-    eta : relative index-based perturbation (:mod:`.result`; 0 disables it).
-    tau : relative hysteresis of the certificates.
-    max_events : bound on the events of one piece (default 2000 (n + 10)); beyond it RuntimeError.
+    def __init__(self, kd: _KineticDelaunay):
+        self.kd = kd
+        self.d: list[float] = []
+        self.kinds: list[int] = []
+        self.removed: list = []
+        self.added: list = []
+        self.snapshots: dict[int, list] = {}
 
-    Returns
-    -------
-    KineticResult: events, their triangulations, ``triangles_at(t)`` and the event ``counts``
-    (``flips``: in-circle flips, ``hull``: convex-hull flips, ``inserts`` / ``deletes``: strands
-    beginning / ending at a section after the first / before the last, ``repairs``: rebuilds, see
-    the module docstring, ``sections``).
-    """
+    def log(self, kind, de):
+        """An event at ``de`` whose changes are those journaled by the triangulation since the last."""
+        rem, add = self.kd.take_journal()
+        self.d.append(de)
+        self.kinds.append(kind)
+        self.removed.append(rem)
+        self.added.append(add)
+
+    def snapshot(self, kind, de):
+        """An event at ``de`` that stores the whole triangulation (its journal is dropped)."""
+        self.kd.take_journal()
+        self.snapshots[len(self.d)] = [canon_triangle(*t) for t in self.kd.triangles()]
+        self.d.append(de)
+        self.kinds.append(kind)
+        self.removed.append([])
+        self.added.append([])
+
+
+def _checked_sites(d, P, alive, eta):
+    """``d``, ``P`` and ``alive`` of :func:`sweep` as float and bool arrays, checked, and the
+    positions with 0 where a site is not alive."""
     d = np.asarray(d, dtype=float)
     P = np.asarray(P, dtype=float)
     if d.ndim != 1 or P.ndim != 3 or P.shape[0] != len(d) or P.shape[2] != 2:
@@ -618,8 +633,12 @@ def sweep(d, P, alive=None, *, eta: float = ETA, tau: float = TAU, max_events: i
             pts = Pc[k][alive[k]]
             if len(np.unique(pts, axis=0)) < len(pts):
                 raise ValueError(f"section {k} has coincident sites; they need the perturbation eta > 0")
+    return d, P, alive, Pc
 
-    # normalise (centre, extent h) and perturb by index
+
+def _normalised(P, Pc, alive, eta):
+    """The alive sites centred on their bounding box, scaled by its extent h and perturbed by index
+    (eta, :func:`~.result.perturbation`), 0 where not alive; with the centre and h."""
     if alive.any():
         pts = P[alive]
         lo, hi = pts.min(axis=0), pts.max(axis=0)
@@ -628,28 +647,19 @@ def sweep(d, P, alive=None, *, eta: float = ETA, tau: float = TAU, max_events: i
         h = h if h > 0 else 1.0
     else:
         centre, h = np.zeros(2), 1.0
-    Pn = (Pc - centre) / h + eta * perturbation(n)[None]
+    Pn = (Pc - centre) / h + eta * perturbation(P.shape[1])[None]
     Pn = np.where(alive[..., None], Pn, 0.0)
+    return Pn, centre, h
 
-    kd = _KineticDelaunay(n, tau, max_events if max_events is not None else 2000 * (n + 10))
-    d_ev, kinds, removed, added, snapshots = [], [], [], [], {}
+
+def _run_sections(kd, events, d, alive, Pn):
+    """Sweep ``kd`` through the sections d and the pieces between them (woodstock §8.1), logging
+    into ``events``: at section k the sites beginning there are inserted, a folded triangulation
+    is rebuilt (``repair``), the section snapshot is taken and the sites ending there deleted, then
+    the flip and hull events of piece k are run. Returns each section's event index and the
+    numbers of inserts and deletes."""
+    S = len(d)
     section_event = np.zeros(S, dtype=np.int64)
-
-    def log(kind, de):
-        rem, add = kd.take_journal()
-        d_ev.append(de)
-        kinds.append(kind)
-        removed.append(rem)
-        added.append(add)
-
-    def snapshot(kind, de):
-        kd.take_journal()
-        snapshots[len(d_ev)] = [canon_triangle(*t) for t in kd.triangles()]
-        d_ev.append(de)
-        kinds.append(kind)
-        removed.append([])
-        added.append([])
-
     n_insert = n_delete = 0
     for k in range(S):
         if k < S - 1:
@@ -665,24 +675,51 @@ def sweep(d, P, alive=None, *, eta: float = ETA, tau: float = TAU, max_events: i
         else:
             for i in np.nonzero(alive[k] & ~alive[k - 1])[0].tolist():
                 kd.insert(i)
-                log(INSERT, float(d[k]))
+                events.log(INSERT, float(d[k]))
                 n_insert += 1
             kd.ensure_built()           # a section that first has three non-collinear sites
             if kd.journal:
-                log(INSERT, float(d[k]))
+                events.log(INSERT, float(d[k]))
         if kd.built and kd.invalid():       # an unresolved mid-piece cluster left a fold behind
             kd.rebuild()
-            snapshot(REPAIR, float(d[k]))
-        section_event[k] = len(d_ev)
-        snapshot(SECTION, float(d[k]))
+            events.snapshot(REPAIR, float(d[k]))
+        section_event[k] = len(events.d)
+        events.snapshot(SECTION, float(d[k]))
         if k < S - 1:
             for i in np.nonzero(alive[k] & ~alive[k + 1])[0].tolist():
                 kd.delete(i)
-                log(DELETE, float(d[k]))
+                events.log(DELETE, float(d[k]))
                 n_delete += 1
-            kd.run_piece(log, snapshot, float(d[k]), float(d[k + 1]), k)
+            kd.run_piece(events.log, events.snapshot, float(d[k]), float(d[k + 1]), k)
+    return section_event, n_insert, n_delete
 
-    kinds_arr = np.array(kinds, dtype=np.int8)
+
+def sweep(d, P, alive=None, *, eta: float = ETA, tau: float = TAU, max_events: int | None = None) -> KineticResult:
+    """Kinetic Delaunay triangulation of one branch's moving sites along d_t (woodstock §8.1).
+
+    Parameters
+    ----------
+    d : (S,) strictly increasing cross-section parameters d_t (distance to the root).
+    P : (S, n, 2) site P_i(d_k) in the branch's cross-section frame (ignored where not alive).
+    alive : (S, n) bool, one contiguous run per site (default: where P is finite).
+    eta : relative index-based perturbation (:mod:`.result`; 0 disables it).
+    tau : relative hysteresis of the certificates.
+    max_events : bound on the events of one piece (default 2000 (n + 10)); beyond it RuntimeError.
+
+    Returns
+    -------
+    KineticResult: events, their triangulations, ``triangles_at(t)`` and the event ``counts``
+    (``flips``: in-circle flips, ``hull``: convex-hull flips, ``inserts`` / ``deletes``: strands
+    beginning / ending at a section after the first / before the last, ``repairs``: rebuilds, see
+    the module docstring, ``sections``).
+    """
+    d, P, alive, Pc = _checked_sites(d, P, alive, eta)
+    S, n = P.shape[:2]
+    Pn, centre, h = _normalised(P, Pc, alive, eta)
+    kd = _KineticDelaunay(n, tau, max_events if max_events is not None else 2000 * (n + 10))
+    events = _EventLog(kd)
+    section_event, n_insert, n_delete = _run_sections(kd, events, d, alive, Pn)
+    kinds_arr = np.array(events.kinds, dtype=np.int8)
     counts = {
         "flips": int(np.sum(kinds_arr == FLIP)),
         "hull": int(np.sum(kinds_arr == HULL)),
@@ -692,8 +729,8 @@ def sweep(d, P, alive=None, *, eta: float = ETA, tau: float = TAU, max_events: i
         "sections": S,
     }
     return KineticResult(
-        d=d, P=Pc, alive=alive, d_events=np.array(d_ev), kinds=kinds_arr,
-        section_event=section_event, snapshot_event=np.array(sorted(snapshots), dtype=np.int64),
+        d=d, P=Pc, alive=alive, d_events=np.array(events.d), kinds=kinds_arr,
+        section_event=section_event, snapshot_event=np.array(sorted(events.snapshots), dtype=np.int64),
         counts=counts, eta=eta, tau=tau, centre=centre, scale=h,
-        _removed=removed, _added=added, _snapshots=snapshots,
+        _removed=events.removed, _added=events.added, _snapshots=events.snapshots,
     )
