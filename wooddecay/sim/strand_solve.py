@@ -126,6 +126,149 @@ def _invert_spd(A, inv):
             inv[j, i] = A[i, j]
 
 
+@nb.njit(cache=True)
+def _diagonal_block(g, rhs, at, active, wa, wb, wq, wq1, D, y_e):
+    """``D`` = J W J^T + alpha~ of one element's six rows (gradients ``g``; W: inverse masses
+    ``wa``, ``wb`` of x_a, x_b, inertias ``wq``, ``wq1`` of q_e, q_{e+1}) and ``y_e`` their
+    right-hand sides; an inactive row (no gradient) is 1 on the diagonal with right-hand side 0."""
+    for r in range(6):
+        for c in range(r + 1):
+            v = 0.0
+            if r < 3:  # element rows: x_a, x_b, q_e
+                for k in range(3):
+                    v += wa * g[r, k] * g[c, k] + wb * g[r, 3 + k] * g[c, 3 + k]
+            if c < 3 or r >= 3:
+                for k in range(6, 10):  # q_e
+                    v += wq * g[r, k] * g[c, k]
+            if c >= 3:
+                for k in range(10, 14):  # q_{e+1}
+                    v += wq1 * g[r, k] * g[c, k]
+            D[r, c] = v
+            D[c, r] = v
+        D[r, r] = D[r, r] + at[r] if active[r] else 1.0
+        y_e[r] = rhs[r] if active[r] else 0.0
+
+
+@nb.njit(cache=True)
+def _lower_block(g, h, wx, wq, Lo_e):
+    """``Lo_e`` = J_e W J_{e-1}^T: the rows of e (gradients ``g``) against those of e - 1 (``h``),
+    coupled through x_a(e) = x_b(e - 1) (inverse mass ``wx``) and q_e = q_{e+1} of e - 1 (``wq``)."""
+    for r in range(6):
+        for c in range(6):
+            v = 0.0
+            if r < 3 and c < 3:
+                for k in range(3):
+                    v += wx * g[r, k] * h[c, 3 + k]
+            if c >= 3:
+                for k in range(4):
+                    v += wq * g[r, 6 + k] * h[c, 10 + k]
+            Lo_e[r, c] = v
+
+
+@nb.njit(cache=True)
+def _eliminate(Lo_e, Minv_prev, y_prev, T, D, y_e):
+    """Block Thomas elimination of e - 1 from the rows of e: with T = Lo_e M_{e-1}^-1,
+    ``D`` -= T Lo_e^T and ``y_e`` -= T y_{e-1}."""
+    for r in range(6):
+        for c in range(6):
+            v = 0.0
+            for k in range(6):
+                v += Lo_e[r, k] * Minv_prev[k, c]
+            T[r, c] = v
+    for r in range(6):
+        for c in range(r + 1):
+            v = 0.0
+            for k in range(6):
+                v += T[r, k] * Lo_e[c, k]
+            D[r, c] -= v
+            if c != r:
+                D[c, r] -= v
+        for c in range(6):
+            y_e[r] -= T[r, c] * y_prev[c]
+
+
+@nb.njit(cache=True)
+def _forward_sweep(e0, e1, joint_of, fp, x, q, w_p, w_q, rest_length, k_stretch, k_shear, element_ok, joint_rest,
+                   joint_length, kb, kt, lam_s, lam_sh, lam_j, dt, G, Minv, Lo, y):
+    """Forward sweep of the block Thomas solve of the run ``lo:hi`` = ``e0:e1``: per element its
+    rows ``G[e]`` (:func:`_rows`), its lower block ``Lo[e]``, the inverse ``Minv[e]`` of its
+    diagonal block less the elimination of e - 1, and its eliminated right-hand side ``y[e]``."""
+    rhs, at = np.zeros(6), np.zeros(6)
+    active = np.zeros(6, dtype=np.bool_)
+    D, T = np.zeros((6, 6)), np.zeros((6, 6))
+    for e in range(e0, e1):
+        g = G[e]
+        _rows(e, joint_of[e], fp, x, q, w_p, w_q, rest_length, k_stretch, k_shear, element_ok, joint_rest,
+              joint_length, kb, kt, lam_s, lam_sh, lam_j, dt, g, rhs, at, active)
+        wa, wb, wq = w_p[fp[e]], w_p[fp[e] + 1], w_q[e]
+        wq1 = w_q[e + 1] if joint_of[e] >= 0 else 0.0
+        _diagonal_block(g, rhs, at, active, wa, wb, wq, wq1, D, y[e])
+        if e > e0:
+            _lower_block(g, G[e - 1], w_p[fp[e]], wq, Lo[e])
+            _eliminate(Lo[e], Minv[e - 1], y[e - 1], T, D, y[e])
+        _invert_spd(D, Minv[e])
+
+
+@nb.njit(cache=True)
+def _apply_step(e, g, dl, joint_of, fp, x, q, w_p, w_q, lam_s, lam_sh, lam_j):
+    """Element e's ``dl`` (its six dlambda) added to the multipliers, and W J_e^T dl (gradients
+    ``g``) to x_a, x_b, q_e and, with a joint, q_{e+1}."""
+    lam_s[e] += dl[0]
+    lam_sh[e, 0] += dl[1]
+    lam_sh[e, 1] += dl[2]
+    wa, wb, wq = w_p[fp[e]], w_p[fp[e] + 1], w_q[e]
+    for k in range(3):
+        sa = sb = 0.0
+        for r in range(3):
+            sa += g[r, k] * dl[r]
+            sb += g[r, 3 + k] * dl[r]
+        x[fp[e], k] += wa * sa
+        x[fp[e] + 1, k] += wb * sb
+    for k in range(4):
+        v = 0.0
+        for r in range(6):
+            v += g[r, 6 + k] * dl[r]
+        q[e, k] += wq * v
+    jt = joint_of[e]
+    if jt >= 0:
+        for m in range(3):
+            lam_j[jt, m] += dl[3 + m]
+        for k in range(4):
+            v = 0.0
+            for r in range(3, 6):
+                v += g[r, 10 + k] * dl[r]
+            q[e + 1, k] += w_q[e + 1] * v
+
+
+@nb.njit(cache=True)
+def _back_substitution(e0, e1, joint_of, fp, x, q, w_p, w_q, lam_s, lam_sh, lam_j, G, Minv, Lo, y):
+    """Backward sweep of the block Thomas solve of the run ``e0:e1``: from the last element on,
+    dlambda_e = M_e^-1 (y_e - Lo_{e+1}^T dlambda_{e+1}), applied (:func:`_apply_step`)."""
+    z, dl = np.zeros(6), np.zeros(6)
+    for e in range(e1 - 1, e0 - 1, -1):
+        for r in range(6):
+            z[r] = y[e, r]
+            if e + 1 < e1:
+                for k in range(6):
+                    z[r] -= Lo[e + 1, k, r] * dl[k]
+        for r in range(6):
+            v = 0.0
+            for k in range(6):
+                v += Minv[e, r, k] * z[k]
+            dl[r] = v
+        _apply_step(e, G[e], dl, joint_of, fp, x, q, w_p, w_q, lam_s, lam_sh, lam_j)
+
+
+@nb.njit(cache=True)
+def _normalise_run(e0, e1, w_q, q):
+    """The moving quaternions of the run ``e0:e1`` scaled back to unit length."""
+    for e in range(e0, e1):
+        if w_q[e] > 0.0:  # a still quaternion keeps its bits
+            norm = np.sqrt(q[e, 0] ** 2 + q[e, 1] ** 2 + q[e, 2] ** 2 + q[e, 3] ** 2)
+            for c in range(4):
+                q[e, c] /= norm
+
+
 @nb.njit(parallel=True, cache=True)
 def solve_strands(lo, hi, joint_of, fp, x, q, w_p, w_q, rest_length, k_stretch, k_shear, element_ok,
                   joint_rest, joint_length, kb, kt, lam_s, lam_sh, lam_j, dt):
@@ -140,104 +283,10 @@ def solve_strands(lo, hi, joint_of, fp, x, q, w_p, w_q, rest_length, k_stretch, 
     Lo = np.empty((n, 6, 6))
     y = np.empty((n, 6))
     for s in nb.prange(len(lo)):
-        e0, e1 = lo[s], hi[s]
-        rhs, at, z, dl = np.zeros(6), np.zeros(6), np.zeros(6), np.zeros(6)
-        active = np.zeros(6, dtype=np.bool_)
-        D, T = np.zeros((6, 6)), np.zeros((6, 6))
-        for e in range(e0, e1):
-            g = G[e]
-            _rows(e, joint_of[e], fp, x, q, w_p, w_q, rest_length, k_stretch, k_shear, element_ok, joint_rest,
-                  joint_length, kb, kt, lam_s, lam_sh, lam_j, dt, g, rhs, at, active)
-            wa, wb, wq = w_p[fp[e]], w_p[fp[e] + 1], w_q[e]
-            wq1 = w_q[e + 1] if joint_of[e] >= 0 else 0.0
-            for r in range(6):
-                for c in range(r + 1):
-                    v = 0.0
-                    if r < 3:  # element rows: x_a, x_b, q_e
-                        for k in range(3):
-                            v += wa * g[r, k] * g[c, k] + wb * g[r, 3 + k] * g[c, 3 + k]
-                    if c < 3 or r >= 3:
-                        for k in range(6, 10):  # q_e
-                            v += wq * g[r, k] * g[c, k]
-                    if c >= 3:
-                        for k in range(10, 14):  # q_{e+1}
-                            v += wq1 * g[r, k] * g[c, k]
-                    D[r, c] = v
-                    D[c, r] = v
-                D[r, r] = D[r, r] + at[r] if active[r] else 1.0
-                y[e, r] = rhs[r] if active[r] else 0.0
-            if e > e0:
-                # rows of e against rows of e - 1: x_a(e) is x_b(e - 1), q_e is q_{e+1} of e - 1
-                wx, h = w_p[fp[e]], G[e - 1]
-                for r in range(6):
-                    for c in range(6):
-                        v = 0.0
-                        if r < 3 and c < 3:
-                            for k in range(3):
-                                v += wx * g[r, k] * h[c, 3 + k]
-                        if c >= 3:
-                            for k in range(4):
-                                v += wq * g[r, 6 + k] * h[c, 10 + k]
-                        Lo[e, r, c] = v
-                for r in range(6):  # T = Lo_e M_{e-1}^-1
-                    for c in range(6):
-                        v = 0.0
-                        for k in range(6):
-                            v += Lo[e, r, k] * Minv[e - 1, k, c]
-                        T[r, c] = v
-                for r in range(6):
-                    for c in range(r + 1):
-                        v = 0.0
-                        for k in range(6):
-                            v += T[r, k] * Lo[e, c, k]
-                        D[r, c] -= v
-                        if c != r:
-                            D[c, r] -= v
-                    for c in range(6):
-                        y[e, r] -= T[r, c] * y[e - 1, c]
-            _invert_spd(D, Minv[e])
-        for e in range(e1 - 1, e0 - 1, -1):
-            for r in range(6):
-                z[r] = y[e, r]
-                if e + 1 < e1:
-                    for k in range(6):
-                        z[r] -= Lo[e + 1, k, r] * dl[k]
-            for r in range(6):
-                v = 0.0
-                for k in range(6):
-                    v += Minv[e, r, k] * z[k]
-                dl[r] = v
-            lam_s[e] += dl[0]
-            lam_sh[e, 0] += dl[1]
-            lam_sh[e, 1] += dl[2]
-            g = G[e]
-            wa, wb, wq = w_p[fp[e]], w_p[fp[e] + 1], w_q[e]
-            for k in range(3):
-                sa = sb = 0.0
-                for r in range(3):
-                    sa += g[r, k] * dl[r]
-                    sb += g[r, 3 + k] * dl[r]
-                x[fp[e], k] += wa * sa
-                x[fp[e] + 1, k] += wb * sb
-            for k in range(4):
-                v = 0.0
-                for r in range(6):
-                    v += g[r, 6 + k] * dl[r]
-                q[e, k] += wq * v
-            jt = joint_of[e]
-            if jt >= 0:
-                for m in range(3):
-                    lam_j[jt, m] += dl[3 + m]
-                for k in range(4):
-                    v = 0.0
-                    for r in range(3, 6):
-                        v += g[r, 10 + k] * dl[r]
-                    q[e + 1, k] += w_q[e + 1] * v
-        for e in range(e0, e1):
-            if w_q[e] > 0.0:  # a still quaternion keeps its bits
-                norm = np.sqrt(q[e, 0] ** 2 + q[e, 1] ** 2 + q[e, 2] ** 2 + q[e, 3] ** 2)
-                for c in range(4):
-                    q[e, c] /= norm
+        _forward_sweep(lo[s], hi[s], joint_of, fp, x, q, w_p, w_q, rest_length, k_stretch, k_shear, element_ok,
+                       joint_rest, joint_length, kb, kt, lam_s, lam_sh, lam_j, dt, G, Minv, Lo, y)
+        _back_substitution(lo[s], hi[s], joint_of, fp, x, q, w_p, w_q, lam_s, lam_sh, lam_j, G, Minv, Lo, y)
+        _normalise_run(lo[s], hi[s], w_q, q)
 
 
 def solve_strands_reference(lo, hi, joint_of, fp, x, q, w_p, w_q, rest_length, k_stretch, k_shear, element_ok,
