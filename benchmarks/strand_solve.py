@@ -32,7 +32,7 @@ def main(path: str = str(SAMPLES / "log.toml")) -> None:
     state = initial_state(model, rods=True)
     setup, ms = model.mech, state.mech
     mechanics.set_masses(setup, ms, np.full(model.n_elements, 0.5))
-    kb, kt = mechanics._joint_stiffness(setup, ms)
+    kb, kt = mechanics.joint_stiffness(setup, ms)
     lam = mechanics._multipliers(setup)
 
     def direct(kernel=strand_solve.solve_strands):

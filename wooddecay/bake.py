@@ -79,7 +79,7 @@ def frame_summary(frame: Frame) -> dict:
            "M_mean": float(np.mean(frame.fields["M"]))}
     if "mechanics" in d:
         row.update({k: d["mechanics"][k] for k in ("components", "broken_connections", "broken_elements",
-                                                   "strain_excess")})
+                                                   "strain_excess", "equilibrium_residual")})
     if "signature" in d:
         row["signature"] = d["signature"]
     return row

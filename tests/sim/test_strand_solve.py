@@ -31,7 +31,7 @@ def _broken():
     setup, ms = perturbed()
     rng = np.random.default_rng(3)
     ms.element_ok[:] = rng.random(len(ms.element_ok)) > 0.05
-    kb, kt = mechanics._joint_stiffness(setup, ms)
+    kb, kt = mechanics.joint_stiffness(setup, ms)
     off = rng.random(len(kb)) < 0.05
     return setup, ms, np.where(off, 0.0, kb), np.where(off, 0.0, kt)
 
@@ -60,7 +60,7 @@ def _second_over_first(scale: float, kernel_pair: str) -> float:
     rng = np.random.default_rng(0)
     ms.x += rng.normal(scale=scale, size=ms.x.shape) * (ms.w_p > 0)[:, None]
     ms.q = normalize_np(ms.q + rng.normal(scale=20 * scale, size=ms.q.shape) * (ms.w_q > 0)[:, None])
-    kjoint = mechanics._joint_stiffness(setup, ms)
+    kjoint = mechanics.joint_stiffness(setup, ms)
     lam = mechanics._multipliers(setup)
     changes = []
     for _ in range(2):

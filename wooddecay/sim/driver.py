@@ -44,6 +44,7 @@ import numpy as np
 from ..wood import WoodModel
 from ..atomic import read_archive
 from . import bark, biology, coupling, schedule, settled
+from .equilibrium import equilibrium_residual
 from .mechanics import MechState, convergence, strain_excess
 from .diagnostics import diagnostics, mech_diagnostics
 from .signature import signature
@@ -102,7 +103,7 @@ class Simulation:
         self.history: list[dict] = [self._diagnostics()]
         if mechanics:
             assert self.state.mech is not None
-            self.history[0]["mechanics"]["strain_excess"] = strain_excess(model.mech, self.state.mech)
+            self.history[0]["mechanics"] |= self._convergence()
 
     @property
     def substeps(self) -> int:
@@ -156,13 +157,20 @@ class Simulation:
                 "mechanics_seconds": cast(MechState, self.state.mech).t_seconds if self.mechanics else 0.0, "due": reasons,
                 "settled": self.settled}
 
+    def _convergence(self) -> dict:
+        """The rods' :func:`strain_excess` and :func:`equilibrium_residual` now."""
+        ms = cast(MechState, self.state.mech)
+        return {"strain_excess": strain_excess(self.model.mech, ms),
+                "equilibrium_residual": equilibrium_residual(self.model.mech, ms)}
+
     def convergence(self, frames) -> dict | None:
         """:func:`mechanics.convergence` of the settled rods and ``frames`` (None without
         mechanics)."""
         if not self.mechanics:
             return None
-        return convergence(self.model.mech, [self.history[0]["mechanics"]["strain_excess"]]
-                                + [f.diagnostics["mechanics"]["strain_excess"] for f in frames])
+        rows = [self.history[0]["mechanics"]] + [f.diagnostics["mechanics"] for f in frames]
+        return convergence(self.model.mech, [r["strain_excess"] for r in rows],
+                           [r["equilibrium_residual"] for r in rows])
 
     def advance(self, days: float) -> None:
         """Advance by ``days`` in macro steps of at most ``time.dt_bio``, equal between the days
@@ -187,7 +195,7 @@ class Simulation:
         if self.mechanics:
             d["signature"] = signature(self.model, self.state) | bark.statistics(self.model, self.state.bark)
             assert self.state.mech is not None
-            d["mechanics"]["strain_excess"] = strain_excess(self.model.mech, self.state.mech)
+            d["mechanics"] |= self._convergence()
         sheet = {} if self.state.bark is None else {"cracked": self.state.bark.crack.cracked.copy(),
                                                       "shed": self.state.bark.shed.copy()}
         return Frame(index=index, t_days=self.state.t_days,

@@ -462,7 +462,7 @@ def _multipliers(setup: MechSetup, fresh_reg: bool = False) -> dict[str, np.ndar
             "c": reg(m), "p": reg((m, 3))}
 
 
-def _joint_stiffness(setup: MechSetup, ms: MechState) -> tuple[np.ndarray, np.ndarray]:
+def joint_stiffness(setup: MechSetup, ms: MechState) -> tuple[np.ndarray, np.ndarray]:
     """Bend and twist stiffness of the strand joints, zero next to a failed element."""
     on = ms.element_ok[setup.joints[:, 0]] & ms.element_ok[setup.joints[:, 1]]
     return np.where(on, setup.joint_kb, 0.0), np.where(on, setup.joint_kt, 0.0)
@@ -586,7 +586,7 @@ def stiffness(setup: MechSetup, ms: MechState) -> tuple:
     everything (None: everything; else the elements that move and the REG edges with such an end:
     the others' strains and limits stay as they were); they change only with the failure flags,
     I_ij, dp and what is still."""
-    kreg, kjoint, plan = setup.sweep.arrays(ms), _joint_stiffness(setup, ms), stage1_plan(setup, ms)
+    kreg, kjoint, plan = setup.sweep.arrays(ms), joint_stiffness(setup, ms), stage1_plan(setup, ms)
     if not sleep.still(ms).any():
         return kreg, kjoint, plan, None
     moves = movable(setup, ms)
@@ -702,9 +702,10 @@ def strain_excess(setup: MechSetup, ms: MechState) -> float:
     return num / den if den > 0.0 else 0.0
 
 
-def convergence(setup: MechSetup, excess) -> dict:
-    """The bake's convergence report from the :func:`strain_excess` of the settled rods and of
-    every frame (``excess``, in that order): its largest value, whether that is within
+def convergence(setup: MechSetup, excess, residual) -> dict:
+    """The bake's convergence report from the :func:`strain_excess` and the
+    :func:`~wooddecay.sim.equilibrium.equilibrium_residual` of the settled rods and of every frame
+    (``excess``, ``residual``, in that order): their largest values, whether the excess is within
     STRAIN_EXCESS_TOLERANCE and, if not, the remedy."""
     worst = max(excess)
     ok = worst <= STRAIN_EXCESS_TOLERANCE
@@ -715,6 +716,7 @@ def convergence(setup: MechSetup, excess) -> dict:
         f"{CONVERGED_ITERATIONS} iterations a substep, that many times the mechanics, and the samples' "
         f"fracture settings are tuned on the soft one")
     return {"strain_excess_settled": excess[0], "strain_excess_max": worst,
+            "equilibrium_residual_settled": residual[0], "equilibrium_residual_max": max(residual),
             "tolerance": STRAIN_EXCESS_TOLERANCE, "converged": ok, "remedy": remedy}
 
 
