@@ -121,76 +121,82 @@ def _padded(rows: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
     return out
 
 
-def build_sheet(model: WoodModel, bark, recent: np.ndarray, eccentricity: float, rng: np.random.Generator) -> BarkSheet:
-    """The sheet of ``model`` (module docstring) for the resolved [bark] section ``bark``;
-    ``recent`` per skeleton node is :func:`recent_growth` of its profile's rings."""
-    skel, topo = model.skeleton, model.topology
-    h = float(bark.spacing) * model.r_s
-    pattern = str(bark.pattern)
-    perim = np.array([polygon_perimeter(p.polygon) for p in skel.profiles])
-    parts = []
-    v_off = 0
-    period = np.zeros(topo.n_branches)
-    for b in range(topo.n_branches):
-        nodes = np.flatnonzero(topo.branch == b)
-        if len(nodes) == 0:
-            continue
-        first = nodes[np.argmin(topo.s[nodes])]
-        chain = nodes[np.argsort(topo.s[nodes], kind="stable")]
-        if skel.parent[first] >= 0:
-            chain = np.concatenate([[skel.parent[first]], chain])
-        s_n = topo.s[chain].astype(float)
-        if s_n[-1] - s_n[0] <= 0.0:
-            continue
-        n_phi = max(8, int(round(perim[chain].max() / h)))
-        n_s = max(2, int(np.ceil((s_n[-1] - s_n[0]) / h)) + 1)
-        period[b] = float(np.mean(perim[chain]))
-        jj, ii = np.meshgrid(np.arange(n_phi), np.arange(n_s))
-        jit = rng.uniform(-JITTER, JITTER, (2, n_s, n_phi))
-        jit[1, [0, -1]] = 0.0  # the ends stay at the ends
-        phi = (2 * np.pi * (jj + jit[0]) / n_phi).ravel()
-        s = (s_n[0] + (ii + jit[1]) * (s_n[-1] - s_n[0]) / (n_s - 1)).ravel()
-        P = np.interp(s, s_n, perim[chain])
-        # faces: each quad split along a random diagonal
-        q = (ii[:-1] * n_phi + jj[:-1]).ravel()
-        a, bq = q, ii[:-1].ravel() * n_phi + (jj[:-1].ravel() + 1) % n_phi
-        c, d = a + n_phi, bq + n_phi
-        flip = rng.random(len(q)) < 0.5
-        f1 = np.where(flip[:, None], np.stack([a, bq, d], 1), np.stack([a, bq, c], 1))
-        f2 = np.where(flip[:, None], np.stack([a, d, c], 1), np.stack([bq, d, c], 1))
-        faces = np.vstack([f1, f2])
-        up = np.stack([np.interp(s, s_n, topo.up2d[chain, k]) for k in (0, 1)], 1)
-        ecc = 1.0 + eccentricity * (fm.cos(phi) * up[:, 0] + fm.sin(phi) * up[:, 1])
-        g_v = float(bark.growth) * np.interp(s, s_n, recent[chain]) * ecc
-        cu, cv = NOISE_CELLS[pattern]
-        period_u = max(1, int(round(n_phi / cu)))
-        noise = _value_noise(phi / (2 * np.pi) * period_u, (s - s_n[0]) / (cv * h), period_u, rng)
-        thr = float(bark.threshold) * (1.0 + float(bark.noise) * (2.0 * noise - 1.0))
-        cells = max(1.0, np.sqrt(float(bark.plate_area)) / h)
-        period_b = max(1, int(round(n_phi / cells)))
-        b_v = 1.0 + BOND_NOISE * (2.0 * _value_noise(phi / (2 * np.pi) * period_b, (s - s_n[0]) / (cells * h),
-                                                      period_b, rng) - 1.0)
-        parts.append((b, phi, s, P, faces + v_off, g_v, thr, b_v))
-        v_off += len(phi)
-    if not parts:
-        return _empty(h, pattern, period, model.n_elements)
-    vb = np.concatenate([np.full(len(p[1]), p[0]) for p in parts])
-    phi, s, P = (np.concatenate([p[k] for p in parts]) for k in (1, 2, 3))
-    faces = np.vstack([p[4] for p in parts])
-    g_v, thr, b_v = (np.concatenate([p[k] for p in parts]) for k in (5, 6, 7))
-    fb = vb[faces[:, 0]]
+def _branch_chain(skel, topo, b: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """The skeleton nodes of branch ``b`` in order along it, after its parent's node where it
+    has one, and their distances s to the root; None for a branch without nodes or length."""
+    nodes = np.flatnonzero(topo.branch == b)
+    if len(nodes) == 0:
+        return None
+    first = nodes[np.argmin(topo.s[nodes])]
+    chain = nodes[np.argsort(topo.s[nodes], kind="stable")]
+    if skel.parent[first] >= 0:
+        chain = np.concatenate([[skel.parent[first]], chain])
+    s_n = topo.s[chain].astype(float)
+    if s_n[-1] - s_n[0] <= 0.0:
+        return None
+    return chain, s_n
 
-    def flat(a, b):
-        """(t, l) displacement from vertex a to vertex b (arrays), metric of the bark."""
-        dphi = (phi[b] - phi[a] + np.pi) % (2 * np.pi) - np.pi
-        return np.stack([dphi * 0.5 * (P[a] + P[b]) / (2 * np.pi), s[b] - s[a]], -1)
 
-    e01, e02 = flat(faces[:, 0], faces[:, 1]), flat(faces[:, 0], faces[:, 2])
+def _branch_grid(s_n: np.ndarray, perim: np.ndarray, h: float, rng: np.random.Generator):
+    """The grid of one branch (module docstring) over its nodes at ``s_n`` with profile
+    perimeters ``perim``: the number of columns n_phi, each vertex's jittered phi and s and the
+    perimeter P(s) of its row, and the faces, each quad split along a random diagonal."""
+    n_phi = max(8, int(round(perim.max() / h)))
+    n_s = max(2, int(np.ceil((s_n[-1] - s_n[0]) / h)) + 1)
+    jj, ii = np.meshgrid(np.arange(n_phi), np.arange(n_s))
+    jit = rng.uniform(-JITTER, JITTER, (2, n_s, n_phi))
+    jit[1, [0, -1]] = 0.0  # the ends stay at the ends
+    phi = (2 * np.pi * (jj + jit[0]) / n_phi).ravel()
+    s = (s_n[0] + (ii + jit[1]) * (s_n[-1] - s_n[0]) / (n_s - 1)).ravel()
+    P = np.interp(s, s_n, perim)
+    q = (ii[:-1] * n_phi + jj[:-1]).ravel()
+    a, bq = q, ii[:-1].ravel() * n_phi + (jj[:-1].ravel() + 1) % n_phi
+    c, d = a + n_phi, bq + n_phi
+    flip = rng.random(len(q)) < 0.5
+    f1 = np.where(flip[:, None], np.stack([a, bq, d], 1), np.stack([a, bq, c], 1))
+    f2 = np.where(flip[:, None], np.stack([a, d, c], 1), np.stack([bq, d, c], 1))
+    return n_phi, phi, s, P, np.vstack([f1, f2])
+
+
+def _branch_fields(bark, pattern: str, up: np.ndarray, recent: np.ndarray, s_n: np.ndarray, phi: np.ndarray,
+                   s: np.ndarray, n_phi: int, h: float, eccentricity: float, rng: np.random.Generator):
+    """Per vertex of one branch (nodes at ``s_n`` with their ``up2d`` directions ``up`` and
+    :func:`recent_growth` ``recent``): the growth strain (woodification §4) scaled by the
+    eccentric factor (1 + e n.y) of Eq. 3, the crack threshold with value noise stretched by the
+    pattern (:data:`NOISE_CELLS`), and the bond with noise of the size of a plate."""
+    up_v = np.stack([np.interp(s, s_n, up[:, k]) for k in (0, 1)], 1)
+    ecc = 1.0 + eccentricity * (fm.cos(phi) * up_v[:, 0] + fm.sin(phi) * up_v[:, 1])
+    g_v = float(bark.growth) * np.interp(s, s_n, recent) * ecc
+    cu, cv = NOISE_CELLS[pattern]
+    period_u = max(1, int(round(n_phi / cu)))
+    noise = _value_noise(phi / (2 * np.pi) * period_u, (s - s_n[0]) / (cv * h), period_u, rng)
+    thr = float(bark.threshold) * (1.0 + float(bark.noise) * (2.0 * noise - 1.0))
+    cells = max(1.0, np.sqrt(float(bark.plate_area)) / h)
+    period_b = max(1, int(round(n_phi / cells)))
+    b_v = 1.0 + BOND_NOISE * (2.0 * _value_noise(phi / (2 * np.pi) * period_b, (s - s_n[0]) / (cells * h),
+                                                  period_b, rng) - 1.0)
+    return g_v, thr, b_v
+
+
+def _flat(phi: np.ndarray, s: np.ndarray, P: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(t, l) displacement from vertex a to vertex b (arrays), metric of the bark."""
+    dphi = (phi[b] - phi[a] + np.pi) % (2 * np.pi) - np.pi
+    return np.stack([dphi * 0.5 * (P[a] + P[b]) / (2 * np.pi), s[b] - s[a]], -1)
+
+
+def _face_geometry(phi, s, P, faces, fb, period):
+    """Each face's area on the bark and its centroid in its branch's flat coordinates (x around,
+    modulo the branch's ``period``, y = s)."""
+    e01, e02 = _flat(phi, s, P, faces[:, 0], faces[:, 1]), _flat(phi, s, P, faces[:, 0], faces[:, 2])
     area = 0.5 * np.abs(e01[:, 0] * e02[:, 1] - e01[:, 1] * e02[:, 0])
     x0 = (phi[faces[:, 0]] % (2 * np.pi)) * period[fb] / (2 * np.pi)
     face_xy = np.stack([(x0 + (e01[:, 0] + e02[:, 0]) / 3.0) % period[fb], s[faces[:, 0]] + (e01[:, 1] + e02[:, 1]) / 3.0], 1)
-    growth = g_v[faces].mean(1)
-    # edges and their faces
+    return area, face_xy
+
+
+def _sheet_edges(phi, s, P, faces, vb, period):
+    """The edges of ``faces`` (a < b, sorted), the faces on either side (-1 on the sheet's
+    ends), their (t, l) vectors a -> b, lengths and midpoints in flat coordinates."""
     he = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
     hf = np.tile(np.arange(len(faces)), 3)
     edges, inv = np.unique(he, axis=0, return_inverse=True)
@@ -202,11 +208,44 @@ def build_sheet(model: WoodModel, bark, recent: np.ndarray, eccentricity: float,
     second = first + 1
     has2 = (second < len(inv)) & (inv[order][np.minimum(second, len(inv) - 1)] == np.arange(len(edges)))
     edge_faces[has2, 1] = hf[order][second[has2]]
-    d = flat(edges[:, 0], edges[:, 1])
+    d = _flat(phi, s, P, edges[:, 0], edges[:, 1])
     length = np.linalg.norm(d, axis=1)
     eb = vb[edges[:, 0]]
     xa = (phi[edges[:, 0]] % (2 * np.pi)) * period[eb] / (2 * np.pi)
     edge_mid = np.stack([(xa + 0.5 * d[:, 0]) % period[eb], s[edges[:, 0]] + 0.5 * d[:, 1]], 1)
+    return edges, edge_faces, d, length, edge_mid
+
+
+def build_sheet(model: WoodModel, bark, recent: np.ndarray, eccentricity: float, rng: np.random.Generator) -> BarkSheet:
+    """The sheet of ``model`` (module docstring) for the resolved [bark] section ``bark``;
+    ``recent`` per skeleton node is :func:`recent_growth` of its profile's rings."""
+    skel, topo = model.skeleton, model.topology
+    h = float(bark.spacing) * model.r_s
+    pattern = str(bark.pattern)
+    perim = np.array([polygon_perimeter(p.polygon) for p in skel.profiles])
+    parts = []
+    v_off = 0
+    period = np.zeros(topo.n_branches)
+    for b in range(topo.n_branches):
+        found = _branch_chain(skel, topo, b)
+        if found is None:
+            continue
+        chain, s_n = found
+        period[b] = float(np.mean(perim[chain]))
+        n_phi, phi, s, P, faces = _branch_grid(s_n, perim[chain], h, rng)
+        g_v, thr, b_v = _branch_fields(bark, pattern, topo.up2d[chain], recent[chain], s_n, phi, s, n_phi, h,
+                                       eccentricity, rng)
+        parts.append((b, phi, s, P, faces + v_off, g_v, thr, b_v))
+        v_off += len(phi)
+    if not parts:
+        return _empty(h, pattern, period, model.n_elements)
+    vb = np.concatenate([np.full(len(p[1]), p[0]) for p in parts])
+    phi, s, P = (np.concatenate([p[k] for p in parts]) for k in (1, 2, 3))
+    faces = np.vstack([p[4] for p in parts])
+    g_v, thr, b_v = (np.concatenate([p[k] for p in parts]) for k in (5, 6, 7))
+    fb = vb[faces[:, 0]]
+    area, face_xy = _face_geometry(phi, s, P, faces, fb, period)
+    edges, edge_faces, d, length, edge_mid = _sheet_edges(phi, s, P, faces, vb, period)
     nv = len(phi)
     vertex_edges = _padded(edges.ravel(), np.repeat(np.arange(len(edges)), 2), nv)
     vertex_nbrs = np.where(vertex_edges >= 0, edges[np.maximum(vertex_edges, 0)].sum(-1) - np.arange(nv)[:, None], -1)
@@ -215,7 +254,8 @@ def build_sheet(model: WoodModel, bark, recent: np.ndarray, eccentricity: float,
     mat = model.materials.per_element
     return BarkSheet(h=h, vertex_branch=vb, phi=phi, s=s, perimeter=P, faces=faces, face_branch=fb,
                      face_xy=face_xy, face_area=area, face_element=face_element,
-                     shrinkage=(mat("S") * mat("S_T"))[face_element], M_0=mat("M_0")[face_element], growth=growth,
+                     shrinkage=(mat("S") * mat("S_T"))[face_element], M_0=mat("M_0")[face_element],
+                     growth=g_v[faces].mean(1),
                      edges=edges, edge_faces=edge_faces, edge_dir=d / length[:, None], edge_length=length,
                      edge_mid=edge_mid, vertex_edges=vertex_edges, vertex_nbrs=vertex_nbrs,
                      vertex_faces=vertex_faces, threshold=thr,
