@@ -45,6 +45,7 @@ FAR_RING far sites around each section keep every real cell bounded even where n
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
@@ -265,13 +266,23 @@ def _branch_chain(topo, skel, b: int) -> np.ndarray:
     return nodes
 
 
-def setup_branch(model: WoodModel, b: int) -> Branch | None:
-    """Sections, sites (real, ghosts, far ring) and element bounds of branch ``b`` of ``model``
-    (see the module docstring); None when no element lies in the branch (a twig thinner than
-    a strand holds none: its strands end before it or pass it by as the parent's)."""
-    skel, topo, r_s = model.skeleton, model.topology, model.r_s
-    chain = _branch_chain(topo, skel, b)
-    s_chain = topo.s[chain].astype(float)
+class _Runs(NamedTuple):
+    """The strands meshed in a branch and their runs there (:func:`_branch_runs`)."""
+
+    strand: np.ndarray  # (n,) the strands that own at least one element in the branch
+    c0: np.ndarray  # (n,) first control point of each run
+    c1: np.ndarray  # (n,) its last control point
+    s0: np.ndarray  # (n,) where each run starts (``model.cp_s`` at c0)
+    s1: np.ndarray  # (n,) where it ends
+    elem0: np.ndarray  # (n,) each strand's first element in the branch
+    n_elem: np.ndarray  # (n,) its number of elements in the branch
+
+
+def _branch_runs(model: WoodModel, b: int) -> _Runs | None:
+    """The runs of the strands through branch ``b``: the part of each strand's path whose segments
+    end at a node of the branch, for the strands that own an element there (whose midpoint lies in
+    the branch, ``model.branch``; docs/model.md §5). None when no element lies in the branch."""
+    topo = model.topology
     cpo, node = model.cp_offsets, model.cp_node
     seg_branch = np.full(len(node), -1)
     seg_branch[:-1] = topo.branch[node[1:]]
@@ -283,7 +294,6 @@ def setup_branch(model: WoodModel, b: int) -> Branch | None:
     strands, first_seg = np.unique(cp_strand[segs], return_index=True)
     last_seg = np.append(first_seg[1:], len(segs)) - 1
     c0, c1 = segs[first_seg], segs[last_seg] + 1
-    # keep the strands that own at least one element in this branch
     e_br = model.branch
     keep, e0s, ns = [], [], []
     for k, st in enumerate(strands):
@@ -297,16 +307,30 @@ def setup_branch(model: WoodModel, b: int) -> Branch | None:
         return None
     rows = np.array(keep, dtype=np.int64)
     strands, c0, c1 = strands[rows], c0[rows], c1[rows]
-    s0, s1 = model.cp_s[c0], model.cp_s[c1]
-    # forks: where side branches leave this branch (inner chain nodes) and where it starts as a
-    # side branch (its first section); each gets a rise section past it
+    return _Runs(strand=strands, c0=c0, c1=c1, s0=model.cp_s[c0], s1=model.cp_s[c1],
+                 elem0=np.array(e0s), n_elem=np.array(ns))
+
+
+class _Sections(NamedTuple):
+    """A branch's kinetic sections and those past its forks (:func:`_sections`)."""
+
+    d: np.ndarray  # (S,) the kinetic sections
+    rise: dict  # fork section -> its rise section (distances along the branch)
+    junction: dict  # fork section within the runs -> its junction sections (rise included)
+
+
+def _sections(skel, topo, chain, s_chain, runs: _Runs, r_s: float) -> _Sections:
+    """The kinetic sections of a branch: its node sections within the runs, the runs' ends, and
+    the junction sections past each fork (where side branches leave this branch, at inner chain
+    nodes, and where it starts as a side branch): its rise section RISE r_s on (at most halfway to
+    the next node) and, where the source surface gives the branch's own section, every JUNCTION
+    r_s up to the next node (docs/decisions.md "Forks and hull repair")."""
+    s0, s1 = runs.s0, runs.s1
     starts = skel.parent[chain[0]] >= 0
     fork_at = [j for j in range(1, len(chain) - 1) if len(topo.children[chain[j]]) > 1]
     fork_at = [0, *fork_at] if starts else fork_at
     s_rise = {float(s_chain[j]): float(s_chain[j] + min(RISE * r_s, 0.5 * (s_chain[j + 1] - s_chain[j])))
               for j in fork_at}
-    # the junction sections past a fork: its rise, and where the source surface gives the
-    # branch's own section, every JUNCTION r_s up to the next node
     s_junction: dict[float, np.ndarray] = {}
     for j in fork_at:
         sk, v = float(s_chain[j]), s_rise[float(s_chain[j])]
@@ -316,25 +340,62 @@ def setup_branch(model: WoodModel, b: int) -> Branch | None:
             s_junction[sk] = np.union1d(every, [v])
     d = np.unique(np.concatenate([s_chain[(s_chain >= s0.min()) & (s_chain <= s1.max())], s0, s1,
                                   *s_junction.values()]))
-    n = len(strands)
+    return _Sections(d=d, rise=s_rise, junction=s_junction)
+
+
+@dataclass(frozen=True, eq=False)
+class _Sites:
+    """A branch's real sites on its kinetic sections (:func:`_real_sites`)."""
+
+    d: np.ndarray  # (S,) the kinetic sections
+    P: np.ndarray  # (S, n, 2) the real sites (zero where dead)
+    alive: np.ndarray  # (S, n)
+    is_node: np.ndarray  # (S,) whether a section is a node's
+
+
+def _real_sites(model: WoodModel, runs: _Runs, d: np.ndarray, s_chain: np.ndarray) -> _Sites:
+    """The strand sites P_i(d_t) at the sections ``d``: the strands' control points in their
+    nodes' section frames (``model.cp_uv``, ``model.cp_s``), linear in d_t, alive over their runs
+    (docs/model.md §5)."""
+    s0, s1 = runs.s0, runs.s1
+    n = len(runs.strand)
     P = np.zeros((len(d), n, 2))
     alive = (d[:, None] >= s0[None]) & (d[:, None] <= s1[None])
     for i in range(n):
-        cs, uv = model.cp_s[c0[i]:c1[i] + 1], model.cp_uv[c0[i]:c1[i] + 1]
+        cs, uv = model.cp_s[runs.c0[i]:runs.c1[i] + 1], model.cp_uv[runs.c0[i]:runs.c1[i] + 1]
         dd = d[alive[:, i]]
         P[alive[:, i], i, 0] = np.interp(dd, cs, uv[:, 0])
         P[alive[:, i], i, 1] = np.interp(dd, cs, uv[:, 1])
-    # ghosts: mirrors across each node profile of the sites near it (ranks: the nearest edge and
-    # the nearest edge turned by more than CORNER from it, for corners); the offset ghost - site is
-    # linear between node sections and constant beyond them
-    is_node = np.isin(d, s_chain)
+    return _Sites(d=d, P=P, alive=alive, is_node=np.isin(d, s_chain))
+
+
+@dataclass(frozen=True, eq=False)
+class _NodeMirrors:
+    """The ghosts across the node profiles (:func:`_node_mirrors`), of rank 0 (across the nearest
+    edge) and rank 1 (across the nearest edge turned by more than CORNER from it)."""
+
+    offset: np.ndarray  # (S, n, 2, 2) ghost - site at the node sections (NaN elsewhere)
+    dist: np.ndarray  # (S, n, 2) the site's distance to the mirror's edge there (-inf elsewhere)
+    ok: np.ndarray  # (S, n, 2) whether the mirror bounds the wood there (:func:`_valid_mirrors`)
+    depth: np.ndarray  # (n, 2) the largest of those distances
+    valid: np.ndarray  # (n, 2) whether the mirror bounds the wood at every node section
+    tapered: dict  # site -> outward unit direction of its rank-0 ghost (:func:`_mirror_tapered`)
+
+
+def _node_mirrors(skel, chain, s_chain, sites: _Sites, r_s: float) -> _NodeMirrors:
+    """The mirrors of the sites across each node profile alive there, their depth and validity;
+    the ghosts of a tapering branch's strands by :func:`_mirror_tapered`. The offset ghost - site
+    is linear between node sections and constant beyond them (docs/decisions.md "Mirror ghosts
+    instead of clipping by the alpha contour")."""
+    d, P, alive = sites.d, sites.P, sites.alive
+    n = P.shape[1]
     node_at = {float(s): int(c) for s, c in zip(s_chain, chain)}
     offset = np.full((len(d), n, 2, 2), np.nan)
     nearest = np.full((len(d), n), np.inf)  # distance to the nearest edge at each node section
     row_dist = np.full((len(d), n, 2), -np.inf)
     row_valid = np.ones((len(d), n, 2), dtype=bool)
     polys = {}
-    for k in np.flatnonzero(is_node):
+    for k in np.flatnonzero(sites.is_node):
         idx = np.flatnonzero(alive[k])
         poly = polys[k] = skel.profiles[node_at[float(d[k])]].polygon
         foot, dist = _feet(poly, P[k, idx])
@@ -344,18 +405,50 @@ def setup_branch(model: WoodModel, b: int) -> Branch | None:
         offset[k, idx] = 2.0 * (foot - P[k, idx][:, None])
     depth, valid = row_dist.max(axis=0), row_valid.all(axis=0)
     tapered = _mirror_tapered(P, offset, nearest, polys, alive, depth, valid, r_s)
-    # past a fork the sites fill only part of its profile (where side branches leave, the sites
-    # that go on; where this branch starts, its own): from the fork's profile at the fork they
-    # mirror, by the rise section, across the hull of their own sites offset by r_s; where the source
-    # surface is known, across its section around them at each junction section where it has parted
-    # from the other branches' (up to there the leaving strands bound them)
+    return _NodeMirrors(offset=offset, dist=row_dist, ok=row_valid, depth=depth, valid=valid, tapered=tapered)
+
+
+class _Junctions(NamedTuple):
+    """What bounds a branch's cells past its forks (:func:`_junctions`)."""
+
+    mirrors: dict  # junction section -> (fork section, sites, offsets, distances, valid, profile)
+    forks: list  # the fork sections (past the branch's first) with junction mirrors past them
+    surfaced: list  # the junction sections across the source surface
+    leaving: list  # (fork section, last section, uv there, strand) of each strand leaving the branch
+
+
+def _parted_sections(skel, topo, chain, s_chain, sites: _Sites, k: int, rows: np.ndarray, on: np.ndarray,
+                     X: np.ndarray, near: np.ndarray, r_s: float) -> dict:
+    """The source surface's own sections around the sites ``on`` at the junction sections ``rows``
+    past fork section ``k``, by section, where they no longer hold a leaving strand near the sites
+    (``X[:, near]``, from ``k`` on); none without a source surface
+    (docs/decisions.md "Forks and hull repair")."""
+    parted: dict[int, np.ndarray] = {}
+    if skel.surface is None:
+        return parted
+    for kj, origin, U, V in zip(rows, *section_frame(skel, topo, chain, s_chain, sites.d[rows])):
+        contour = contour_around(skel.surface, origin, U, V, sites.P[kj, on[sites.alive[kj, on]]], r_s)
+        if contour is not None and not profiles.contains(contour, X[kj - k][near]).any():
+            parted[int(kj)] = contour
+    return parted
+
+
+def _junctions(model: WoodModel, b: int, chain, s_chain, sections: _Sections, sites: _Sites) -> _Junctions:
+    """Past each fork the sites fill only part of its profile (where side branches leave, the
+    sites that go on; where this branch starts, its own): from the fork's profile at the fork
+    they mirror, by the rise section, across the hull of their own sites offset by r_s; where the
+    source surface is known, across its section around them at each junction section where it
+    has parted from the other branches' (up to there the leaving strands near the sites bound
+    them, as ghosts of no site here; docs/decisions.md "Forks and hull repair")."""
+    skel, topo, r_s = model.skeleton, model.topology, model.r_s
+    d, P, alive = sites.d, sites.P, sites.alive
     rise = {}  # rise section (the first parted junction section) -> fork section
-    junction = {}  # junction section -> (fork section, sites, offsets, distances, valid, profile)
-    surfaced = []  # the junction sections across the source surface
-    leaving = []  # the strands that leave into other branches, ghosts of no site here up to the rise
-    for k in np.flatnonzero(np.isin(d, list(s_junction))):
-        rows = np.searchsorted(d, s_junction[float(d[k])])
-        kr = int(np.searchsorted(d, s_rise[float(d[k])]))
+    junction = {}
+    surfaced: list[int] = []
+    leaving = []
+    for k in np.flatnonzero(np.isin(d, list(sections.junction))):
+        rows = np.searchsorted(d, sections.junction[float(d[k])])
+        kr = int(np.searchsorted(d, sections.rise[float(d[k])]))
         on = np.flatnonzero(alive[k] & alive[kr])
         if k > 0 and alive[k].sum() == len(on):
             continue
@@ -364,12 +457,7 @@ def setup_branch(model: WoodModel, b: int) -> Branch | None:
             continue
         X, other = _foreign_sites(model, b, chain, s_chain, d, k, max(kr, int(rows[-1])))
         near = np.linalg.norm(X[0][:, None] - P[k, alive[k]][None], axis=2).min(axis=1) < GHOST_DEPTH * r_s
-        parted = {}  # the surface's own section where it no longer holds a leaving strand
-        if skel.surface is not None:
-            for kj, origin, U, V in zip(rows, *section_frame(skel, topo, chain, s_chain, d[rows])):
-                contour = contour_around(skel.surface, origin, U, V, P[kj, on[alive[kj, on]]], r_s)
-                if contour is not None and not profiles.contains(contour, X[kj - k][near]).any():
-                    parted[int(kj)] = contour
+        parted = _parted_sections(skel, topo, chain, s_chain, sites, k, rows, on, X, near, r_s)
         kr = min(parted, default=kr)  # the leaving strands bound the cells until the sections part
         leaving += [(k, kr, X[:kr - k + 1, j], int(other[j])) for j in np.flatnonzero(near)]
         for kj, poly in parted.items() if parted else [(kr, hull)]:
@@ -377,102 +465,202 @@ def setup_branch(model: WoodModel, b: int) -> Branch | None:
             junction[kj] = (k, here, *_mirrors(poly, P[kj, here], r_s, surface=bool(parted)), poly)
         surfaced += list(parted)
         rise[kr] = k
-    forks = [k for k in rise.values() if k > 0]
-    # a run between two nodes: mirrors across the nearer node's profile
+    return _Junctions(mirrors=junction, forks=[k for k in rise.values() if k > 0], surfaced=surfaced,
+                      leaving=leaving)
+
+
+def _between_mirrors(skel, chain, s_chain, sites: _Sites, r_s: float) -> dict:
+    """For each site whose run lies between two node sections: the feet (k, 2, 2) of its mirrors
+    across the nearer node's profile at its sections (:func:`_feet`), and whether they bound the
+    wood at all of them (2,) (:func:`_valid_mirrors`)."""
     between = {}
-    for i in range(n):
-        rows_i = np.flatnonzero(alive[:, i])
-        if len(rows_i) and not is_node[rows_i].any():
-            poly = skel.profiles[chain[int(np.argmin(np.abs(s_chain - d[rows_i].mean())))]].polygon
-            foot, _ = _feet(poly, P[rows_i, i])
-            valid[i] &= np.all(_valid_mirrors(poly, P[rows_i, i], foot, r_s), axis=0)
-            between[i] = foot
-    G, ghost_of, foreign, ghost_alive = [], [], [], []
+    for i in range(sites.P.shape[1]):
+        rows_i = np.flatnonzero(sites.alive[:, i])
+        if len(rows_i) and not sites.is_node[rows_i].any():
+            poly = skel.profiles[chain[int(np.argmin(np.abs(s_chain - sites.d[rows_i].mean())))]].polygon
+            foot, _ = _feet(poly, sites.P[rows_i, i])
+            between[i] = foot, np.all(_valid_mirrors(poly, sites.P[rows_i, i], foot, r_s), axis=0)
+    return between
 
-    def ghost(g: np.ndarray, i: int, rows: np.ndarray, strand: int = -1) -> None:
-        G.append(g)
-        ghost_of.append(i)
-        foreign.append(strand)
-        ghost_alive.append(np.isin(np.arange(len(d)), rows))
 
-    def usable(k, i, r):  # the fork profile bounds site i's rank-r ghost there
-        if r == 0 and i in tapered:
-            return 0.5 * np.linalg.norm(offset[k, i, 0]) < GHOST_DEPTH * r_s
-        return row_valid[k, i, r] and row_dist[k, i, r] < GHOST_DEPTH * r_s
+class _Ghost(NamedTuple):
+    """One ghost site of a branch."""
 
-    for r, i in ((r, i) for r in range(2) for i in range(n)):
-        rows_i = np.flatnonzero(alive[:, i])
+    P: np.ndarray  # (S, 2) where it is at each section (zero where dead)
+    of: int  # the real site it mirrors (-1: another branch's strand)
+    foreign: int  # that strand (-1: a mirror)
+    rows: np.ndarray  # the sections where it is alive
+
+
+def _junction_mirrors(junction: dict, tapered: dict, P: np.ndarray, i: int, r: int) -> tuple[dict, bool]:
+    """Site ``i``'s rank-``r`` mirrors at the junction sections that hold it, by section: (fork
+    section, its index among the sites there, offsets, distances, valid), and whether its ghost is
+    a tapered one (:func:`_mirror_tapered`). A tapered ghost keeps its side: it mirrors across the
+    junction profile along its direction, and has no mirror at a section where that ray finds none."""
+    mine = {kj: (k, int(np.flatnonzero(on == i)[0]), off, dist, ok)
+            for kj, (k, on, off, dist, ok, _) in junction.items() if i in on}
+    steady = r == 0 and i in tapered
+    if steady:
+        unit, held = tapered[i], {}
+        for kj, (k, c, off, dist, ok) in mine.items():
+            step = float(profiles.ray_extent(junction[kj][5], P[kj, i], [fm.arctan2(unit[1], unit[0])])[0])
+            if step > 0.0:
+                off = off.copy()
+                off[c, 0] = 2.0 * step * unit
+                held[kj] = (k, c, off, dist, ok)
+        mine = held
+    return mine, steady
+
+
+def _fork_bounds(mirrors: _NodeMirrors, k, i: int, r: int, r_s: float) -> bool:
+    """Whether the profile at fork section ``k`` bounds site ``i``'s rank-``r`` ghost: its mirror
+    is valid there and its edge within GHOST_DEPTH r_s (for a tapered ghost, its mirror line)."""
+    if r == 0 and i in mirrors.tapered:
+        return bool(0.5 * np.linalg.norm(mirrors.offset[k, i, 0]) < GHOST_DEPTH * r_s)
+    return bool(mirrors.ok[k, i, r] and mirrors.dist[k, i, r] < GHOST_DEPTH * r_s)
+
+
+def _ghost_start(mirrors: _NodeMirrors, mine: dict, steady: bool, i: int, r: int, lo, r_s: float):
+    """Where site ``i``'s rank-``r`` ghost past fork section ``lo`` starts: at the fork where its
+    profile and every junction section past it bound the site, else at the first junction section
+    from which on they all do (the other branches' strands bound it up to there), else at the
+    last one (docs/decisions.md "Forks and hull repair")."""
+    js = sorted(kj for kj, (k, *_) in mine.items() if k == lo)
+    bound = [steady or mine[kj][3][mine[kj][1], r] < GHOST_DEPTH * r_s for kj in js]
+    if js and not (_fork_bounds(mirrors, lo, i, r, r_s) and all(bound)):
+        lo = js[next((t for t in range(len(js)) if all(bound[t:])), len(js) - 1)]
+    return lo
+
+
+def _held_offsets(sites: _Sites, mirrors: _NodeMirrors, junctions: _Junctions, mine: dict, steady: bool,
+                  i: int, r: int, rows: np.ndarray, r_s: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """The sections among ``rows`` where site ``i``'s rank-``r`` ghost offset is known (node and
+    junction sections) and those offsets; an invalid mirror at a fork or surface section (across
+    a notch of the fork's profile) is left out and held from the sections around. None where
+    they do not all bound the wood within GHOST_DEPTH r_s."""
+    known = rows[sites.is_node[rows] | np.isin(rows, list(mine))]
+    off, dist, ok = mirrors.offset[known, i, r].copy(), mirrors.dist[known, i, r].copy(), mirrors.ok[known, i, r].copy()
+    for j, k in enumerate(known):
+        if k in mine:
+            _, c, o, t, v = mine[k]
+            off[j], dist[j], ok[j] = o[c, r], t[c, r], v[c, r]
+    if steady:
+        dist, ok = np.full(len(known), mirrors.depth[i, 0]), np.ones(len(known), dtype=bool)
+    drop = np.isin(known, junctions.forks + junctions.surfaced) & ~ok
+    if drop.any() and not drop.all():
+        known, off, dist, ok = known[~drop], off[~drop], dist[~drop], ok[~drop]
+    if not (len(known) and dist.max() < GHOST_DEPTH * r_s and ok.all()):
+        return None
+    return known, off
+
+
+def _interpolated_ghosts(sites: _Sites, i: int, r: int, rows: np.ndarray, known: np.ndarray,
+                         off: np.ndarray) -> list[_Ghost]:
+    """Site ``i``'s rank-``r`` ghosts over the sections ``rows``: the site plus its offset
+    interpolated linearly between the ``known`` sections and constant beyond them; a corner ghost
+    (rank 1) is split where its offset turns (:func:`_steady_parts`)."""
+    d, P = sites.d, sites.P
+    ghosts = []
+    for k0, k1 in _steady_parts(off) if r == 1 else [(0, len(known))]:
+        first = known[k0] if k0 else rows[0]
+        last = known[k1 - 1] if k1 < len(known) else rows[-1]
+        span = rows[(rows >= first) & (rows <= last)]
+        g = np.zeros((len(d), 2))
+        for c in range(2):
+            g[span, c] = P[span, i, c] + np.interp(d[span], d[known[k0:k1]], off[k0:k1, c])
+        ghosts.append(_Ghost(g, i, -1, span))
+    return ghosts
+
+
+def _site_ghosts(sites: _Sites, mirrors: _NodeMirrors, junctions: _Junctions, i: int, r: int,
+                 r_s: float) -> list[_Ghost]:
+    """Site ``i``'s rank-``r`` ghosts across the node profiles and the junction sections. At a
+    fork the ghost is two: one up to it and one from it (:func:`_ghost_start`); docs/decisions.md
+    "Mirror ghosts instead of clipping by the alpha contour" and "Forks and hull repair"."""
+    rows_i = np.flatnonzero(sites.alive[:, i])
+    mine, steady = _junction_mirrors(junctions.mirrors, mirrors.tapered, sites.P, i, r)
+    cuts = sorted({k for k, *_ in mine.values() if k > 0})
+    ghosts = []
+    for lo, hi in zip([rows_i[0], *cuts], [*cuts, rows_i[-1]]):
+        lo = _ghost_start(mirrors, mine, steady, i, r, lo, r_s)
+        rows = rows_i[(rows_i >= lo) & (rows_i <= hi)]
+        held = _held_offsets(sites, mirrors, junctions, mine, steady, i, r, rows, r_s)
+        if held is not None:
+            ghosts += _interpolated_ghosts(sites, i, r, rows, *held)
+    return ghosts
+
+
+def _ghosts(sites: _Sites, mirrors: _NodeMirrors, between: dict, junctions: _Junctions,
+            r_s: float) -> list[_Ghost]:
+    """All ghosts of a branch's sites, rank 0 of every site first, then rank 1, then those of no
+    site here (the strands leaving into other branches past a fork): a site whose run lies
+    between two node sections mirrors across the nearer node's profile (:func:`_between_mirrors`),
+    the others across the node profiles and junction sections (:func:`_site_ghosts`)."""
+    d, P = sites.d, sites.P
+    ghosts = []
+    for r, i in ((r, i) for r in range(2) for i in range(P.shape[1])):
         if i in between:
-            if depth[i, r] < GHOST_DEPTH * r_s and valid[i, r]:
+            foot, ok = between[i]
+            if mirrors.depth[i, r] < GHOST_DEPTH * r_s and mirrors.valid[i, r] and ok[r]:
+                rows_i = np.flatnonzero(sites.alive[:, i])
                 g = np.zeros((len(d), 2))
-                g[rows_i] = 2.0 * between[i][:, r] - P[rows_i, i]
-                ghost(g, i, rows_i)
-            continue
-        mine = {kj: (k, int(np.flatnonzero(on == i)[0]), off, dist, ok)
-                for kj, (k, on, off, dist, ok, _) in junction.items() if i in on}
-        steady = r == 0 and i in tapered
-        if steady:  # a tapered ghost keeps its side: across the junction profile along its direction
-            unit, held = tapered[i], {}
-            for kj, (k, c, off, dist, ok) in mine.items():
-                step = float(profiles.ray_extent(junction[kj][5], P[kj, i], [fm.arctan2(unit[1], unit[0])])[0])
-                if step > 0.0:
-                    off = off.copy()
-                    off[c, 0] = 2.0 * step * unit
-                    held[kj] = (k, c, off, dist, ok)
-            mine = held
-        # the ghost is two at a fork: one up to it and one from it, from the fork where its profile
-        # and every junction section bound the site, else from the first junction section from which
-        # on they all do (bounded by the other branches' strands up to there), else the rise
-        cuts = sorted({k for k, *_ in mine.values() if k > 0})
-        for lo, hi in zip([rows_i[0], *cuts], [*cuts, rows_i[-1]]):
-            js = sorted(kj for kj, (k, *_) in mine.items() if k == lo)
-            bound = [steady or mine[kj][3][mine[kj][1], r] < GHOST_DEPTH * r_s for kj in js]
-            if js and not (usable(lo, i, r) and all(bound)):
-                lo = js[next((t for t in range(len(js)) if all(bound[t:])), len(js) - 1)]
-            rows = rows_i[(rows_i >= lo) & (rows_i <= hi)]
-            known = rows[is_node[rows] | np.isin(rows, list(mine))]
-            off, dist, ok = offset[known, i, r].copy(), row_dist[known, i, r].copy(), row_valid[known, i, r].copy()
-            for j, k in enumerate(known):
-                if k in mine:
-                    _, c, o, t, v = mine[k]
-                    off[j], dist[j], ok[j] = o[c, r], t[c, r], v[c, r]
-            if steady:
-                dist, ok = np.full(len(known), depth[i, 0]), np.ones(len(known), dtype=bool)
-            drop = np.isin(known, forks + surfaced) & ~ok  # across notches: held from the sections around
-            if drop.any() and not drop.all():
-                known, off, dist, ok = known[~drop], off[~drop], dist[~drop], ok[~drop]
-            if not (len(known) and dist.max() < GHOST_DEPTH * r_s and ok.all()):
-                continue
-            for k0, k1 in _steady_parts(off) if r == 1 else [(0, len(known))]:
-                first = known[k0] if k0 else rows[0]
-                last = known[k1 - 1] if k1 < len(known) else rows[-1]
-                span = rows[(rows >= first) & (rows <= last)]
-                g = np.zeros((len(d), 2))
-                for c in range(2):
-                    g[span, c] = P[span, i, c] + np.interp(d[span], d[known[k0:k1]], off[k0:k1, c])
-                ghost(g, i, span)
-    for k, kr, x, strand in leaving:  # ghosts of no site here
+                g[rows_i] = 2.0 * foot[:, r] - P[rows_i, i]
+                ghosts.append(_Ghost(g, i, -1, rows_i))
+        else:
+            ghosts += _site_ghosts(sites, mirrors, junctions, i, r, r_s)
+    for k, kr, x, strand in junctions.leaving:
         g = np.zeros((len(d), 2))
         g[k:kr + 1] = x
-        ghost(g, -1, np.arange(k, kr + 1), strand)
-    G_all = np.stack(G, axis=1) if G else np.zeros((len(d), 0, 2))
-    ghost_ids, foreign_ids = np.array(ghost_of, dtype=np.int64), np.array(foreign, dtype=np.int64)
-    # a far ring keeps every real cell bounded even where no mirror reaches: per section, around
-    # the box of its real sites, FAR_MARGIN r_s beyond the farthest of them
-    real = alive[:, :n, None]
-    lo = np.where(real, P, np.inf).min(axis=1)
-    hi = np.where(real, P, -np.inf).max(axis=1)
+        ghosts.append(_Ghost(g, -1, strand, np.arange(k, kr + 1)))
+    return ghosts
+
+
+def _far_ring(sites: _Sites, r_s: float) -> np.ndarray:
+    """(S, FAR_RING, 2) far sites per section, on a circle about the centre of its real sites'
+    bounding box, FAR_MARGIN r_s beyond the farthest of them: they keep every real cell bounded
+    even where no mirror reaches
+    (docs/decisions.md "Mirror ghosts instead of clipping by the alpha contour")."""
+    P, alive = sites.P, sites.alive
+    lo = np.where(alive[:, :, None], P, np.inf).min(axis=1)
+    hi = np.where(alive[:, :, None], P, -np.inf).max(axis=1)
     centre = 0.5 * (lo + hi)
-    reach = np.where(alive[:, :n], np.linalg.norm(P - centre[:, None], axis=2), 0.0).max(axis=1) + FAR_MARGIN * r_s
+    reach = np.where(alive, np.linalg.norm(P - centre[:, None], axis=2), 0.0).max(axis=1) + FAR_MARGIN * r_s
     ang = 2.0 * np.pi * np.arange(FAR_RING) / FAR_RING
-    ring = centre[:, None] + reach[:, None, None] * np.stack([fm.cos(ang), fm.sin(ang)], 1)[None]
-    P = np.concatenate([P, G_all, ring], axis=1)
-    alive = np.concatenate([alive, np.array(ghost_alive, dtype=bool).reshape(-1, len(d)).T,
-                            np.ones((len(d), FAR_RING), dtype=bool)], axis=1)
+    return centre[:, None] + reach[:, None, None] * np.stack([fm.cos(ang), fm.sin(ang)], 1)[None]
+
+
+def _element_bounds(model: WoodModel, runs: _Runs) -> list:
+    """Per real site: the boundaries between its elements in the branch strictly inside its run."""
     bounds = []
-    for i in range(n):
-        e = np.arange(e0s[i], e0s[i] + ns[i])
+    for i in range(len(runs.strand)):
+        e = np.arange(runs.elem0[i], runs.elem0[i] + runs.n_elem[i])
         inner = model.particle_s[model.first_particle[e[:-1]] + 1]
-        bounds.append(inner[(inner > s0[i]) & (inner < s1[i])])
-    return Branch(chain=chain, s_chain=s_chain, d=d, P=P, alive=alive, strand=strands,
-                   ghost_of=ghost_ids, foreign=foreign_ids, bounds=bounds, elem0=np.array(e0s), n_elem=np.array(ns))
+        bounds.append(inner[(inner > runs.s0[i]) & (inner < runs.s1[i])])
+    return bounds
+
+
+def setup_branch(model: WoodModel, b: int) -> Branch | None:
+    """Sections, sites (real, ghosts, far ring) and element bounds of branch ``b`` of ``model``
+    (see the module docstring); None when no element lies in the branch (a twig thinner than
+    a strand holds none: its strands end before it or pass it by as the parent's)."""
+    skel, topo, r_s = model.skeleton, model.topology, model.r_s
+    chain = _branch_chain(topo, skel, b)
+    s_chain = topo.s[chain].astype(float)
+    runs = _branch_runs(model, b)
+    if runs is None:
+        return None
+    sections = _sections(skel, topo, chain, s_chain, runs, r_s)
+    sites = _real_sites(model, runs, sections.d, s_chain)
+    mirrors = _node_mirrors(skel, chain, s_chain, sites, r_s)
+    junctions = _junctions(model, b, chain, s_chain, sections, sites)
+    between = _between_mirrors(skel, chain, s_chain, sites, r_s)
+    ghosts = _ghosts(sites, mirrors, between, junctions, r_s)
+    S = len(sites.d)
+    G = np.stack([g.P for g in ghosts], axis=1) if ghosts else np.zeros((S, 0, 2))
+    ghost_alive = np.array([np.isin(np.arange(S), g.rows) for g in ghosts], dtype=bool).reshape(-1, S).T
+    P = np.concatenate([sites.P, G, _far_ring(sites, r_s)], axis=1)
+    alive = np.concatenate([sites.alive, ghost_alive, np.ones((S, FAR_RING), dtype=bool)], axis=1)
+    return Branch(chain=chain, s_chain=s_chain, d=sites.d, P=P, alive=alive, strand=runs.strand,
+                  ghost_of=np.array([g.of for g in ghosts], dtype=np.int64),
+                  foreign=np.array([g.foreign for g in ghosts], dtype=np.int64),
+                  bounds=_element_bounds(model, runs), elem0=runs.elem0, n_elem=runs.n_elem)
