@@ -334,6 +334,127 @@ class _Branches(Exception):
     """A slice across the principal axis cuts the mesh in several places: it branches."""
 
 
+def _mean_radius(mesh, axis, u, v, s0: float, s1: float, centre) -> float:
+    """The mean radius sqrt(A / pi) of the largest outer contour of 8 slices evenly across the
+    mesh's extent s0..s1 along ``axis`` (the node spacing :func:`tree_nodes` defaults to)."""
+    areas = [max((profiles.polygon_area(p) for p in outer_contours(mesh, centre + t * axis, axis, u, v)),
+                 default=0.0) for t in np.linspace(s0, s1, 10)[1:-1]]
+    return float(np.mean(np.sqrt(np.array(areas) / np.pi)))
+
+
+def _cross_sections(mesh, o, axis, u, v) -> list[tuple[np.ndarray, float]]:
+    """The outer contours of the slice through ``o`` across ``axis``: each one's centroid (3D)
+    and radius sqrt(A / pi)."""
+    found = []
+    for poly in outer_contours(mesh, o, axis, u, v):
+        c = profiles.polygon_centroid(poly)
+        found.append((o + c[0] * u + c[1] * v, math.sqrt(profiles.polygon_area(poly) / math.pi)))
+    return found
+
+
+class _Chains:
+    """The chains of nodes that :func:`tree_nodes` traces from slice to slice: the nodes'
+    positions, parents, radii and the first node of each one's chain; the loose chains; the chains
+    still being traced and the finished ones."""
+
+    def __init__(self, source, s0: float):
+        self.source, self.s0 = source, s0
+        self.pos: list[np.ndarray] = []
+        self.parent: list[int] = []
+        self.radius: list[float] = []
+        self.start: list[int] = []  # the first node of each node's chain
+        self.loose: dict[int, int] = {}  # first node of a loose chain -> the node it joined (-1: not yet)
+        self.active: list[int] = []  # the last node of each chain still being traced
+        self.ends: list[int] = []  # the last node of each finished chain
+
+    def fail(self, t: float, what: str) -> InputError:
+        return InputError(self.source, "", f"{what} {t - self.s0:.3f} m along the mesh's axis: the mesh is not a "
+                          "log or a tree (give an explicit skeleton)")
+
+    def near(self, found, a: int, j: int) -> bool:
+        """Cross-section j of ``found`` lies within TRACK times the sum of its and node a's radii
+        of node a."""
+        return bool(np.linalg.norm(found[j][0] - self.pos[a]) < TRACK * (found[j][1] + self.radius[a]))
+
+    def claim(self, found) -> dict[int, list[int]]:
+        """The cross-sections of ``found`` each chain continues into: per chain's last node, those
+        nearest it of all chains within reach; a cross-section near none under its own key -1 - j."""
+        claimed: dict[int, list[int]] = {}
+        for j in range(len(found)):
+            cands = [(np.linalg.norm(found[j][0] - self.pos[a]), a) for a in self.active if self.near(found, a, j)]
+            claimed.setdefault(min(cands)[1] if cands else -1 - j, []).append(j)
+        return claimed
+
+    def join(self, found, claimed: dict[int, list[int]], t: float) -> None:
+        """A chain that claimed nothing but lies near another's claimed cross-sections joins it:
+        the loose one of the two ends there, joined to the other's last node, and the other goes
+        on (into those of the cross-sections near it); two chains both loose or both not raise."""
+        for a in self.active:
+            if a in claimed:
+                continue
+            joined = [b for b, js in claimed.items() if b >= 0 and any(self.near(found, a, j) for j in js)]
+            if not joined:
+                continue
+            b = joined[0]
+            if (self.start[b] in self.loose) == (self.start[a] in self.loose):
+                raise self.fail(t, "two branches join")
+            if self.start[b] in self.loose:  # the chain that is not loose goes on, the loose one ends here
+                js = [j for j in claimed.pop(b) if self.near(found, a, j)]
+                claimed[a] = js
+                a, b = b, a
+            self.loose[self.start[a]] = b
+
+    def advance(self, found, claimed: dict[int, list[int]], k: int) -> None:
+        """Slice k's nodes: each chain continues into the largest of its cross-sections, each other
+        one starts a branch from the chain's last node; a cross-section near no chain after the
+        first slice starts a loose chain. Chains that claimed nothing end."""
+        self.ends += [a for a in self.active if a not in claimed]
+        self.active = []
+        for a, js in claimed.items():
+            for i, j in enumerate(sorted(js, key=lambda j: -found[j][1])):  # the largest part continues
+                self.pos.append(found[j][0])
+                self.parent.append(max(a, -1))
+                self.radius.append(found[j][1])
+                self.start.append(self.start[a] if a >= 0 and i == 0 else len(self.pos) - 1)
+                if a < 0 and k > 0:
+                    self.loose[len(self.pos) - 1] = -1
+                self.active.append(len(self.pos) - 1)
+
+    def hang_loose(self, parent: np.ndarray) -> list[int]:
+        """Turn each loose chain around in ``parent``: its last node hangs from the node it joined.
+        Returns the tips: the last nodes of the other chains (node 0, at the root end, excepted),
+        then the first nodes of the loose ones."""
+        tips = [e for e in self.ends if e > 0 and self.start[e] not in self.loose]
+        for first, joint in self.loose.items():
+            last = next(e for e in self.ends if self.start[e] == first)
+            path = [last]
+            while path[-1] != first:
+                path.append(int(parent[path[-1]]))
+            parent[path[0]] = joint
+            parent[path[1:]] = path[:-1]
+            tips.append(first)
+        return tips
+
+
+def _with_end_nodes(mi: MeshInput, pos: np.ndarray, parent: np.ndarray, tips: list[int], gap: float,
+                    reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """The traced nodes with end nodes beyond the root end and each tip (:func:`_extend`), in an
+    order with every parent before its children, and their parents (the root's -1)."""
+    first = np.flatnonzero(parent == 0)
+    if len(first) == 0:
+        raise InputError(mi.source, "", "the mesh is too short along its axis for a skeleton")
+    root = _extend(mi.mesh, pos[0], pos[first[0]], gap, reach)
+    ends_xyz = [_extend(mi.mesh, pos[e], pos[parent[e]], gap, reach) for e in tips]
+    # the root's end node first (its parent -1), the traced nodes one index later (the first of
+    # them hangs from the root's end node), then the tips' end nodes; parents before children
+    nodes = np.vstack([root, pos, *ends_xyz])
+    par = np.concatenate([[-1], parent + 1, np.array(tips, dtype=np.int64) + 1])
+    order = np.arange(len(par)) if np.all(par < np.arange(len(par))) else _parents_first(par)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    return nodes[order], np.where(par[order] < 0, -1, rank[np.maximum(par[order], 0)]).astype(np.int64)
+
+
 def tree_nodes(mi: MeshInput, spacing: float | None) -> tuple[np.ndarray, np.ndarray]:
     """Node positions and parents of a branching mesh (module docstring): slices across the
     principal axis from the root end, their contours chained from slice to slice (a contour
@@ -346,95 +467,27 @@ def tree_nodes(mi: MeshInput, spacing: float | None) -> tuple[np.ndarray, np.nda
     axis, u, v, s0, s1, centre = _along_axis(mesh)
     length = s1 - s0
     if spacing is None:
-        areas = [max((profiles.polygon_area(p) for p in outer_contours(mesh, centre + t * axis, axis, u, v)),
-                     default=0.0) for t in np.linspace(s0, s1, 10)[1:-1]]
-        spacing = float(np.mean(np.sqrt(np.array(areas) / np.pi)))
+        spacing = _mean_radius(mesh, axis, u, v, s0, s1, centre)
     n = max(3, math.ceil(length / spacing))
-    pos: list[np.ndarray] = []
-    parent: list[int] = []
-    radius: list[float] = []
-    start: list[int] = []  # the first node of each node's chain
-    loose: dict[int, int] = {}  # first node of a loose chain -> the node it joined (-1: not yet)
-    active: list[int] = []  # the last node of each chain still being traced
-    ends: list[int] = []  # the last node of each finished chain
-
-    def fail(t: float, what: str):
-        return InputError(mi.source, "", f"{what} {t - s0:.3f} m along the mesh's axis: the mesh is not a log or a "
-                          "tree (give an explicit skeleton)")
-
+    chains = _Chains(mi.source, s0)
     for k, t in enumerate(s0 + length * np.arange(1, n) / n):
-        o = centre + t * axis
-        found = []
-        for poly in outer_contours(mesh, o, axis, u, v):
-            c = profiles.polygon_centroid(poly)
-            found.append((o + c[0] * u + c[1] * v, math.sqrt(profiles.polygon_area(poly) / math.pi)))
+        found = _cross_sections(mesh, centre + t * axis, axis, u, v)
         if k == 0 and len(found) != 1:
             raise InputError(mi.source, "", f"{len(found)} cross-sections next to the root end: the mesh must start "
                              "from one stem (give an explicit skeleton)")
-
-        def near(a: int, j: int) -> bool:
-            return bool(np.linalg.norm(found[j][0] - pos[a]) < TRACK * (found[j][1] + radius[a]))
-
-        claimed: dict[int, list[int]] = {}
-        for j in range(len(found)):
-            cands = [(np.linalg.norm(found[j][0] - pos[a]), a) for a in active if near(a, j)]
-            claimed.setdefault(min(cands)[1] if cands else -1 - j, []).append(j)
-        for a in active:
-            if a in claimed:
-                continue
-            joined = [b for b, js in claimed.items() if b >= 0 and any(near(a, j) for j in js)]
-            if not joined:
-                continue
-            b = joined[0]
-            if (start[b] in loose) == (start[a] in loose):
-                raise fail(t, "two branches join")
-            if start[b] in loose:  # the chain that is not loose goes on, the loose one ends here
-                js = [j for j in claimed.pop(b) if near(a, j)]
-                claimed[a] = js
-                a, b = b, a
-            loose[start[a]] = b
+        claimed = chains.claim(found)
+        chains.join(found, claimed, t)
         for b, js in claimed.items():
-            if b >= 0 and len(js) > 1 and start[b] in loose:
-                raise fail(t, "a branch that turns back forks")
-        ends += [a for a in active if a not in claimed]
-        active = []
-        for a, js in claimed.items():
-            for i, j in enumerate(sorted(js, key=lambda j: -found[j][1])):  # the largest part continues
-                pos.append(found[j][0])
-                parent.append(max(a, -1))
-                radius.append(found[j][1])
-                start.append(start[a] if a >= 0 and i == 0 else len(pos) - 1)
-                if a < 0 and k > 0:
-                    loose[len(pos) - 1] = -1
-                active.append(len(pos) - 1)
-    ends += active
-    if any(j < 0 for j in loose.values()):
+            if b >= 0 and len(js) > 1 and chains.start[b] in chains.loose:
+                raise chains.fail(t, "a branch that turns back forks")
+        chains.advance(found, claimed, k)
+    chains.ends += chains.active
+    if any(j < 0 for j in chains.loose.values()):
         raise InputError(mi.source, "", "a part of the mesh joins no branch: the mesh is not one log or tree "
                          "(give an explicit skeleton)")
-    pos_a, parent_a = np.array(pos), np.array(parent, dtype=np.int64)
-    tips = [e for e in ends if e > 0 and start[e] not in loose]
-    for first, joint in loose.items():  # turn a loose chain around: its last node hangs from the joint
-        last = next(e for e in ends if start[e] == first)
-        path = [last]
-        while path[-1] != first:
-            path.append(int(parent_a[path[-1]]))
-        parent_a[path[0]] = joint
-        parent_a[path[1:]] = path[:-1]
-        tips.append(first)
-    reach = 1.5 * max(radius)
-    first = np.flatnonzero(parent_a == 0)
-    if len(first) == 0:
-        raise InputError(mi.source, "", "the mesh is too short along its axis for a skeleton")
-    root = _extend(mesh, pos_a[0], pos_a[first[0]], length / n, reach)
-    ends_xyz = [_extend(mesh, pos_a[e], pos_a[parent_a[e]], length / n, reach) for e in tips]
-    # the root's end node first (its parent -1), the traced nodes one index later (the first of
-    # them hangs from the root's end node), then the tips' end nodes; parents before children
-    nodes = np.vstack([root, pos_a, *ends_xyz])
-    par = np.concatenate([[-1], parent_a + 1, np.array(tips, dtype=np.int64) + 1])
-    order = np.arange(len(par)) if np.all(par < np.arange(len(par))) else _parents_first(par)
-    rank = np.empty_like(order)
-    rank[order] = np.arange(len(order))
-    return nodes[order], np.where(par[order] < 0, -1, rank[np.maximum(par[order], 0)]).astype(np.int64)
+    pos, parent = np.array(chains.pos), np.array(chains.parent, dtype=np.int64)
+    tips = chains.hang_loose(parent)
+    return _with_end_nodes(mi, pos, parent, tips, length / n, 1.5 * max(chains.radius))
 
 
 def _parents_first(parent: np.ndarray) -> np.ndarray:
