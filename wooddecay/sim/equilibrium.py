@@ -19,8 +19,9 @@ minus that), so the pair's torque on j is -1/2 R_i (w g + v x g) with g = dE / d
 on its element is -G A l_r sum_k C_k (d_k x (p_b - p_a) / l_r).
 
 :func:`equilibrium_residual` is the net force on each particle and the net torque over the
-length of each element of the bound wood (the components held by an anchor or touching a
-collider or another piece; a piece in flight is judged by its motion, not by this), summed as
+length of each element of the bound wood (the components held by an anchor or within contact
+reach of a collider or another piece; a piece falling clear is judged by its motion, not by
+this), summed as
 norms, over a normaliser that is never zero for a loaded or shrinking body: each particle's weight
 and load plus the force its stretch and REG connections' rest changes would cause if it were held.
 At a contact, static friction may take up to mu_f times the contact's normal force of the
@@ -36,7 +37,7 @@ import numpy as np
 from ..quaternion import conj_np, mul_np, rotate_np
 from .contact.closest import capsule_contact_reference
 from .contact.colliders import collider_distance_reference
-from .mechanics import MechSetup, MechState, joint_stiffness
+from .mechanics import CONTACT_MARGIN, MechSetup, MechState, joint_stiffness
 
 
 class Forces(NamedTuple):
@@ -122,7 +123,8 @@ def _connections(setup: MechSetup, ms: MechState, k_conn: np.ndarray, f: np.ndar
 
 def _contacts(setup: MechSetup, ms: MechState) -> tuple[np.ndarray, float, np.ndarray]:
     """Normal contact forces (P, 3) of colliders and pairs (Eq. 4), their energy and the
-    elements in contact (bool, (n,))."""
+    elements within contact reach (bool, (n,)): a gap under CONTACT_MARGIN radii, so a piece that
+    rests or has bounced a little is judged, and one that falls clear is not."""
     P, n = setup.n_particles, setup.n_elements
     fc, energy, touching = np.zeros((P, 3)), 0.0, np.zeros(n, dtype=bool)
     if setup.k_col <= 0.0:
@@ -133,7 +135,7 @@ def _contacts(setup: MechSetup, ms: MechState) -> tuple[np.ndarray, float, np.nd
         phi = np.maximum(ms.radius_p - sd, 0.0)
         fc += (setup.k_col * phi * phi)[:, None] * normal
         energy += float(setup.k_col * (phi ** 3).sum() / 3.0)
-        hit |= phi > 0.0
+        hit |= ms.radius_p - sd > -CONTACT_MARGIN * ms.radius_p
     touching |= hit[setup.fp] | hit[setup.fp + 1]
     if len(ms.pairs):
         i, j = ms.pairs[:, 0], ms.pairs[:, 1]
@@ -141,13 +143,13 @@ def _contacts(setup: MechSetup, ms: MechState) -> tuple[np.ndarray, float, np.nd
         s, t, normal, phi = capsule_contact_reference(ms.x[a], ms.x[a + 1], ms.radius[i], ms.x[b], ms.x[b + 1],
                                                       ms.radius[j])
         rest = ms.pairs_rest if len(ms.pairs_rest) == len(ms.pairs) else np.zeros(len(ms.pairs))
+        near = phi - rest > -CONTACT_MARGIN * np.minimum(ms.radius[i], ms.radius[j])
         phi = np.maximum(phi - rest, 0.0)
         F = (setup.k_col * phi * phi)[:, None] * normal  # on j, minus on i
         for p, w in ((a, -(1.0 - s)), (a + 1, -s), (b, 1.0 - t), (b + 1, t)):
             fc += _scatter(p, w[:, None] * F, P)
         energy += float(setup.k_col * (phi ** 3).sum() / 3.0)
-        on = phi > 0.0
-        touching[i[on]] = touching[j[on]] = True
+        touching[i[near]] = touching[j[near]] = True
     return fc, energy, touching
 
 
