@@ -194,10 +194,14 @@ def _friction(f: np.ndarray, contact: np.ndarray, mu: float) -> np.ndarray:
     return fn + keep[:, None] * ft
 
 
-def equilibrium_residual(setup: MechSetup, ms: MechState) -> float:
+def equilibrium_residual(setup: MechSetup, ms: MechState,
+                         inertia: tuple[np.ndarray, np.ndarray] | None = None) -> float:
     """Net force and torque on the bound wood over its normaliser (module docstring): 0 in
-    equilibrium, 1 for wood that carries its loads with no deformation at all."""
+    equilibrium, 1 for wood that carries its loads with no deformation at all. ``inertia``: the
+    forces (P, 3) and torques (n, 3) of a time step's inertia term, added to the net."""
     F, touching = forces(setup, ms)
+    if inertia is not None:
+        F = F._replace(f=F.f + inertia[0], tau=F.tau + inertia[1])
     elems = bound(setup, ms, touching)
     parts = np.zeros(setup.n_particles, dtype=bool)
     parts[setup.fp[elems]] = parts[setup.fp[elems] + 1] = True

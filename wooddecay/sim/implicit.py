@@ -1,0 +1,187 @@
+"""A backward Euler step of the rods by Newton's method on the incremental potential
+(docs/model.md §4; docs/decisions.md, "Implicit step").
+
+The step of length h minimises
+
+    Phi(x, q) = E(x, q) + sum_p m_p |x_p - x~_p|^2 / (2 h^2) + sum_e I_e |theta_e|^2 / (2 h^2),
+
+E the potential of :mod:`~wooddecay.sim.equilibrium` (the energies XPBD converges to, Eq. 4
+contact, gravity, loads), x~ = x + h v the predicted positions, theta_e the rotation from the
+predicted orientation exp(h omega / 2) q_e to q_e, I_e = m_e inertia_factor_e its moment of inertia.
+With h = inf the inertia drops out: the static equilibrium of wood an anchor holds.
+
+Unknowns are the positions of the particles and a world rotation increment per element
+(q <- exp(dtheta / 2) q). Each Newton iteration solves (H + M / h^2) d = -grad Phi with the
+Gauss-Newton Hessian H = sum_c k_c J_c^T J_c of every constraint row c (C the constraint, J_c its
+gradient, as in :mod:`~wooddecay.sim.equilibrium`; contact 2 k_col phi n n^T), exact where the
+constraints are satisfied, by a sparse direct solve; a backtracking line search keeps Phi
+decreasing. It stops when :func:`~wooddecay.sim.equilibrium.equilibrium_residual`, the inertia
+forces -M (x - x~) / h^2 included, is at most ``tol``. Anchored particles and elements stay.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..quaternion import conj_np, mul_np, normalize_np, rotate_np
+from . import equilibrium
+from .contact.colliders import collider_distance_reference
+from .mechanics import MechSetup, MechState, joint_stiffness
+
+#: backtracking halvings before a Newton iteration gives up on decreasing Phi
+LINE_SEARCH = 30
+
+
+class StepReport(NamedTuple):
+    """What one :func:`step` did."""
+
+    newton: int  # Newton iterations
+    residual: float  # equilibrium residual at the end (inertia forces included for finite h)
+    converged: bool  # residual <= tol
+
+
+def _rows(J: np.ndarray, blocks: np.ndarray, k: np.ndarray, n_blocks: int) -> sp.csr_matrix:
+    """sum_c k_c J_c^T J_c for constraint rows c with gradient blocks J (r, nb, 3) on the 3-DOF
+    blocks ``blocks`` (r, nb), as a (3 n_blocks)^2 sparse matrix."""
+    r, nb = blocks.shape
+    vals, rows, cols = [], [], []
+    three = np.arange(3)
+    for a in range(nb):
+        for b in range(nb):
+            vals.append((k[:, None, None] * J[:, a, :, None] * J[:, b, None, :]).ravel())
+            rows.append(np.broadcast_to((3 * blocks[:, a, None] + three)[:, :, None], (r, 3, 3)).ravel())
+            cols.append(np.broadcast_to((3 * blocks[:, b, None] + three)[:, None, :], (r, 3, 3)).ravel())
+    size = 3 * n_blocks
+    return sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(size, size)).tocsr()
+
+
+def _darboux_rows(q, pairs, rest, length, kb, kt, P) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Bend-twist rows: J on theta_j = (2 / l) A, on theta_i minus that, A = 1/2 (w I - [v]x) R_i^T."""
+    on = (kb > 0.0) | (kt > 0.0)
+    pairs, rest, length, kb, kt = pairs[on], rest[on], length[on], kb[on], kt[on]
+    i, j = pairs[:, 0], pairs[:, 1]
+    om = mul_np(conj_np(q[i]), q[j])
+    w, v = om[:, 0], om[:, 1:]
+    skew = np.zeros((len(v), 3, 3))
+    skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    skew[:, 1, 0], skew[:, 2, 0], skew[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
+    Rt = np.stack([rotate_np(conj_np(q[i]), np.broadcast_to(np.eye(3)[c], v.shape)) for c in range(3)], axis=2)
+    A = 0.5 * (w[:, None, None] * np.eye(3) - skew) @ Rt * (2.0 / length)[:, None, None]
+    J = np.stack([np.stack([-A[:, c], A[:, c]], axis=1) for c in range(3)], axis=1).reshape(-1, 2, 3)
+    blocks = np.repeat(np.stack([P + i, P + j], axis=1), 3, axis=0)
+    k = (np.stack([kb, kb, kt], axis=1) * length[:, None]).ravel()
+    return J, blocks, k
+
+
+def hessian(setup: MechSetup, ms: MechState) -> sp.csr_matrix:
+    """The Gauss-Newton Hessian of the potential E over [x (P, 3), theta (n, 3)] (module docstring)."""
+    P, n = setup.n_particles, setup.n_elements
+    N = P + n
+    parts = []
+    e = np.flatnonzero(ms.element_ok)
+    a, b, l = setup.fp[e], setup.fp[e] + 1, ms.rest_length[e]
+    d = ms.x[b] - ms.x[a]
+    u = d / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
+    parts.append(_rows(np.stack([-u, u], axis=1), np.stack([a, b], axis=1), setup.k_stretch[e] / l, N))
+    g = d / l[:, None]
+    for axis in np.eye(3)[:2]:
+        dk = rotate_np(ms.q[e], np.broadcast_to(axis, g.shape))
+        J = np.stack([-dk / l[:, None], dk / l[:, None], np.cross(dk, g)], axis=1)
+        parts.append(_rows(J, np.stack([a, b, P + e], axis=1), setup.k_shear[e] * l, N))
+    kb, kt = joint_stiffness(setup, ms)
+    parts.append(_rows(*_darboux_rows(ms.q, setup.joints, setup.joint_rest, setup.joint_length, kb, kt, P), N))
+    k_conn, k_pb, k_pt = equilibrium._reg_stiffness(setup, ms)
+    c = np.flatnonzero(k_conn > 0.0)
+    ai, aj = setup.fp[setup.edges[c, 0]], setup.fp[setup.edges[c, 1]]
+    d = 0.5 * (ms.x[aj] + ms.x[aj + 1] - ms.x[ai] - ms.x[ai + 1])
+    u = 0.5 * d / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
+    parts.append(_rows(np.stack([-u, -u, u, u], axis=1), np.stack([ai, ai + 1, aj, aj + 1], axis=1), k_conn[c], N))
+    parts.append(_rows(*_darboux_rows(ms.q, setup.edges, setup.edge_rest, setup.edge_length, k_pb, k_pt, P), N))
+    for row in setup.colliders:
+        sd, normal = collider_distance_reference(row, ms.x)
+        phi = ms.radius_p - sd
+        p = np.flatnonzero(phi > 0.0)
+        parts.append(_rows(normal[p][:, None, :], p[:, None], 2.0 * setup.k_col * phi[p], N))
+    return sum(parts[1:], parts[0])
+
+
+def _rotation_from(q: np.ndarray, q_ref: np.ndarray) -> np.ndarray:
+    """The world rotation vector theta with q = exp(theta / 2) q_ref (row-wise)."""
+    r = mul_np(q, conj_np(q_ref))
+    r = r * np.where(r[:, :1] < 0.0, -1.0, 1.0)
+    s = np.linalg.norm(r[:, 1:], axis=1)
+    return r[:, 1:] * np.where(s > 0.0, 2.0 * np.arctan2(s, r[:, 0]) / np.where(s > 0.0, s, 1.0), 2.0)[:, None]
+
+
+def _turned(q: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """exp(theta / 2) q, row-wise."""
+    angle = np.linalg.norm(theta, axis=1)
+    half = 0.5 * angle
+    axis = theta / np.where(angle > 0.0, angle, 1.0)[:, None]
+    e = np.concatenate([np.cos(half)[:, None], np.sin(half)[:, None] * axis], axis=1)
+    return normalize_np(mul_np(e, q))
+
+
+class _Inertia(NamedTuple):
+    x_pred: np.ndarray
+    q_pred: np.ndarray
+    m: np.ndarray  # (P,) particle masses over h^2
+    I: np.ndarray  # (n,) element moments of inertia over h^2
+
+    def energy(self, ms: MechState) -> float:
+        th = _rotation_from(ms.q, self.q_pred)
+        return float(0.5 * (self.m * ((ms.x - self.x_pred) ** 2).sum(axis=1)).sum()
+                     + 0.5 * (self.I * (th * th).sum(axis=1)).sum())
+
+    def forces(self, ms: MechState) -> tuple[np.ndarray, np.ndarray]:
+        return -self.m[:, None] * (ms.x - self.x_pred), -self.I[:, None] * _rotation_from(ms.q, self.q_pred)
+
+
+def _inertia(setup: MechSetup, ms: MechState, h: float) -> _Inertia:
+    w = 0.0 if np.isinf(h) else 1.0 / (h * h)
+    hh = 0.0 if np.isinf(h) else h
+    return _Inertia(ms.x + hh * ms.v, _turned(ms.q, rotate_np(ms.q, hh * ms.omega)), w * ms.mass_p,
+                    w * ms.mass_e * setup.inertia_factor)
+
+
+def step(setup: MechSetup, ms: MechState, h: float = np.inf, tol: float = 1e-3, max_newton: int = 30) -> StepReport:
+    """One backward Euler step of length ``h`` (inf: the static equilibrium) of ``ms`` in place,
+    to an equilibrium residual of ``tol`` (module docstring); velocities from the step."""
+    P, n = setup.n_particles, setup.n_elements
+    inertia = _inertia(setup, ms, h)
+    x0, q0 = ms.x.copy(), ms.q.copy()
+    free = np.concatenate([np.repeat(~setup.anchored_p, 3), np.repeat(~setup.anchored_e, 3)])
+    M = np.concatenate([np.repeat(inertia.m, 3), np.repeat(inertia.I, 3)])
+    moving = MechState.copy(ms)
+    res = equilibrium.equilibrium_residual(setup, moving, inertia.forces(moving))
+    it = 0
+    for it in range(1, max_newton + 1):
+        F, _ = equilibrium.forces(setup, moving)
+        fi, ti = inertia.forces(moving)
+        grad = -np.concatenate([(F.f + fi).ravel(), (F.tau + ti).ravel()])
+        phi0 = F.energy + inertia.energy(moving)
+        H = (hessian(setup, moving) + sp.diags(M)).tocsr()[free][:, free]
+        d = np.zeros(3 * (P + n))
+        d[free] = spla.spsolve(H.tocsc(), -grad[free])
+        slope = float(grad @ d)
+        alpha, trial = 1.0, moving
+        for _ in range(LINE_SEARCH):
+            trial = MechState.copy(moving)
+            trial.x = moving.x + alpha * d[:3 * P].reshape(P, 3)
+            trial.q = _turned(moving.q, alpha * d[3 * P:].reshape(n, 3))
+            if equilibrium.forces(setup, trial)[0].energy + inertia.energy(trial) <= phi0 + 1e-4 * alpha * slope:
+                break
+            alpha *= 0.5
+        moving = trial
+        res = equilibrium.equilibrium_residual(setup, moving, inertia.forces(moving))
+        if res <= tol:
+            break
+    ms.x, ms.q = moving.x, moving.q
+    if not np.isinf(h):
+        ms.v = (ms.x - x0) / h
+        ms.omega = rotate_np(conj_np(ms.q), _rotation_from(ms.q, q0)) / h
+    return StepReport(it, res, res <= tol)
