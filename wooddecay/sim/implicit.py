@@ -13,8 +13,9 @@ With h = inf the inertia drops out: the static equilibrium of wood an anchor hol
 Unknowns are the positions of the particles and a world rotation increment per element
 (q <- exp(dtheta / 2) q). Each Newton iteration solves (H + M / h^2) d = -grad Phi with the
 Gauss-Newton Hessian H = sum_c k_c J_c^T J_c of every constraint row c (C the constraint, J_c its
-gradient, as in :mod:`~wooddecay.sim.equilibrium`; contact 2 k_col phi n n^T), exact where the
-constraints are satisfied, by a sparse direct solve; a backtracking line search keeps Phi
+gradient, as in :mod:`~wooddecay.sim.equilibrium`; contact 2 k_col phi n n^T) plus the geometric
+stiffness of stretched distances (projected Newton: positive semidefinite), exact where the
+constraints are satisfied, by Jacobi-preconditioned conjugate gradients; a backtracking line search keeps Phi
 decreasing. It stops when :func:`~wooddecay.sim.equilibrium.equilibrium_residual`, the inertia
 forces -M (x - x~) / h^2 included, is at most ``tol``. Anchored particles and elements stay.
 """
@@ -33,6 +34,12 @@ from .mechanics import MechSetup, MechState, joint_stiffness
 
 #: backtracking halvings before a Newton iteration gives up on decreasing Phi
 LINE_SEARCH = 30
+#: slip (m) up to which static friction holds as a spring (:class:`_Friction`)
+STICK = 1e-6
+#: Newton iterations between updates of the friction's contacts and normal forces
+LAG = 4
+#: relative tolerance and iteration cap of the Newton direction's conjugate gradients
+LINEAR_TOL, LINEAR_CAP = 1e-3, 5000
 
 
 class StepReport(NamedTuple):
@@ -57,6 +64,26 @@ def _rows(J: np.ndarray, blocks: np.ndarray, k: np.ndarray, n_blocks: int) -> sp
     size = 3 * n_blocks
     return sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                          shape=(size, size)).tocsr()
+
+
+def _tangents(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors orthogonal to the unit rows ``u`` and to each other."""
+    t1 = np.cross(u, np.where(np.abs(u[:, :1]) < 0.9, np.eye(3)[0], np.eye(3)[1]))
+    t1 /= np.linalg.norm(t1, axis=1)[:, None]
+    return t1, np.cross(u, t1)
+
+
+def _distance(J: np.ndarray, blocks: np.ndarray, u: np.ndarray, k: np.ndarray, C: np.ndarray, L: np.ndarray,
+              n_blocks: int) -> sp.csr_matrix:
+    """Hessian of 1/2 k (L - rest)^2 for L = |d|, d = sum_b w_b x_b: k J^T J (J the rows w_b u)
+    plus, where stretched (C = L - rest > 0), the geometric part k C / L (I - u u^T) over the same
+    weights (dropped where compressed, so the Hessian stays positive semidefinite)."""
+    out = _rows(J, blocks, k, n_blocks)
+    geo = k * np.maximum(C, 0.0) / np.maximum(L, 1e-300)
+    w = np.einsum("rbc,rc->rb", J, u)  # the weights w_b
+    for t in _tangents(u):
+        out = out + _rows(w[:, :, None] * t[:, None, :], blocks, geo, n_blocks)
+    return out
 
 
 def _darboux_rows(q, pairs, rest, length, kb, kt, P) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -85,8 +112,10 @@ def hessian(setup: MechSetup, ms: MechState) -> sp.csr_matrix:
     e = np.flatnonzero(ms.element_ok)
     a, b, l = setup.fp[e], setup.fp[e] + 1, ms.rest_length[e]
     d = ms.x[b] - ms.x[a]
-    u = d / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
-    parts.append(_rows(np.stack([-u, u], axis=1), np.stack([a, b], axis=1), setup.k_stretch[e] / l, N))
+    L = np.linalg.norm(d, axis=1)
+    u = d / np.maximum(L, 1e-300)[:, None]
+    parts.append(_distance(np.stack([-u, u], axis=1), np.stack([a, b], axis=1), u, setup.k_stretch[e] / l, L - l,
+                           L, N))
     g = d / l[:, None]
     for axis in np.eye(3)[:2]:
         dk = rotate_np(ms.q[e], np.broadcast_to(axis, g.shape))
@@ -98,8 +127,10 @@ def hessian(setup: MechSetup, ms: MechState) -> sp.csr_matrix:
     c = np.flatnonzero(k_conn > 0.0)
     ai, aj = setup.fp[setup.edges[c, 0]], setup.fp[setup.edges[c, 1]]
     d = 0.5 * (ms.x[aj] + ms.x[aj + 1] - ms.x[ai] - ms.x[ai + 1])
-    u = 0.5 * d / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
-    parts.append(_rows(np.stack([-u, -u, u, u], axis=1), np.stack([ai, ai + 1, aj, aj + 1], axis=1), k_conn[c], N))
+    L = np.linalg.norm(d, axis=1)
+    u = d / np.maximum(L, 1e-300)[:, None]
+    parts.append(_distance(0.5 * np.stack([-u, -u, u, u], axis=1), np.stack([ai, ai + 1, aj, aj + 1], axis=1), u,
+                           k_conn[c], L - ms.rest_offset[c], L, N))
     parts.append(_rows(*_darboux_rows(ms.q, setup.edges, setup.edge_rest, setup.edge_length, k_pb, k_pt, P), N))
     for row in setup.colliders:
         sd, normal = collider_distance_reference(row, ms.x)
@@ -126,6 +157,52 @@ def _turned(q: np.ndarray, theta: np.ndarray) -> np.ndarray:
     return normalize_np(mul_np(e, q))
 
 
+class _Friction(NamedTuple):
+    """Lagged static friction at the collider contacts of the step's start: particle ``p`` with
+    normal ``n`` and normal force N at x0 resists its tangential slip u = (I - n n^T)(x - x0)
+    with the force -mu N u / max(|u|, STICK): a stiff spring up to STICK of slip, Coulomb's mu N
+    beyond it."""
+
+    p: np.ndarray  # (k,) int64: contact particles
+    n: np.ndarray  # (k, 3) float64: collider normals
+    x0: np.ndarray  # (k, 3) float64, m: positions at the step's start
+    muN: np.ndarray  # (k,) float64, N: mu_f times the normal force (Eq. 4)
+
+    def slip(self, x: np.ndarray) -> np.ndarray:
+        d = x[self.p] - self.x0
+        return d - np.einsum("ij,ij->i", d, self.n)[:, None] * self.n
+
+    def energy(self, x: np.ndarray) -> float:
+        u = np.linalg.norm(self.slip(x), axis=1)
+        return float(np.where(u <= STICK, 0.5 * self.muN * u * u / STICK, self.muN * (u - 0.5 * STICK)).sum())
+
+    def forces(self, x: np.ndarray) -> np.ndarray:
+        u = self.slip(x)
+        f = -(self.muN / np.maximum(np.linalg.norm(u, axis=1), STICK))[:, None] * u
+        return np.stack([np.bincount(self.p, f[:, c], minlength=len(x)) for c in range(3)], axis=1)
+
+    def hessian(self, x: np.ndarray, n_blocks: int) -> sp.csr_matrix:
+        """(mu N / max(|u|, STICK)) (I - n n^T) per contact, as the two tangent rows."""
+        k = self.muN / np.maximum(np.linalg.norm(self.slip(x), axis=1), STICK)
+        t1, t2 = _tangents(self.n)
+        return _rows(np.concatenate([t1, t2])[:, None, :], np.concatenate([self.p, self.p])[:, None],
+                     np.concatenate([k, k]), n_blocks)
+
+
+def _friction(setup: MechSetup, ms: MechState, x0: np.ndarray) -> _Friction:
+    """The :class:`_Friction` of the collider contacts of ``ms``, slip measured from ``x0`` (P, 3),
+    the step's start."""
+    parts = []
+    for row in setup.colliders:
+        sd, normal = collider_distance_reference(row, ms.x)
+        phi = ms.radius_p - sd
+        p = np.flatnonzero(phi > 0.0)
+        parts.append((p, normal[p], x0[p], setup.mu_f * setup.k_col * phi[p] ** 2))
+    if not parts:
+        return _Friction(np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
+    return _Friction(*(np.concatenate(c) for c in zip(*parts)))
+
+
 class _Inertia(NamedTuple):
     x_pred: np.ndarray
     q_pred: np.ndarray
@@ -148,32 +225,45 @@ def _inertia(setup: MechSetup, ms: MechState, h: float) -> _Inertia:
                     w * ms.mass_e * setup.inertia_factor)
 
 
+def _solve(H: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
+    """H^-1 b by conjugate gradients on the diagonally scaled system (translation and rotation
+    stiffnesses differ by orders of magnitude) to LINEAR_TOL of |b|: an inexact Newton direction."""
+    scale = 1.0 / np.sqrt(H.diagonal())
+    S = sp.diags(scale)
+    y, _ = spla.cg((S @ H @ S).tocsr(), b * scale, rtol=LINEAR_TOL, maxiter=LINEAR_CAP)
+    return y * scale
+
+
 def step(setup: MechSetup, ms: MechState, h: float = np.inf, tol: float = 1e-3, max_newton: int = 30) -> StepReport:
     """One backward Euler step of length ``h`` (inf: the static equilibrium) of ``ms`` in place,
     to an equilibrium residual of ``tol`` (module docstring); velocities from the step."""
     P, n = setup.n_particles, setup.n_elements
-    inertia = _inertia(setup, ms, h)
+    inertia, friction = _inertia(setup, ms, h), _friction(setup, ms, ms.x)
     x0, q0 = ms.x.copy(), ms.q.copy()
     free = np.concatenate([np.repeat(~setup.anchored_p, 3), np.repeat(~setup.anchored_e, 3)])
     M = np.concatenate([np.repeat(inertia.m, 3), np.repeat(inertia.I, 3)])
     moving = MechState.copy(ms)
     res = equilibrium.equilibrium_residual(setup, moving, inertia.forces(moving))
     it = 0
+    N = P + n
     for it in range(1, max_newton + 1):
+        if it % LAG == 0:  # the contacts and their normal forces where the solve has got to
+            friction = _friction(setup, moving, moving.x if np.isinf(h) else x0)
         F, _ = equilibrium.forces(setup, moving)
         fi, ti = inertia.forces(moving)
-        grad = -np.concatenate([(F.f + fi).ravel(), (F.tau + ti).ravel()])
-        phi0 = F.energy + inertia.energy(moving)
-        H = (hessian(setup, moving) + sp.diags(M)).tocsr()[free][:, free]
+        grad = -np.concatenate([(F.f + fi + friction.forces(moving.x)).ravel(), (F.tau + ti).ravel()])
+        phi0 = F.energy + inertia.energy(moving) + friction.energy(moving.x)
+        H = (hessian(setup, moving) + friction.hessian(moving.x, N) + sp.diags(M)).tocsr()[free][:, free]
         d = np.zeros(3 * (P + n))
-        d[free] = spla.spsolve(H.tocsc(), -grad[free])
+        d[free] = _solve(H, -grad[free])
         slope = float(grad @ d)
         alpha, trial = 1.0, moving
         for _ in range(LINE_SEARCH):
             trial = MechState.copy(moving)
             trial.x = moving.x + alpha * d[:3 * P].reshape(P, 3)
             trial.q = _turned(moving.q, alpha * d[3 * P:].reshape(n, 3))
-            if equilibrium.forces(setup, trial)[0].energy + inertia.energy(trial) <= phi0 + 1e-4 * alpha * slope:
+            if (equilibrium.forces(setup, trial)[0].energy + inertia.energy(trial) + friction.energy(trial.x)
+                    <= phi0 + 1e-4 * alpha * slope):
                 break
             alpha *= 0.5
         moving = trial
