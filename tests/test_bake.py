@@ -76,6 +76,20 @@ def test_bake_reports_under_converged_mechanics_with_its_remedy(tmp_path):
     assert "mechanics.iterations (now 1)" in warnings[0] and "mechanics.dt_mech (now 0.0001 s)" in warnings[0]
 
 
+def test_implicit_bake_holds_every_frame_in_equilibrium(tmp_path):
+    """mechanics.solver = "implicit": the settled rods and every frame within an equilibrium
+    residual of 0.03 (docs/model.md §7), no warning; the strain excess (XPBD's) is not read."""
+    res = run("bake", TINY, "-o", tmp_path, *SHORT, "--set", "mechanics.solver=implicit")
+    assert res.exit_code == 0, res.output
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    conv, frames = summary["convergence"], summary["frames"]
+    assert conv["converged"] and conv["unconverged_steps"] == 0 and "strain_excess_max" not in conv
+    assert conv["equilibrium_residual_max"] == max([conv["equilibrium_residual_settled"]]
+                                                   + [f["equilibrium_residual"] for f in frames])
+    assert conv["equilibrium_residual_max"] <= 0.03
+    assert not [ln for ln in res.stderr.splitlines() if ln.startswith("warning: ")]
+
+
 def test_baked_stage_follows_the_contract(baked):
     from pxr import Usd, UsdGeom, UsdShade, UsdValidation
 

@@ -52,6 +52,7 @@ class MechConfig:
     dt_mech: float
     iterations: int
     strand_solver: str
+    solver: str
     inertia_scale: float
     k_col: float
     v_depenetration: float

@@ -218,7 +218,15 @@ class Scene:
         d.pop("path", None)
         d.pop("base_dir", None)
         d["skeleton"].pop("source", None)
+        for (section, key), value in NEUTRAL_DEFAULTS.items():
+            if d[section].get(key) == value:
+                del d[section][key]
         return d
+
+
+#: keys added after format 1 whose default is what every scene did before them: at that value
+#: they stay out of the hashes, so earlier bakes, settled caches and stage comparisons still match
+NEUTRAL_DEFAULTS = {("mechanics", "solver"): "xpbd"}
 
 
 def _digest(d: dict) -> str:

@@ -159,9 +159,9 @@ class Simulation:
 
     def _convergence(self) -> dict:
         """The rods' :func:`strain_excess` and :func:`equilibrium_residual` now."""
-        ms = cast(MechState, self.state.mech)
-        return {"strain_excess": strain_excess(self.model.mech, ms),
-                "equilibrium_residual": equilibrium_residual(self.model.mech, ms)}
+        ms, setup = cast(MechState, self.state.mech), self.model.mech
+        return {"strain_excess": strain_excess(setup, ms) if setup.solver == "xpbd" else None,
+                "equilibrium_residual": equilibrium_residual(setup, ms)}
 
     def convergence(self, frames) -> dict | None:
         """:func:`mechanics.convergence` of the settled rods and ``frames`` (None without
@@ -170,7 +170,7 @@ class Simulation:
             return None
         rows = [self.history[0]["mechanics"]] + [f.diagnostics["mechanics"] for f in frames]
         return convergence(self.model.mech, [r["strain_excess"] for r in rows],
-                           [r["equilibrium_residual"] for r in rows])
+                           [r["equilibrium_residual"] for r in rows], int(cast(MechState, self.state.mech).unconverged[0]))
 
     def advance(self, days: float) -> None:
         """Advance by ``days`` in macro steps of at most ``time.dt_bio``, equal between the days

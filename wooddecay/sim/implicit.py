@@ -28,9 +28,11 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..quaternion import conj_np, mul_np, normalize_np, rotate_np
-from . import equilibrium
+from . import equilibrium, failure, mechanics, sleep
+from .contact.closest import capsule_contact_reference
 from .contact.colliders import collider_distance_reference
 from .mechanics import MechSetup, MechState, joint_stiffness
+from ..wood import WoodModel
 
 #: backtracking halvings before a Newton iteration gives up on decreasing Phi
 LINE_SEARCH = 30
@@ -40,6 +42,12 @@ STICK = 1e-6
 LAG = 4
 #: relative tolerance and iteration cap of the Newton direction's conjugate gradients
 LINEAR_TOL, LINEAR_CAP = 1e-3, 5000
+#: equilibrium residual a bake's steps solve to, and steps after failures per macro step at most
+BAKE_TOL, FAILURE_ROUNDS = 0.01, 8
+#: Newton iterations the static settling may take (from the rest shape, pressed into the ground)
+SETTLE_NEWTON = 200
+#: shortest step (s) of a bake's implicit macro step
+STEP_FLOOR = 1.0
 
 
 class StepReport(NamedTuple):
@@ -137,7 +145,24 @@ def hessian(setup: MechSetup, ms: MechState) -> sp.csr_matrix:
         phi = ms.radius_p - sd
         p = np.flatnonzero(phi > 0.0)
         parts.append(_rows(normal[p][:, None, :], p[:, None], 2.0 * setup.k_col * phi[p], N))
+    if len(ms.pairs):
+        parts.append(_pair_rows(setup, ms, N))
     return sum(parts[1:], parts[0])
+
+
+def _pair_rows(setup: MechSetup, ms: MechState, N: int) -> sp.csr_matrix:
+    """2 k_col phi J^T J of the capsule pairs in contact (Eq. 4), J the closest points' weights
+    times the normal."""
+    i, j = ms.pairs[:, 0], ms.pairs[:, 1]
+    a, b = setup.fp[i], setup.fp[j]
+    s, t, normal, phi = capsule_contact_reference(ms.x[a], ms.x[a + 1], ms.radius[i], ms.x[b], ms.x[b + 1],
+                                                  ms.radius[j])
+    rest = ms.pairs_rest if len(ms.pairs_rest) == len(ms.pairs) else np.zeros(len(ms.pairs))
+    phi = phi - rest
+    on = phi > 0.0
+    w = np.stack([-(1.0 - s), -s, 1.0 - t, t], axis=1)[on]
+    return _rows(w[:, :, None] * normal[on][:, None, :], np.stack([a, a + 1, b, b + 1], axis=1)[on],
+                 2.0 * setup.k_col * phi[on], N)
 
 
 def _rotation_from(q: np.ndarray, q_ref: np.ndarray) -> np.ndarray:
@@ -275,3 +300,50 @@ def step(setup: MechSetup, ms: MechState, h: float = np.inf, tol: float = 1e-3, 
         ms.v = (ms.x - x0) / h
         ms.omega = rotate_np(conj_np(ms.q), _rotation_from(ms.q, q0)) / h
     return StepReport(it, res, res <= tol)
+
+
+def span(setup: MechSetup, n_sub: int) -> float:
+    """The step of :func:`macro_step` for ``n_sub`` substeps: their span, at least STEP_FLOOR
+    (shorter backward Euler steps only add inertia to wood that drifts through slow rest
+    changes)."""
+    return max(n_sub * setup.dt, STEP_FLOOR)
+
+
+def macro_step(model: WoodModel, state, n_sub: int) -> int:
+    """Algorithm 1 lines 4-8 with ``mechanics.solver = "implicit"``: one backward Euler step of
+    :func:`span` under the loads of the day, then the failure test; while
+    anything failed, the step again from there (at most FAILURE_ROUNDS times). Returns the new
+    failures."""
+    setup, ms = model.mech, state.mech
+    ms.force = mechanics.external_forces(setup, state.t_days)
+    h = span(setup, n_sub)
+    new = 0
+    for _ in range(FAILURE_ROUNDS):
+        ms.pairs_x = None
+        mechanics.refresh_pairs(setup, ms)
+        report = step(setup, ms, h, tol=BAKE_TOL)
+        ms.unconverged[0] += not report.converged
+        ms.t_seconds += h
+        count = failure.update(setup, ms)
+        new += count
+        if not count:
+            break
+    return new
+
+
+def settle(model: WoodModel, state) -> None:
+    """The rods' static equilibrium under gravity with infinite limits (only decayed connections
+    and crumbled elements fail), its strains the reference of :func:`failure.update`, as
+    :func:`wooddecay.sim.mechanics.settle` does by settling in time."""
+    setup, ms = model.mech, state.mech
+    limits = ms.limit_elem, ms.limit_edge
+    ms.limit_elem, ms.limit_edge = np.full_like(limits[0], np.inf), np.full_like(limits[1], np.inf)
+    ms.force = np.zeros((setup.n_particles, 3))
+    failure.update(setup, ms)
+    mechanics.refresh_pairs(setup, ms)
+    ms.unconverged[0] += not step(setup, ms, np.inf, tol=BAKE_TOL, max_newton=SETTLE_NEWTON).converged
+    ms.limit_elem, ms.limit_edge = limits
+    ms.strain_ref_elem, ms.strain_ref_edge = failure.strains(setup, ms)
+    ms.v[:] = 0.0
+    ms.omega[:] = 0.0
+    sleep.wake_all(setup, ms)

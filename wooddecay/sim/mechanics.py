@@ -144,6 +144,7 @@ class MechSetup:
     dt: float
     iterations: int
     strand_solver: str  # "auto", "direct" or "gauss-seidel" (:func:`stage1_plan`)
+    solver: str  # "xpbd" or "implicit" (:mod:`~wooddecay.sim.implicit`)
     colliders: np.ndarray  # (k, contact.COLLIDER_COLUMNS)
     k_col: float
     v_depenetration: float
@@ -224,6 +225,8 @@ class MechState:
     solved_mass: np.ndarray = field(default_factory=lambda: np.zeros(0))
     solved_day: np.ndarray = field(default_factory=lambda: np.zeros(1))
     quiet: np.ndarray = field(default_factory=lambda: np.zeros(1, dtype=bool))
+    #: implicit steps that stopped at their Newton cap above their tolerance (checkpointed)
+    unconverged: np.ndarray = field(default_factory=lambda: np.zeros(1, dtype=np.int64))
     #: the last exact failure test of every REG edge within this :func:`_advance`
     #: (:class:`failure.Epoch`; not checkpointed: each call starts with an exact test)
     fail_epoch: failure.Epoch | None = None
@@ -346,6 +349,7 @@ def prepare(model: WoodModel, config: MechConfig, colliders: np.ndarray, loads: 
                           k_pt0=Gm * np.pi * r_s**4 / 2.0),
         gravity=np.asarray(mech.gravity, dtype=np.float64), damping=float(mech.damping),
         dt=float(mech.dt_mech), iterations=int(mech.iterations), strand_solver=str(mech.strand_solver),
+        solver=str(mech.solver),
         colliders=colliders, k_col=float(mech.k_col),
         v_depenetration=float(mech.v_depenetration), mu_f=float(mech.mu_f), epsilon=float(mech.epsilon),
         loads=tuple(load_forces),
@@ -702,22 +706,30 @@ def strain_excess(setup: MechSetup, ms: MechState) -> float:
     return num / den if den > 0.0 else 0.0
 
 
-def convergence(setup: MechSetup, excess, residual) -> dict:
+def convergence(setup: MechSetup, excess, residual, unconverged: int = 0) -> dict:
     """The bake's convergence report from the :func:`strain_excess` and the
     :func:`~wooddecay.sim.equilibrium.equilibrium_residual` of the settled rods and of every frame
-    (``excess``, ``residual``, in that order): their largest values, whether the excess is within
-    STRAIN_EXCESS_TOLERANCE and, if not, the remedy."""
+    (``excess``, ``residual``, in that order; the excess is None under the implicit solver, which
+    has no multipliers) and the implicit steps that stopped at their cap (``unconverged``): the
+    largest values, whether the solver converged (XPBD: the excess within
+    STRAIN_EXCESS_TOLERANCE; implicit: every step within its tolerance) and, if not, the remedy."""
+    rmax = max(residual)
+    out = {"equilibrium_residual_settled": residual[0], "equilibrium_residual_max": rmax}
+    if setup.solver == "implicit":
+        ok = unconverged == 0
+        return out | {"unconverged_steps": unconverged, "converged": ok, "remedy": None if ok else (
+            f"{unconverged} implicit step(s) of the rods stopped at their Newton cap above their tolerance "
+            f"(largest equilibrium residual {rmax:.3g}); lower mechanics.dt_mech or time.N_mech")}
     worst = max(excess)
     ok = worst <= STRAIN_EXCESS_TOLERANCE
     remedy = None if ok else (
         f"the strands are softer than mechanics.E and G say: their strain exceeds their forces' by "
         f"{worst:.0%} (tolerance {STRAIN_EXCESS_TOLERANCE:.0%}); raise mechanics.iterations (now "
-        f"{setup.iterations}) or lower mechanics.dt_mech (now {setup.dt:g} s): a bundle converges at about "
-        f"{CONVERGED_ITERATIONS} iterations a substep, that many times the mechanics, and the samples' "
-        f"fracture settings are tuned on the soft one")
-    return {"strain_excess_settled": excess[0], "strain_excess_max": worst,
-            "equilibrium_residual_settled": residual[0], "equilibrium_residual_max": max(residual),
-            "tolerance": STRAIN_EXCESS_TOLERANCE, "converged": ok, "remedy": remedy}
+        f"{setup.iterations}) or lower mechanics.dt_mech (now {setup.dt:g} s), or use mechanics.solver = "
+        f"\"implicit\": a bundle converges at about {CONVERGED_ITERATIONS} iterations a substep, that many times "
+        f"the mechanics, and the samples' fracture settings are tuned on the soft one")
+    return {"strain_excess_settled": excess[0], "strain_excess_max": worst} | out | {
+        "tolerance": STRAIN_EXCESS_TOLERANCE, "converged": ok, "remedy": remedy}
 
 
 def refresh_pairs(setup: MechSetup, ms: MechState) -> None:

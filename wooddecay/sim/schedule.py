@@ -68,7 +68,7 @@ import numpy as np
 
 from ..wood import WoodModel
 from . import failure, sleep
-from . import mechanics
+from . import implicit, mechanics
 from ..wood import Tolerances
 from .events import Events
 from .signature import MIN_PIECE
@@ -276,6 +276,19 @@ def relax_substeps(model: WoodModel) -> int:
     return min(n, max(1, math.ceil(CHUNK_MARGIN * model.time.tolerances.rest_speed / (g * model.mech.dt))))
 
 
+def _macro_step(model: WoodModel, state, n_sub: int) -> int:
+    """``n_sub`` substeps' span of the rods by ``mechanics.solver``: XPBD
+    (:func:`mechanics.macro_step`) or backward Euler (:func:`implicit.macro_step`)."""
+    solver = implicit.macro_step if model.mech.solver == "implicit" else mechanics.macro_step
+    return solver(model, state, n_sub)
+
+
+def _span(model: WoodModel, n_sub: int) -> float:
+    """Seconds of mechanics :func:`_macro_step` runs for ``n_sub`` substeps."""
+    setup = model.mech
+    return implicit.span(setup, n_sub) if setup.solver == "implicit" else n_sub * setup.dt
+
+
 def solve(model: WoodModel, state, tol: Tolerances, reason: str | None = None) -> int:
     """Chunks of N_mech substeps, the first :func:`relax_substeps` long when ``reason`` (from
     :func:`due`) is in ``RELAX``, until the wood is quiet or ``tol.max_seconds`` have run (module
@@ -286,10 +299,10 @@ def solve(model: WoodModel, state, tol: Tolerances, reason: str | None = None) -
     while not quiet and substeps * dt < tol.max_seconds - 1e-12:
         x0 = ms.x.copy()
         pieces = big_pieces(ms)
-        mechanics.macro_step(model, state, n_sub)
+        _macro_step(model, state, n_sub)
         chunks += 1
         substeps += n_sub
-        m = motion(model.mech, ms, x0, n_sub * dt)
+        m = motion(model.mech, ms, x0, _span(model, n_sub))
         quiet = big_pieces(ms) == pieces and not moving(m, tol.rest_speed)
         hold_still(model.mech, ms, m, tol.hold_speed)
         n_sub = model.time.N_mech
@@ -307,7 +320,7 @@ def advance(model: WoodModel, state, dt: float) -> Events:
     time = model.time
     if time.schedule == "fixed":
         wake_changed(model, state, time.tolerances)
-        mechanics.macro_step(model, state, time.N_mech)
+        _macro_step(model, state, time.N_mech)
         mark(model, state.mech, state.t_days, quiet=True)
         return Events(due="fixed", chunks=1)
     due_now = due(model, state, time.tolerances)

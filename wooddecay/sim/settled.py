@@ -30,7 +30,7 @@ from ..wood import BarkSetup, WoodModel
 from ..atomic import cache_home, read_archive, replace_with, tree_hash
 from ..errors import InputError
 from . import bark
-from . import mechanics
+from . import implicit, mechanics
 
 VERSION = 5
 #: environment variable naming the cache folder ("" or "off": no cache)
@@ -55,14 +55,17 @@ def default_folder() -> Path | None:
 
 def settle(model: WoodModel, state, folder: Path | None, run=None) -> str:
     """Crack the bark of ``state`` at day 0 (:func:`bark.initial`) and settle its rods
-    (:func:`mechanics.settle` with the model's time and damping, chunks through ``run``), or load
+    (:func:`mechanics.settle` with the model's time and damping, chunks through ``run``, or
+    :func:`implicit.settle` for ``mechanics.solver = "implicit"``), or load
     them from ``folder``; store what was computed there. Returns "cached" (the rods loaded) or
     "settled"."""
     path = None if folder is None else Path(folder) / f"{model.info.settle_hash}.npz"
     rods, cracks = _load(path, model, state) if path is not None else (False, False)
     if not cracks:
         state.bark = bark.initial(model, state)
-    if not rods:
+    if not rods and model.mech.solver == "implicit":
+        implicit.settle(model, state)
+    elif not rods:
         mechanics.settle(model, state, model.time.settle, model.time.settle_damping, run=run)
     if path is not None and not (rods and cracks):
         _save(path, model, state)
