@@ -58,20 +58,26 @@ class StepReport(NamedTuple):
     converged: bool  # residual <= tol
 
 
-def _rows(J: np.ndarray, blocks: np.ndarray, k: np.ndarray, n_blocks: int) -> sp.csr_matrix:
+Triplets = tuple[np.ndarray, np.ndarray, np.ndarray]  # values, rows, columns of a sparse sum
+
+
+def _rows(J: np.ndarray, blocks: np.ndarray, k: np.ndarray) -> Triplets:
     """sum_c k_c J_c^T J_c for constraint rows c with gradient blocks J (r, nb, 3) on the 3-DOF
-    blocks ``blocks`` (r, nb), as a (3 n_blocks)^2 sparse matrix."""
+    blocks ``blocks`` (r, nb), as COO triplets."""
     r, nb = blocks.shape
-    vals, rows, cols = [], [], []
     three = np.arange(3)
-    for a in range(nb):
-        for b in range(nb):
-            vals.append((k[:, None, None] * J[:, a, :, None] * J[:, b, None, :]).ravel())
-            rows.append(np.broadcast_to((3 * blocks[:, a, None] + three)[:, :, None], (r, 3, 3)).ravel())
-            cols.append(np.broadcast_to((3 * blocks[:, b, None] + three)[:, None, :], (r, 3, 3)).ravel())
+    idx = 3 * blocks[:, :, None] + three  # (r, nb, 3)
+    vals = k[:, None, None, None, None] * J[:, :, None, :, None] * J[:, None, :, None, :]  # (r, a, b, 3, 3)
+    rows = np.broadcast_to(idx[:, :, None, :, None], (r, nb, nb, 3, 3))
+    cols = np.broadcast_to(idx[:, None, :, None, :], (r, nb, nb, 3, 3))
+    return vals.ravel(), rows.ravel(), cols.ravel()
+
+
+def _matrix(parts: list[Triplets], n_blocks: int) -> sp.csr_matrix:
+    """The sum of the COO ``parts`` as a (3 n_blocks)^2 CSR matrix."""
     size = 3 * n_blocks
-    return sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                         shape=(size, size)).tocsr()
+    vals, rows, cols = (np.concatenate(c) for c in zip(*parts))
+    return sp.csr_matrix((vals, (rows, cols)), shape=(size, size))
 
 
 def _tangents(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -81,17 +87,14 @@ def _tangents(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return t1, np.cross(u, t1)
 
 
-def _distance(J: np.ndarray, blocks: np.ndarray, u: np.ndarray, k: np.ndarray, C: np.ndarray, L: np.ndarray,
-              n_blocks: int) -> sp.csr_matrix:
+def _distance(J: np.ndarray, blocks: np.ndarray, u: np.ndarray, k: np.ndarray, C: np.ndarray,
+              L: np.ndarray) -> list[Triplets]:
     """Hessian of 1/2 k (L - rest)^2 for L = |d|, d = sum_b w_b x_b: k J^T J (J the rows w_b u)
     plus, where stretched (C = L - rest > 0), the geometric part k C / L (I - u u^T) over the same
     weights (dropped where compressed, so the Hessian stays positive semidefinite)."""
-    out = _rows(J, blocks, k, n_blocks)
     geo = k * np.maximum(C, 0.0) / np.maximum(L, 1e-300)
     w = np.einsum("rbc,rc->rb", J, u)  # the weights w_b
-    for t in _tangents(u):
-        out = out + _rows(w[:, :, None] * t[:, None, :], blocks, geo, n_blocks)
-    return out
+    return [_rows(J, blocks, k)] + [_rows(w[:, :, None] * t[:, None, :], blocks, geo) for t in _tangents(u)]
 
 
 def _darboux_rows(q, pairs, rest, length, kb, kt, P) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -114,43 +117,45 @@ def _darboux_rows(q, pairs, rest, length, kb, kt, P) -> tuple[np.ndarray, np.nda
 
 def hessian(setup: MechSetup, ms: MechState) -> sp.csr_matrix:
     """The Gauss-Newton Hessian of the potential E over [x (P, 3), theta (n, 3)] (module docstring)."""
-    P, n = setup.n_particles, setup.n_elements
-    N = P + n
-    parts = []
+    return _matrix(_hessian_rows(setup, ms), setup.n_particles + setup.n_elements)
+
+
+def _hessian_rows(setup: MechSetup, ms: MechState) -> list[Triplets]:
+    """:func:`hessian` as COO triplets, term by term."""
+    P = setup.n_particles
     e = np.flatnonzero(ms.element_ok)
     a, b, l = setup.fp[e], setup.fp[e] + 1, ms.rest_length[e]
     d = ms.x[b] - ms.x[a]
     L = np.linalg.norm(d, axis=1)
     u = d / np.maximum(L, 1e-300)[:, None]
-    parts.append(_distance(np.stack([-u, u], axis=1), np.stack([a, b], axis=1), u, setup.k_stretch[e] / l, L - l,
-                           L, N))
+    parts = _distance(np.stack([-u, u], axis=1), np.stack([a, b], axis=1), u, setup.k_stretch[e] / l, L - l, L)
     g = d / l[:, None]
     for axis in np.eye(3)[:2]:
         dk = rotate_np(ms.q[e], np.broadcast_to(axis, g.shape))
         J = np.stack([-dk / l[:, None], dk / l[:, None], np.cross(dk, g)], axis=1)
-        parts.append(_rows(J, np.stack([a, b, P + e], axis=1), setup.k_shear[e] * l, N))
+        parts.append(_rows(J, np.stack([a, b, P + e], axis=1), setup.k_shear[e] * l))
     kb, kt = joint_stiffness(setup, ms)
-    parts.append(_rows(*_darboux_rows(ms.q, setup.joints, setup.joint_rest, setup.joint_length, kb, kt, P), N))
+    parts.append(_rows(*_darboux_rows(ms.q, setup.joints, setup.joint_rest, setup.joint_length, kb, kt, P)))
     k_conn, k_pb, k_pt = equilibrium._reg_stiffness(setup, ms)
     c = np.flatnonzero(k_conn > 0.0)
     ai, aj = setup.fp[setup.edges[c, 0]], setup.fp[setup.edges[c, 1]]
     d = 0.5 * (ms.x[aj] + ms.x[aj + 1] - ms.x[ai] - ms.x[ai + 1])
     L = np.linalg.norm(d, axis=1)
     u = d / np.maximum(L, 1e-300)[:, None]
-    parts.append(_distance(0.5 * np.stack([-u, -u, u, u], axis=1), np.stack([ai, ai + 1, aj, aj + 1], axis=1), u,
-                           k_conn[c], L - ms.rest_offset[c], L, N))
-    parts.append(_rows(*_darboux_rows(ms.q, setup.edges, setup.edge_rest, setup.edge_length, k_pb, k_pt, P), N))
+    parts += _distance(0.5 * np.stack([-u, -u, u, u], axis=1), np.stack([ai, ai + 1, aj, aj + 1], axis=1), u,
+                       k_conn[c], L - ms.rest_offset[c], L)
+    parts.append(_rows(*_darboux_rows(ms.q, setup.edges, setup.edge_rest, setup.edge_length, k_pb, k_pt, P)))
     for row in setup.colliders:
         sd, normal = collider_distance_reference(row, ms.x)
         phi = ms.radius_p - sd
         p = np.flatnonzero(phi > 0.0)
-        parts.append(_rows(normal[p][:, None, :], p[:, None], 2.0 * setup.k_col * phi[p], N))
+        parts.append(_rows(normal[p][:, None, :], p[:, None], 2.0 * setup.k_col * phi[p]))
     if len(ms.pairs):
-        parts.append(_pair_rows(setup, ms, N))
-    return sum(parts[1:], parts[0])
+        parts.append(_pair_rows(setup, ms))
+    return parts
 
 
-def _pair_rows(setup: MechSetup, ms: MechState, N: int) -> sp.csr_matrix:
+def _pair_rows(setup: MechSetup, ms: MechState) -> Triplets:
     """2 k_col phi J^T J of the capsule pairs in contact (Eq. 4), J the closest points' weights
     times the normal."""
     i, j = ms.pairs[:, 0], ms.pairs[:, 1]
@@ -162,7 +167,7 @@ def _pair_rows(setup: MechSetup, ms: MechState, N: int) -> sp.csr_matrix:
     on = phi > 0.0
     w = np.stack([-(1.0 - s), -s, 1.0 - t, t], axis=1)[on]
     return _rows(w[:, :, None] * normal[on][:, None, :], np.stack([a, a + 1, b, b + 1], axis=1)[on],
-                 2.0 * setup.k_col * phi[on], N)
+                 2.0 * setup.k_col * phi[on])
 
 
 def _rotation_from(q: np.ndarray, q_ref: np.ndarray) -> np.ndarray:
@@ -206,12 +211,12 @@ class _Friction(NamedTuple):
         f = -(self.muN / np.maximum(np.linalg.norm(u, axis=1), STICK))[:, None] * u
         return np.stack([np.bincount(self.p, f[:, c], minlength=len(x)) for c in range(3)], axis=1)
 
-    def hessian(self, x: np.ndarray, n_blocks: int) -> sp.csr_matrix:
+    def rows(self, x: np.ndarray) -> Triplets:
         """(mu N / max(|u|, STICK)) (I - n n^T) per contact, as the two tangent rows."""
         k = self.muN / np.maximum(np.linalg.norm(self.slip(x), axis=1), STICK)
         t1, t2 = _tangents(self.n)
         return _rows(np.concatenate([t1, t2])[:, None, :], np.concatenate([self.p, self.p])[:, None],
-                     np.concatenate([k, k]), n_blocks)
+                     np.concatenate([k, k]))
 
 
 def _friction(setup: MechSetup, ms: MechState, x0: np.ndarray) -> _Friction:
@@ -278,7 +283,7 @@ def step(setup: MechSetup, ms: MechState, h: float = np.inf, tol: float = 1e-3, 
         fi, ti = inertia.forces(moving)
         grad = -np.concatenate([(F.f + fi + friction.forces(moving.x)).ravel(), (F.tau + ti).ravel()])
         phi0 = F.energy + inertia.energy(moving) + friction.energy(moving.x)
-        H = (hessian(setup, moving) + friction.hessian(moving.x, N) + sp.diags(M)).tocsr()[free][:, free]
+        H = (_matrix(_hessian_rows(setup, moving) + [friction.rows(moving.x)], N) + sp.diags(M)).tocsr()[free][:, free]
         d = np.zeros(3 * (P + n))
         d[free] = _solve(H, -grad[free])
         slope = float(grad @ d)
