@@ -33,12 +33,12 @@ def main(path: str = str(SAMPLES / "log.toml")) -> None:
     setup, ms = model.mech, state.mech
     mechanics.set_masses(setup, ms, np.full(model.n_elements, 0.5))
     kb, kt = mechanics.joint_stiffness(setup, ms)
-    lam = mechanics._multipliers(setup)
+    lam = mechanics.multipliers(setup)
 
     def direct(kernel=strand_solve.solve_strands):
         kernel(setup.strand_offsets[:-1], setup.strand_offsets[1:], setup.joint_of, setup.fp, ms.x, ms.q, ms.w_p,
                ms.w_q, ms.rest_length, setup.k_stretch, setup.k_shear, ms.element_ok, setup.joint_rest,
-               setup.joint_length, kb, kt, lam["s"], lam["sh"], lam["j"], setup.dt)
+               setup.joint_length, kb, kt, lam.s, lam.sh, lam.j, setup.dt)
 
     gs = replace(setup, strand_solver="gauss-seidel")
     plan = mechanics.stage1_plan(gs, ms)

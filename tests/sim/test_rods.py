@@ -25,23 +25,23 @@ def test_rod_kernels_equal_numpy_reference():
     for kernels in ((rods.stretch_shear, rods.bend_twist, rods.reg_pass),
                     (rods.stretch_shear_reference, rods.bend_twist_reference, rods.reg_pass_reference)):
         x, q = ms.x.copy(), ms.q.copy()
-        lam = mechanics._multipliers(setup)
+        lam = mechanics.multipliers(setup)
         ss, bt, rp = kernels
         for elems in setup.elems:
             ss(elems, setup.fp, x, q, ms.w_p, ms.w_q, ms.rest_length, setup.k_stretch, setup.k_shear,
-               ms.element_ok, lam["s"], lam["sh"], dt)
+               ms.element_ok, lam.s, lam.sh, dt)
         for idx in setup.joint_sets:
             bt(setup.joints, idx, q, ms.w_q, setup.joint_rest, setup.joint_length, setup.joint_kb,
-               setup.joint_kt, lam["j"], dt)
+               setup.joint_kt, lam.j, dt)
         rp(sw.edges, kreg.ptr, kreg.active, setup.fp, x, q, ms.w_p, ms.w_q, kreg.offset, kreg.k_conn, sw.rest,
-           sw.length, kreg.k_bend, kreg.k_twist, lam["c"], lam["p"], dt)
+           sw.length, kreg.k_bend, kreg.k_twist, lam.c, lam.p, dt)
         results.append((x, q, lam))
     (x1, q1, l1), (x2, q2, l2) = results
     assert np.abs(x1 - ms.x).max() > 1e-6  # the projections did something
     np.testing.assert_allclose(x1, x2, rtol=0, atol=1e-12)
     np.testing.assert_allclose(q1, q2, rtol=0, atol=1e-12)
-    for k in l1:
-        np.testing.assert_allclose(l1[k], l2[k], rtol=1e-9, atol=1e-15)
+    for k in ("s", "sh", "j", "c", "p"):
+        np.testing.assert_allclose(getattr(l1, k), getattr(l2, k), rtol=1e-9, atol=1e-15)
 
 
 def test_a_fresh_sweep_writes_every_multiplier_it_reads():

@@ -22,8 +22,8 @@ from .helpers import perturbed
 
 def _solve(kernel, setup, ms, x, q, lam, kb, kt, dt=1e-4):
     kernel(setup.strand_offsets[:-1], setup.strand_offsets[1:], setup.joint_of, setup.fp, x, q, ms.w_p, ms.w_q, ms.rest_length, setup.k_stretch,
-           setup.k_shear, ms.element_ok, setup.joint_rest, setup.joint_length, kb, kt, lam["s"], lam["sh"],
-           lam["j"], dt)
+           setup.k_shear, ms.element_ok, setup.joint_rest, setup.joint_length, kb, kt, lam.s, lam.sh,
+           lam.j, dt)
 
 
 def _broken():
@@ -40,7 +40,7 @@ def test_direct_solve_equals_numpy_reference():
     setup, ms, kb, kt = _broken()
     out = []
     for kernel in (strand_solve.solve_strands, strand_solve.solve_strands_reference):
-        x, q, lam = ms.x.copy(), ms.q.copy(), mechanics._multipliers(setup)
+        x, q, lam = ms.x.copy(), ms.q.copy(), mechanics.multipliers(setup)
         _solve(kernel, setup, ms, x, q, lam, kb, kt)
         out.append((x, q, lam))
     (x1, q1, l1), (x2, q2, l2) = out
@@ -48,7 +48,7 @@ def test_direct_solve_equals_numpy_reference():
     np.testing.assert_allclose(x1, x2, rtol=0, atol=1e-12)
     np.testing.assert_allclose(q1, q2, rtol=0, atol=1e-12)
     for k in ("s", "sh", "j"):
-        np.testing.assert_allclose(l1[k], l2[k], rtol=1e-8, atol=1e-14)
+        np.testing.assert_allclose(getattr(l1, k), getattr(l2, k), rtol=1e-8, atol=1e-14)
 
 
 def _second_over_first(scale: float, kernel_pair: str) -> float:
@@ -61,13 +61,13 @@ def _second_over_first(scale: float, kernel_pair: str) -> float:
     ms.x += rng.normal(scale=scale, size=ms.x.shape) * (ms.w_p > 0)[:, None]
     ms.q = normalize_np(ms.q + rng.normal(scale=20 * scale, size=ms.q.shape) * (ms.w_q > 0)[:, None])
     kjoint = mechanics.joint_stiffness(setup, ms)
-    lam = mechanics._multipliers(setup)
+    lam = mechanics.multipliers(setup)
     changes = []
     for _ in range(2):
-        before = {k: v.copy() for k, v in lam.items()}
+        before = lam.copy()
         pair = replace(setup, strand_solver=kernel_pair)
         mechanics.strand_stage(pair, ms, kjoint, mechanics.stage1_plan(pair, ms), lam, 1e-4)
-        changes.append({k: np.abs(lam[k] - before[k]).max() for k in ("sh", "j")})
+        changes.append({k: np.abs(getattr(lam, k) - getattr(before, k)).max() for k in ("sh", "j")})
     return max(changes[1][k] / changes[0][k] for k in ("sh", "j"))
 
 
@@ -89,9 +89,9 @@ def test_direct_solve_same_bits_with_one_or_two_threads():
     try:
         for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
             numba.set_num_threads(threads)
-            x, q, lam = ms.x.copy(), ms.q.copy(), mechanics._multipliers(setup)
+            x, q, lam = ms.x.copy(), ms.q.copy(), mechanics.multipliers(setup)
             _solve(strand_solve.solve_strands, setup, ms, x, q, lam, kb, kt)
-            runs.append(np.concatenate([x.ravel(), q.ravel(), lam["s"], lam["sh"].ravel(), lam["j"].ravel()]))
+            runs.append(np.concatenate([x.ravel(), q.ravel(), lam.s, lam.sh.ravel(), lam.j.ravel()]))
     finally:
         numba.set_num_threads(n0)
     assert runs[0].tobytes() == runs[1].tobytes()

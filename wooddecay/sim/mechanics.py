@@ -456,14 +456,26 @@ def _velocities(x, v, q, omega, x_old, q_old, w_p, w_q, dt):
             omega[e, 2] = 2.0 * sgn * d[3] / dt
 
 
-def _multipliers(setup: MechSetup, fresh_reg: bool = False) -> dict[str, np.ndarray]:
-    """XPBD multipliers of one substep, zero: stretch, shear, joints, REG connection and REG
-    bend-twist (these two in colour order, :class:`RegSweep`). ``fresh_reg``: the REG ones
-    uninitialised, for a first sweep that writes them (:func:`rods.reg_pass` ``fresh``)."""
+@dataclass(eq=False)
+class Multipliers:
+    """XPBD multipliers lambda of one substep (Eq. 1), per constraint kind."""
+
+    s: np.ndarray  # (n,) stretch
+    sh: np.ndarray  # (n, 2) shear
+    j: np.ndarray  # (J, 3) strand joint bend-twist
+    c: np.ndarray  # (m,) REG connection, colour order (:class:`RegSweep`)
+    p: np.ndarray  # (m, 3) REG pair bend-twist, colour order
+
+    def copy(self) -> "Multipliers":
+        return Multipliers(*(getattr(self, f.name).copy() for f in fields(self)))
+
+
+def multipliers(setup: MechSetup, fresh_reg: bool = False) -> Multipliers:
+    """XPBD multipliers of one substep, zero. ``fresh_reg``: the REG ones uninitialised, for a
+    first sweep that writes them (:func:`rods.reg_pass` ``fresh``)."""
     n, m = setup.n_elements, len(setup.edges)
     reg = np.empty if fresh_reg else np.zeros
-    return {"s": np.zeros(n), "sh": np.zeros((n, 2)), "j": np.zeros((len(setup.joints), 3)),
-            "c": reg(m), "p": reg((m, 3))}
+    return Multipliers(np.zeros(n), np.zeros((n, 2)), np.zeros((len(setup.joints), 3)), reg(m), reg((m, 3)))
 
 
 def joint_stiffness(setup: MechSetup, ms: MechState) -> tuple[np.ndarray, np.ndarray]:
@@ -472,7 +484,7 @@ def joint_stiffness(setup: MechSetup, ms: MechState) -> tuple[np.ndarray, np.nda
     return np.where(on, setup.joint_kb, 0.0), np.where(on, setup.joint_kt, 0.0)
 
 
-def _project(setup: MechSetup, ms: MechState, kjoint, plan: "Stage1Plan", kreg, lam: dict, dt: float,
+def _project(setup: MechSetup, ms: MechState, kjoint, plan: "Stage1Plan", kreg, lam: Multipliers, dt: float,
              fresh: bool = False) -> None:
     """One sweep of Stage 1 and Stage 2; ``fresh``: the substep's first, which writes the REG
     multipliers before it reads them (:func:`rods.reg_pass`)."""
@@ -480,7 +492,7 @@ def _project(setup: MechSetup, ms: MechState, kjoint, plan: "Stage1Plan", kreg, 
     strand_stage(setup, ms, kjoint, plan, lam, dt)
     sw = setup.sweep
     rods.reg_pass(sw.edges, kreg.ptr, kreg.active, fp, x, q, ms.w_p, ms.w_q, kreg.offset, kreg.k_conn, sw.rest,
-                  sw.length, kreg.k_bend, kreg.k_twist, lam["c"], lam["p"], dt, fresh)
+                  sw.length, kreg.k_bend, kreg.k_twist, lam.c, lam.p, dt, fresh)
 
 
 @dataclass(frozen=True, eq=False)
@@ -565,7 +577,7 @@ def direct_runs_reference(offsets, element_ok, edges, edge_ok, integrity, tied_o
     return lo, hi, direct
 
 
-def strand_stage(setup: MechSetup, ms: MechState, kjoint, plan: Stage1Plan, lam: dict, dt: float) -> None:
+def strand_stage(setup: MechSetup, ms: MechState, kjoint, plan: Stage1Plan, lam: Multipliers, dt: float) -> None:
     """Stage 1: the strands' stretch, shear and bend-twist constraints, the runs of ``plan`` by
     one direct solve each, the rest by one red-black Gauss-Seidel sweep."""
     fp, x, q = setup.fp, ms.x, ms.q
@@ -573,17 +585,26 @@ def strand_stage(setup: MechSetup, ms: MechState, kjoint, plan: Stage1Plan, lam:
     if len(plan.lo):
         strand_solve.solve_strands(plan.lo, plan.hi, setup.joint_of, fp, x, q, ms.w_p, ms.w_q, ms.rest_length,
                                    setup.k_stretch, setup.k_shear, ms.element_ok, setup.joint_rest,
-                                   setup.joint_length, kb, kt, lam["s"], lam["sh"], lam["j"], dt)
+                                   setup.joint_length, kb, kt, lam.s, lam.sh, lam.j, dt)
     for elems in plan.elems:
         if len(elems):
             rods.stretch_shear(elems, fp, x, q, ms.w_p, ms.w_q, ms.rest_length, setup.k_stretch, setup.k_shear,
-                               ms.element_ok, lam["s"], lam["sh"], dt)
+                               ms.element_ok, lam.s, lam.sh, dt)
     for idx in plan.joint_sets:
         if len(idx):
-            rods.bend_twist(setup.joints, idx, q, ms.w_q, setup.joint_rest, setup.joint_length, kb, kt, lam["j"], dt)
+            rods.bend_twist(setup.joints, idx, q, ms.w_q, setup.joint_rest, setup.joint_length, kb, kt, lam.j, dt)
 
 
-def stiffness(setup: MechSetup, ms: MechState) -> tuple:
+class Stiffness(NamedTuple):
+    """What a substep projects with (:func:`stiffness`)."""
+
+    reg: RegStiffness
+    joint: tuple[np.ndarray, np.ndarray]  # bend, twist stiffness of the strand joints
+    plan: "Stage1Plan"
+    tested: tuple[np.ndarray, np.ndarray] | None  # (elements, edges) the failure test reads; None: all
+
+
+def stiffness(setup: MechSetup, ms: MechState) -> Stiffness:
     """The REG (:meth:`RegSweep.arrays`) and strand joint stiffness of the current state and its
     :func:`stage1_plan`, without the constraints that move nothing while pieces are still
     (:func:`without_still`), and what the failure test needs to test after a substep that tested
@@ -592,11 +613,12 @@ def stiffness(setup: MechSetup, ms: MechState) -> tuple:
     I_ij, dp and what is still."""
     kreg, kjoint, plan = setup.sweep.arrays(ms), joint_stiffness(setup, ms), stage1_plan(setup, ms)
     if not sleep.still(ms).any():
-        return kreg, kjoint, plan, None
+        return Stiffness(kreg, kjoint, plan, None)
     moves = movable(setup, ms)
     kreg, plan = without_still(setup, moves, kreg, plan)
     edges = setup.edges
-    return kreg, kjoint, plan, (np.flatnonzero(moves), np.flatnonzero(moves[edges[:, 0]] | moves[edges[:, 1]]))
+    return Stiffness(kreg, kjoint, plan,
+                     (np.flatnonzero(moves), np.flatnonzero(moves[edges[:, 0]] | moves[edges[:, 1]])))
 
 
 def movable(setup: MechSetup, ms: MechState) -> np.ndarray:
@@ -604,7 +626,8 @@ def movable(setup: MechSetup, ms: MechState) -> np.ndarray:
     return (ms.w_p[setup.fp] > 0.0) | (ms.w_p[setup.fp + 1] > 0.0) | (ms.w_q > 0.0)
 
 
-def without_still(setup: MechSetup, moves: np.ndarray, kreg: RegStiffness, plan: Stage1Plan) -> tuple:
+def without_still(setup: MechSetup, moves: np.ndarray, kreg: RegStiffness, plan: Stage1Plan
+                  ) -> tuple[RegStiffness, Stage1Plan]:
     """``kreg``'s active edges and ``plan``'s elements, joints and runs less those of which no
     element ``moves`` (:func:`movable`): every weight they would apply is zero, so their
     projections move nothing, and a sleeping or held piece costs no sweep. Returns (kreg, plan)."""
@@ -625,7 +648,7 @@ def substep(model: WoodModel, state, dt: float) -> int:
     return _substep(model.mech, state.mech, dt)
 
 
-def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: tuple | None = None, lam: dict | None = None,
+def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: Stiffness | None = None, lam: Multipliers | None = None,
              check: bool = True, check_all: bool = True, record: bool = False) -> int:
     """:func:`substep`; ``stiff``: :func:`stiffness` of this state, if the caller holds it;
     ``lam``: a dict that receives the substep's multipliers (:func:`strain_excess`); ``check``:
@@ -637,9 +660,7 @@ def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: tuple | None = N
     _predict(ms.x, ms.v, ms.q, ms.omega, ms.w_p, ms.w_q, ms.mass_p, ms.force, setup.gravity, ms.torque,
              math.exp(-setup.damping * dt), dt, x_old, q_old)  # libm's, as wooddecay.fmath
     kreg, kjoint, plan, tested = stiff or stiffness(setup, ms)
-    fresh = _multipliers(setup, fresh_reg=True)
-    lam = fresh if lam is None else lam
-    lam.update(fresh)
+    lam = multipliers(setup, fresh_reg=True) if lam is None else lam
     normal_force = np.zeros(setup.n_particles)
     refresh_pairs(setup, ms)
     # contact (docs/decisions.md "Contact"): the normal steps of colliders and pairs, then friction
@@ -684,10 +705,9 @@ def strain_excess(setup: MechSetup, ms: MechState) -> float:
     Stage 1 and 2 from them gives each constraint's
     dlambda = -(C + alpha~ lambda) / (W + alpha~) (alpha~ = 1 / (k dt^2), W and k as in
     :mod:`~wooddecay.sim.rods`). ``ms`` is left untouched."""
-    lam: dict[str, np.ndarray]
-    probe, lam, dt = ms.copy(), {}, setup.dt / load_split(setup, ms.w_p, ms.force)
+    probe, lam, dt = ms.copy(), multipliers(setup, fresh_reg=True), setup.dt / load_split(setup, ms.w_p, ms.force)
     _substep(setup, probe, dt, lam=lam)
-    before = {k: v.copy() for k, v in lam.items()}
+    before = lam.copy()
     kreg, (kb, kt), plan, _ = stiffness(setup, probe)
     _project(setup, probe, (kb, kt), plan, kreg, lam, dt)
     fp, w_p, w_q, l = setup.fp, probe.w_p, probe.w_q, probe.rest_length
@@ -699,9 +719,9 @@ def strain_excess(setup: MechSetup, ms: MechState) -> float:
              ("j", Wj[:, None], np.stack([kb, kb, kt], axis=1) * setup.joint_length[:, None]))
     num = den = 0.0
     for key, W, k in kinds:
-        lam0 = before[key]
+        lam0 = getattr(before, key)
         at = np.divide(1.0, k * dt * dt, out=np.zeros_like(k * lam0), where=k > 0.0)
-        num += float((np.abs(lam[key] - lam0) * (W + at) * np.abs(lam0)).sum())
+        num += float((np.abs(getattr(lam, key) - lam0) * (W + at) * np.abs(lam0)).sum())
         den += float((at * lam0 * lam0).sum())
     return num / den if den > 0.0 else 0.0
 
@@ -837,8 +857,8 @@ def advance(model: WoodModel, state, n_sub: int) -> int:
     return _advance(model.mech, state.mech, n_sub)[0]
 
 
-def _advance(setup: MechSetup, ms: MechState, n_sub: int, stiff: tuple | None = None,
-             check: bool = True) -> tuple[int, tuple | None]:
+def _advance(setup: MechSetup, ms: MechState, n_sub: int, stiff: Stiffness | None = None,
+             check: bool = True) -> tuple[int, Stiffness | None]:
     """:func:`advance`; returns (new failures, the stiffness to pass to the next call); ``check``
     as in :func:`_substep`. The first substep tests every constraint for failure, the others
     only those of elements that can move (:func:`stiffness`): still wood keeps its strains and,
