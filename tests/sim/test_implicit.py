@@ -11,6 +11,7 @@ from wooddecay.sim.state import initial_state
 from wooddecay.studies import cantilever
 
 from ..conftest import sample
+from .helpers import fragments
 from .test_equilibrium import _clamped_tiny
 
 
@@ -62,3 +63,23 @@ def test_short_steps_converge_on_wood_lying_on_the_ground():
         report = implicit.step(setup, ms, 0.01, tol=1e-3)
         assert report.converged
     assert equilibrium.equilibrium_residual(setup, ms) < 0.5 * before
+
+
+def test_friction_forces_are_minus_the_gradient_of_its_energy():
+    """Lagged friction at the collider and pair contacts of the tiny log broken into its blocks:
+    its forces are the finite differences of its energy, in the stick and the slip regime."""
+    sim = fragments()
+    setup, ms = sim.model.mech, sim.state.mech
+    friction = implicit._friction(setup, ms, ms.x)
+    assert len(friction.muN) and (friction.w[:, 1:] != 0.0).any()  # pairs as well as the ground
+    rng = np.random.default_rng(2)
+    for scale in (1e-7, 1e-4):  # within and beyond STICK of slip
+        x = ms.x + rng.normal(scale=scale, size=ms.x.shape)
+        f = friction.forces(x)
+        for p in friction.blocks[rng.choice(len(friction.muN), 5, replace=False), 0]:
+            for c in range(3):
+                up, down = x.copy(), x.copy()
+                up[p, c] += 1e-10
+                down[p, c] -= 1e-10
+                fd = -(friction.energy(up) - friction.energy(down)) / 2e-10
+                assert fd == pytest.approx(f[p, c], rel=1e-3, abs=1e-6 * np.abs(f).max())

@@ -188,18 +188,20 @@ def _turned(q: np.ndarray, theta: np.ndarray) -> np.ndarray:
 
 
 class _Friction(NamedTuple):
-    """Lagged static friction at the collider contacts of the step's start: particle ``p`` with
-    normal ``n`` and normal force N at x0 resists its tangential slip u = (I - n n^T)(x - x0)
-    with the force -mu N u / max(|u|, STICK): a stiff spring up to STICK of slip, Coulomb's mu N
-    beyond it."""
+    """Lagged static friction at the contacts of the step's start, colliders and capsule pairs:
+    contact k's point r = sum_b w_b x_b (a particle against a collider; the closest points of a
+    pair, j's minus i's) resists its tangential slip u = (I - n n^T)(r - r0) from r0 at the
+    step's start with the force -mu N u / max(|u|, STICK) (shared by w_b): a stiff spring up to
+    STICK of slip, Coulomb's mu N beyond it."""
 
-    p: np.ndarray  # (k,) int64: contact particles
-    n: np.ndarray  # (k, 3) float64: collider normals
-    x0: np.ndarray  # (k, 3) float64, m: positions at the step's start
+    blocks: np.ndarray  # (k, 4) int64: the contact's particles
+    w: np.ndarray  # (k, 4) float64: their weights in r
+    n: np.ndarray  # (k, 3) float64: contact normals
+    r0: np.ndarray  # (k, 3) float64, m: r at the step's start
     muN: np.ndarray  # (k,) float64, N: mu_f times the normal force (Eq. 4)
 
     def slip(self, x: np.ndarray) -> np.ndarray:
-        d = x[self.p] - self.x0
+        d = np.einsum("kb,kbc->kc", self.w, x[self.blocks]) - self.r0
         return d - np.einsum("ij,ij->i", d, self.n)[:, None] * self.n
 
     def energy(self, x: np.ndarray) -> float:
@@ -209,28 +211,41 @@ class _Friction(NamedTuple):
     def forces(self, x: np.ndarray) -> np.ndarray:
         u = self.slip(x)
         f = -(self.muN / np.maximum(np.linalg.norm(u, axis=1), STICK))[:, None] * u
-        return np.stack([np.bincount(self.p, f[:, c], minlength=len(x)) for c in range(3)], axis=1)
+        per = (self.w[:, :, None] * f[:, None, :]).reshape(-1, 3)
+        return np.stack([np.bincount(self.blocks.ravel(), per[:, c], minlength=len(x)) for c in range(3)], axis=1)
 
     def rows(self, x: np.ndarray) -> Triplets:
         """(mu N / max(|u|, STICK)) (I - n n^T) per contact, as the two tangent rows."""
         k = self.muN / np.maximum(np.linalg.norm(self.slip(x), axis=1), STICK)
-        t1, t2 = _tangents(self.n)
-        return _rows(np.concatenate([t1, t2])[:, None, :], np.concatenate([self.p, self.p])[:, None],
-                     np.concatenate([k, k]))
+        J = np.concatenate([self.w[:, :, None] * t[:, None, :] for t in _tangents(self.n)])
+        return _rows(J, np.concatenate([self.blocks, self.blocks]), np.concatenate([k, k]))
 
 
 def _friction(setup: MechSetup, ms: MechState, x0: np.ndarray) -> _Friction:
-    """The :class:`_Friction` of the collider contacts of ``ms``, slip measured from ``x0`` (P, 3),
-    the step's start."""
+    """The :class:`_Friction` of the contacts of ``ms`` (colliders, then ``ms.pairs``), slip
+    measured from ``x0`` (P, 3)."""
     parts = []
+    one = np.array([1.0, 0.0, 0.0, 0.0])
     for row in setup.colliders:
         sd, normal = collider_distance_reference(row, ms.x)
         phi = ms.radius_p - sd
         p = np.flatnonzero(phi > 0.0)
-        parts.append((p, normal[p], x0[p], setup.mu_f * setup.k_col * phi[p] ** 2))
+        parts.append((np.repeat(p[:, None], 4, axis=1), np.tile(one, (len(p), 1)), normal[p],
+                      setup.mu_f * setup.k_col * phi[p] ** 2))
+    if len(ms.pairs):
+        i, j = ms.pairs[:, 0], ms.pairs[:, 1]
+        a, b = setup.fp[i], setup.fp[j]
+        s, t, normal, phi = capsule_contact_reference(ms.x[a], ms.x[a + 1], ms.radius[i], ms.x[b], ms.x[b + 1],
+                                                      ms.radius[j])
+        rest = ms.pairs_rest if len(ms.pairs_rest) == len(ms.pairs) else np.zeros(len(ms.pairs))
+        phi = phi - rest
+        on = phi > 0.0
+        parts.append((np.stack([a, a + 1, b, b + 1], axis=1)[on], np.stack([s - 1.0, -s, 1.0 - t, t], axis=1)[on],
+                      normal[on], setup.mu_f * setup.k_col * phi[on] ** 2))
     if not parts:
-        return _Friction(np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
-    return _Friction(*(np.concatenate(c) for c in zip(*parts)))
+        return _Friction(np.zeros((0, 4), np.int64), np.zeros((0, 4)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
+    blocks, w, n, muN = (np.concatenate(c) for c in zip(*parts))
+    return _Friction(blocks, w, n, np.einsum("kb,kbc->kc", w, x0[blocks]), muN)
 
 
 class _Inertia(NamedTuple):
