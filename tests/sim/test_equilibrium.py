@@ -29,36 +29,47 @@ def jostled():
     return setup, ms
 
 
+def _slope(setup, ms, move, h=1e-7):
+    """-dE/ds at s = 0 by central differences, ``move(copy, s)`` moving a copy of ``ms`` by s."""
+    E = []
+    for s in (h, -h):
+        moved = ms.copy()
+        move(moved, s)
+        E.append(_energy(setup, moved))
+    return -(E[0] - E[1]) / (2 * h)
+
+
+def _shift(p, c):
+    def move(ms, s):
+        ms.x[p, c] += s
+    return move
+
+
+def _turn(e, c):
+    def move(ms, s):
+        dq = np.zeros(4)
+        dq[0], dq[1 + c] = 1.0, 0.5 * s
+        ms.q[e] = normalize_np(mul_np(dq[None], ms.q[e][None]))[0]
+    return move
+
+
 def test_forces_are_minus_the_gradient_of_the_potential(jostled):
     setup, ms = jostled
     F = equilibrium.forces(setup, ms)[0]
     rng = np.random.default_rng(0)
-    h = 1e-7
     for p in rng.choice(np.flatnonzero(~setup.anchored_p), 6, replace=False):
         for c in range(3):
-            up, down = ms.copy(), ms.copy()
-            up.x[p, c] += h
-            down.x[p, c] -= h
-            fd = -(_energy(setup, up) - _energy(setup, down)) / (2 * h)
-            assert fd == pytest.approx(F.f[p, c], rel=1e-4, abs=1e-6 * np.abs(F.f).max())
+            assert _slope(setup, ms, _shift(p, c)) == pytest.approx(F.f[p, c], rel=1e-4, abs=1e-6 * np.abs(F.f).max())
 
 
 def test_torques_are_minus_the_gradient_under_world_rotations(jostled):
     setup, ms = jostled
     F = equilibrium.forces(setup, ms)[0]
     rng = np.random.default_rng(1)
-    h = 1e-7
     for e in rng.choice(np.flatnonzero(~setup.anchored_e), 6, replace=False):
         for c in range(3):
-            E = []
-            for sign in (1.0, -1.0):
-                turned = ms.copy()
-                dq = np.zeros(4)
-                dq[0], dq[1 + c] = 1.0, 0.5 * sign * h
-                turned.q[e] = normalize_np(mul_np(dq[None], turned.q[e][None]))[0]
-                E.append(_energy(setup, turned))
-            fd = -(E[0] - E[1]) / (2 * h)
-            assert fd == pytest.approx(F.tau[e, c], rel=1e-4, abs=1e-6 * np.abs(F.tau).max())
+            assert _slope(setup, ms, _turn(e, c)) == pytest.approx(F.tau[e, c], rel=1e-4,
+                                                                    abs=1e-6 * np.abs(F.tau).max())
 
 
 def test_forces_balance_with_no_external_load(jostled):

@@ -121,6 +121,27 @@ def _connections(setup: MechSetup, ms: MechState, k_conn: np.ndarray, f: np.ndar
     return float(0.5 * (kc * (L - dp) ** 2).sum())
 
 
+class PairContacts(NamedTuple):
+    """The capsule pairs of ``ms.pairs`` at their closest points (Eq. 3)."""
+
+    elements: np.ndarray  # (k, 2) int64: i, j
+    blocks: np.ndarray  # (k, 4) int64: the particles of i, then of j
+    w: np.ndarray  # (k, 4) float64: their weights in j's closest point minus i's
+    normal: np.ndarray  # (k, 3) float64: unit direction from i to j
+    phi: np.ndarray  # (k,) float64, m: penetration beyond the pair's rest overlap (negative: a gap)
+
+
+def pair_contacts(setup: MechSetup, ms: MechState) -> PairContacts:
+    """:class:`PairContacts` of ``ms.pairs`` (the Verlet list of :func:`mechanics.refresh_pairs`)."""
+    i, j = ms.pairs[:, 0], ms.pairs[:, 1]
+    a, b = setup.fp[i], setup.fp[j]
+    s, t, normal, phi = capsule_contact_reference(ms.x[a], ms.x[a + 1], ms.radius[i], ms.x[b], ms.x[b + 1],
+                                                  ms.radius[j])
+    rest = ms.pairs_rest if len(ms.pairs_rest) == len(ms.pairs) else np.zeros(len(ms.pairs))
+    return PairContacts(ms.pairs, np.stack([a, a + 1, b, b + 1], axis=1), np.stack([s - 1.0, -s, 1.0 - t, t], axis=1),
+                        normal, phi - rest)
+
+
 def _contacts(setup: MechSetup, ms: MechState) -> tuple[np.ndarray, float, np.ndarray]:
     """Normal contact forces (P, 3) of colliders and pairs (Eq. 4), their energy and the
     elements within contact reach (bool, (n,)): a gap under CONTACT_MARGIN radii, so a piece that
@@ -138,16 +159,12 @@ def _contacts(setup: MechSetup, ms: MechState) -> tuple[np.ndarray, float, np.nd
         hit |= ms.radius_p - sd > -CONTACT_MARGIN * ms.radius_p
     touching |= hit[setup.fp] | hit[setup.fp + 1]
     if len(ms.pairs):
-        i, j = ms.pairs[:, 0], ms.pairs[:, 1]
-        a, b = setup.fp[i], setup.fp[j]
-        s, t, normal, phi = capsule_contact_reference(ms.x[a], ms.x[a + 1], ms.radius[i], ms.x[b], ms.x[b + 1],
-                                                      ms.radius[j])
-        rest = ms.pairs_rest if len(ms.pairs_rest) == len(ms.pairs) else np.zeros(len(ms.pairs))
-        near = phi - rest > -CONTACT_MARGIN * np.minimum(ms.radius[i], ms.radius[j])
-        phi = np.maximum(phi - rest, 0.0)
-        F = (setup.k_col * phi * phi)[:, None] * normal  # on j, minus on i
-        for p, w in ((a, -(1.0 - s)), (a + 1, -s), (b, 1.0 - t), (b + 1, t)):
-            fc += _scatter(p, w[:, None] * F, P)
+        pc = pair_contacts(setup, ms)
+        i, j = pc.elements[:, 0], pc.elements[:, 1]
+        near = pc.phi > -CONTACT_MARGIN * np.minimum(ms.radius[i], ms.radius[j])
+        phi = np.maximum(pc.phi, 0.0)
+        F = (setup.k_col * phi * phi)[:, None] * pc.normal
+        fc += _scatter(pc.blocks.ravel(), (pc.w[:, :, None] * F[:, None, :]).reshape(-1, 3), P)
         energy += float(setup.k_col * (phi ** 3).sum() / 3.0)
         touching[i[near]] = touching[j[near]] = True
     return fc, energy, touching

@@ -29,7 +29,6 @@ import scipy.sparse.linalg as spla
 
 from ..quaternion import conj_np, mul_np, normalize_np, rotate_np
 from . import equilibrium, failure, mechanics, sleep
-from .contact.closest import capsule_contact_reference
 from .contact.colliders import collider_distance_reference
 from .mechanics import MechSetup, MechState, joint_stiffness
 from ..wood import WoodModel
@@ -158,16 +157,9 @@ def _hessian_rows(setup: MechSetup, ms: MechState) -> list[Triplets]:
 def _pair_rows(setup: MechSetup, ms: MechState) -> Triplets:
     """2 k_col phi J^T J of the capsule pairs in contact (Eq. 4), J the closest points' weights
     times the normal."""
-    i, j = ms.pairs[:, 0], ms.pairs[:, 1]
-    a, b = setup.fp[i], setup.fp[j]
-    s, t, normal, phi = capsule_contact_reference(ms.x[a], ms.x[a + 1], ms.radius[i], ms.x[b], ms.x[b + 1],
-                                                  ms.radius[j])
-    rest = ms.pairs_rest if len(ms.pairs_rest) == len(ms.pairs) else np.zeros(len(ms.pairs))
-    phi = phi - rest
-    on = phi > 0.0
-    w = np.stack([-(1.0 - s), -s, 1.0 - t, t], axis=1)[on]
-    return _rows(w[:, :, None] * normal[on][:, None, :], np.stack([a, a + 1, b, b + 1], axis=1)[on],
-                 2.0 * setup.k_col * phi[on])
+    pc = equilibrium.pair_contacts(setup, ms)
+    on = pc.phi > 0.0
+    return _rows(pc.w[on][:, :, None] * pc.normal[on][:, None, :], pc.blocks[on], 2.0 * setup.k_col * pc.phi[on])
 
 
 def _rotation_from(q: np.ndarray, q_ref: np.ndarray) -> np.ndarray:
@@ -233,15 +225,9 @@ def _friction(setup: MechSetup, ms: MechState, x0: np.ndarray) -> _Friction:
         parts.append((np.repeat(p[:, None], 4, axis=1), np.tile(one, (len(p), 1)), normal[p],
                       setup.mu_f * setup.k_col * phi[p] ** 2))
     if len(ms.pairs):
-        i, j = ms.pairs[:, 0], ms.pairs[:, 1]
-        a, b = setup.fp[i], setup.fp[j]
-        s, t, normal, phi = capsule_contact_reference(ms.x[a], ms.x[a + 1], ms.radius[i], ms.x[b], ms.x[b + 1],
-                                                      ms.radius[j])
-        rest = ms.pairs_rest if len(ms.pairs_rest) == len(ms.pairs) else np.zeros(len(ms.pairs))
-        phi = phi - rest
-        on = phi > 0.0
-        parts.append((np.stack([a, a + 1, b, b + 1], axis=1)[on], np.stack([s - 1.0, -s, 1.0 - t, t], axis=1)[on],
-                      normal[on], setup.mu_f * setup.k_col * phi[on] ** 2))
+        pc = equilibrium.pair_contacts(setup, ms)
+        on = pc.phi > 0.0
+        parts.append((pc.blocks[on], pc.w[on], pc.normal[on], setup.mu_f * setup.k_col * pc.phi[on] ** 2))
     if not parts:
         return _Friction(np.zeros((0, 4), np.int64), np.zeros((0, 4)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
     blocks, w, n, muN = (np.concatenate(c) for c in zip(*parts))
