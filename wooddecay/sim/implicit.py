@@ -17,7 +17,8 @@ gradient, as in :mod:`~wooddecay.sim.equilibrium`; contact 2 k_col phi n n^T) pl
 stiffness of stretched distances (projected Newton: positive semidefinite), exact where the
 constraints are satisfied, by Jacobi-preconditioned conjugate gradients; a backtracking line search keeps Phi
 decreasing. It stops when :func:`~wooddecay.sim.equilibrium.equilibrium_residual`, the inertia
-forces -M (x - x~) / h^2 included, is at most ``tol``. Anchored particles and elements stay.
+forces -M (x - x~) / h^2 included, is at most ``tol``, or, given ``stall``, as stalled when that
+many iterations have not halved it. Anchored particles and elements stay.
 """
 from __future__ import annotations
 
@@ -47,6 +48,10 @@ BAKE_TOL, FAILURE_ROUNDS = 0.01, 8
 SETTLE_NEWTON = 200
 #: shortest step (s) of a bake's implicit macro step
 STEP_FLOOR = 1.0
+#: step (s) after a break within a macro step
+BREAK_STEP = 0.01
+#: Newton stops as stalled when STALL iterations have not halved its residual
+STALL = 8
 
 
 class StepReport(NamedTuple):
@@ -265,7 +270,8 @@ def _solve(H: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
     return y * scale
 
 
-def step(setup: MechSetup, ms: MechState, h: float = np.inf, tol: float = 1e-3, max_newton: int = 30) -> StepReport:
+def step(setup: MechSetup, ms: MechState, h: float = np.inf, tol: float = 1e-3, max_newton: int = 30,
+         stall: int = 0) -> StepReport:
     """One backward Euler step of length ``h`` (inf: the static equilibrium) of ``ms`` in place,
     to an equilibrium residual of ``tol`` (module docstring); velocities from the step."""
     P, n = setup.n_particles, setup.n_elements
@@ -275,6 +281,7 @@ def step(setup: MechSetup, ms: MechState, h: float = np.inf, tol: float = 1e-3, 
     M = np.concatenate([np.repeat(inertia.m, 3), np.repeat(inertia.I, 3)])
     moving = MechState.copy(ms)
     res = equilibrium.equilibrium_residual(setup, moving, inertia.forces(moving))
+    history = [res]
     it = 0
     N = P + n
     for it in range(1, max_newton + 1):
@@ -299,7 +306,8 @@ def step(setup: MechSetup, ms: MechState, h: float = np.inf, tol: float = 1e-3, 
             alpha *= 0.5
         moving = trial
         res = equilibrium.equilibrium_residual(setup, moving, inertia.forces(moving))
-        if res <= tol:
+        history.append(res)
+        if res <= tol or (0 < stall < it and res > 0.5 * history[-1 - stall]):
             break
     ms.x, ms.q = moving.x, moving.q
     if not np.isinf(h):
@@ -317,9 +325,10 @@ def span(setup: MechSetup, n_sub: int) -> float:
 
 def macro_step(model: WoodModel, state, n_sub: int) -> int:
     """Algorithm 1 lines 4-8 with ``mechanics.solver = "implicit"``: one backward Euler step of
-    :func:`span` under the loads of the day, then the failure test; while
-    anything failed, the step again from there (at most FAILURE_ROUNDS times). Returns the new
-    failures."""
+    :func:`span` under the loads of the day (a stalled one goes on in a step of BREAK_STEP), then
+    the failure test; while anything failed, a step of BREAK_STEP from there and the test again
+    (at most FAILURE_ROUNDS times): what a break frees moves, and the inertia of short steps keeps
+    Newton well-posed. Returns the new failures."""
     setup, ms = model.mech, state.mech
     ms.force = mechanics.external_forces(setup, state.t_days)
     h = span(setup, n_sub)
@@ -327,13 +336,17 @@ def macro_step(model: WoodModel, state, n_sub: int) -> int:
     for _ in range(FAILURE_ROUNDS):
         ms.pairs_x = None
         mechanics.refresh_pairs(setup, ms)
-        report = step(setup, ms, h, tol=BAKE_TOL)
-        ms.unconverged[0] += not report.converged
+        report = step(setup, ms, h, tol=BAKE_TOL, stall=STALL)
         ms.t_seconds += h
+        if not report.converged and h > BREAK_STEP:  # a stalled long step: on in short ones
+            report = step(setup, ms, BREAK_STEP, tol=BAKE_TOL)
+            ms.t_seconds += BREAK_STEP
+        ms.unconverged[0] += not report.converged
         count = failure.update(setup, ms)
         new += count
         if not count:
             break
+        h = BREAK_STEP
     return new
 
 
