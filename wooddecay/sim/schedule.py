@@ -289,14 +289,22 @@ def _span(model: WoodModel, n_sub: int) -> float:
     return implicit.span(setup, n_sub) if setup.solver == "implicit" else n_sub * setup.dt
 
 
+def _budget(model: WoodModel, tol: Tolerances) -> float:
+    """What :func:`solve` may spend: ``tol.max_seconds`` of XPBD substeps, or as many implicit
+    steps (:func:`implicit.span` each, at least one) as fit in them."""
+    if model.mech.solver == "xpbd":
+        return tol.max_seconds - 1e-12
+    return max(1, math.floor(tol.max_seconds / implicit.span(model.mech, model.time.N_mech)))
+
+
 def solve(model: WoodModel, state, tol: Tolerances, reason: str | None = None) -> int:
     """Chunks of N_mech substeps, the first :func:`relax_substeps` long when ``reason`` (from
-    :func:`due`) is in ``RELAX``, until the wood is quiet or ``tol.max_seconds`` have run (module
+    :func:`due`) is in ``RELAX``, until the wood is quiet or the :func:`_budget` is spent (module
     docstring); marks the result as solved. Returns the number of chunks."""
     ms, dt = state.mech, model.mech.dt
     n_sub = relax_substeps(model) if reason in RELAX else model.time.N_mech
     chunks, substeps, quiet = 0, 0, False
-    while not quiet and substeps * dt < tol.max_seconds - 1e-12:
+    while not quiet and (substeps * dt if model.mech.solver == "xpbd" else chunks) < _budget(model, tol):
         x0 = ms.x.copy()
         pieces = big_pieces(ms)
         _macro_step(model, state, n_sub)
