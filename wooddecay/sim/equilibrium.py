@@ -71,15 +71,15 @@ def _darboux(q: np.ndarray, pairs: np.ndarray, rest: np.ndarray, length: np.ndar
     return _scatter(i, t, n) - _scatter(j, t, n), float(0.5 * (k * C * C).sum())
 
 
-def _reg_stiffness(setup: MechSetup, ms: MechState) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Connection, pair bend and pair twist stiffness per REG edge id (I_ij times the base, zero
-    where failed), as :meth:`~wooddecay.sim.mechanics.RegSweep.arrays` in edge order."""
-    sw, m = setup.sweep, len(setup.edges)
+def reg_stiffness(setup: MechSetup, ms: MechState) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Connection, pair bend and pair twist stiffness per REG edge id: those of
+    :meth:`~wooddecay.sim.mechanics.RegSweep.arrays`, taken out of colour order."""
+    kreg, order = setup.sweep.arrays(ms), setup.sweep.order
     out = []
-    for c, base in enumerate((sw.k_conn0, sw.k_pb0, sw.k_pt0)):
-        k = np.empty(m)
-        k[sw.order] = base
-        out.append(np.where(ms.edge_ok[:, c], ms.integrity * k, 0.0))
+    for k in (kreg.k_conn, kreg.k_bend, kreg.k_twist):
+        by_id = np.empty(len(order))
+        by_id[order] = k
+        out.append(by_id)
     return out[0], out[1], out[2]
 
 
@@ -179,7 +179,7 @@ def forces(setup: MechSetup, ms: MechState) -> tuple[Forces, np.ndarray]:
     t, e = _darboux(ms.q, setup.joints, setup.joint_rest, setup.joint_length, kb, kt)
     tau += t
     energy += e
-    k_conn, k_pb, k_pt = _reg_stiffness(setup, ms)
+    k_conn, k_pb, k_pt = reg_stiffness(setup, ms)
     energy += _connections(setup, ms, k_conn, f, scale)
     t, e = _darboux(ms.q, setup.edges, setup.edge_rest, setup.edge_length, k_pb, k_pt)
     tau += t

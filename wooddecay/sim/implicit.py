@@ -140,7 +140,7 @@ def _hessian_rows(setup: MechSetup, ms: MechState) -> list[Triplets]:
         parts.append(_rows(J, np.stack([a, b, P + e], axis=1), setup.k_shear[e] * l))
     kb, kt = joint_stiffness(setup, ms)
     parts.append(_rows(*_darboux_rows(ms.q, setup.joints, setup.joint_rest, setup.joint_length, kb, kt, P)))
-    k_conn, k_pb, k_pt = equilibrium._reg_stiffness(setup, ms)
+    k_conn, k_pb, k_pt = equilibrium.reg_stiffness(setup, ms)
     c = np.flatnonzero(k_conn > 0.0)
     ai, aj = setup.fp[setup.edges[c, 0]], setup.fp[setup.edges[c, 1]]
     d = 0.5 * (ms.x[aj] + ms.x[aj + 1] - ms.x[ai] - ms.x[ai + 1])
