@@ -29,7 +29,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..quaternion import conj_np, mul_np, normalize_np, rotate_np
-from . import equilibrium, failure, mechanics, sleep
+from . import equilibrium, failure, mechanics, precondition, sleep
 from .contact.colliders import collider_distance_reference
 from .mechanics import MechSetup, MechState, joint_stiffness
 from ..wood import WoodModel
@@ -62,26 +62,42 @@ class StepReport(NamedTuple):
     converged: bool  # residual <= tol
 
 
-Triplets = tuple[np.ndarray, np.ndarray, np.ndarray]  # values, rows, columns of a sparse sum
+class Blocks(NamedTuple):
+    """sum_c k_c J_c^T J_c of constraint rows c, as the 3x3 blocks between their 3-DOF blocks."""
+
+    values: np.ndarray  # (r, nb, nb, 3, 3) float64
+    blocks: np.ndarray  # (r, nb) int64: particle p is block p, element e's rotation block P + e
+
+    def __add__(self, other: "Blocks") -> "Blocks":  # type: ignore[override]
+        """The sum of two terms over the same rows and blocks."""
+        return Blocks(self.values + other.values, self.blocks)
 
 
-def _rows(J: np.ndarray, blocks: np.ndarray, k: np.ndarray) -> Triplets:
-    """sum_c k_c J_c^T J_c for constraint rows c with gradient blocks J (r, nb, 3) on the 3-DOF
-    blocks ``blocks`` (r, nb), as COO triplets."""
-    r, nb = blocks.shape
-    three = np.arange(3)
-    idx = 3 * blocks[:, :, None] + three  # (r, nb, 3)
-    vals = k[:, None, None, None, None] * J[:, :, None, :, None] * J[:, None, :, None, :]  # (r, a, b, 3, 3)
-    rows = np.broadcast_to(idx[:, :, None, :, None], (r, nb, nb, 3, 3))
-    cols = np.broadcast_to(idx[:, None, :, None, :], (r, nb, nb, 3, 3))
-    return vals.ravel(), rows.ravel(), cols.ravel()
+def _rows(J: np.ndarray, blocks: np.ndarray, k: np.ndarray) -> Blocks:
+    """:class:`Blocks` of constraint rows c with gradient blocks J (r, nb, 3) on ``blocks`` (r, nb)."""
+    return Blocks(k[:, None, None, None, None] * J[:, :, None, :, None] * J[:, None, :, None, :], blocks)
 
 
-def _matrix(parts: list[Triplets], n_blocks: int) -> sp.csr_matrix:
-    """The sum of the COO ``parts`` as a (3 n_blocks)^2 CSR matrix."""
-    size = 3 * n_blocks
-    vals, rows, cols = (np.concatenate(c) for c in zip(*parts))
-    return sp.csr_matrix((vals, (rows, cols)), shape=(size, size))
+def _matrix(parts: list[Blocks], n_blocks: int, free: np.ndarray | None = None) -> sp.bsr_matrix:
+    """The sum of ``parts`` as a block sparse (3x3) matrix over the blocks where ``free`` (all if
+    None), in block order: equal blocks summed by one sort of their (row, column) keys."""
+    index = np.arange(n_blocks) if free is None else np.cumsum(free) - 1
+    if free is not None:
+        index[~free] = -1
+    keys, vals = [], []
+    for part in parts:
+        r, nb = part.blocks.shape
+        b = index[part.blocks]
+        keep = ((b[:, :, None] >= 0) & (b[:, None, :] >= 0)).ravel()
+        keys.append((b[:, :, None] * n_blocks + b[:, None, :]).ravel()[keep])
+        vals.append(part.values.reshape(-1, 9)[keep])
+    n = n_blocks if free is None else int(free.sum())
+    key, val = np.concatenate(keys), np.concatenate(vals)
+    uniq, inv = np.unique(key, return_inverse=True)
+    data = np.stack([np.bincount(inv, val[:, c], minlength=len(uniq)) for c in range(9)], axis=1)
+    row, col = np.divmod(uniq, n_blocks)
+    indptr = np.searchsorted(row, np.arange(n + 1))
+    return sp.bsr_matrix((data.reshape(-1, 3, 3), col, indptr), shape=(3 * n, 3 * n))
 
 
 def _tangents(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -92,17 +108,20 @@ def _tangents(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _distance(J: np.ndarray, blocks: np.ndarray, u: np.ndarray, k: np.ndarray, C: np.ndarray,
-              L: np.ndarray) -> list[Triplets]:
+              L: np.ndarray) -> Blocks:
     """Hessian of 1/2 k (L - rest)^2 for L = |d|, d = sum_b w_b x_b: k J^T J (J the rows w_b u)
     plus, where stretched (C = L - rest > 0), the geometric part k C / L (I - u u^T) over the same
     weights (dropped where compressed, so the Hessian stays positive semidefinite)."""
     geo = k * np.maximum(C, 0.0) / np.maximum(L, 1e-300)
     w = np.einsum("rbc,rc->rb", J, u)  # the weights w_b
-    return [_rows(J, blocks, k)] + [_rows(w[:, :, None] * t[:, None, :], blocks, geo) for t in _tangents(u)]
+    t1, t2 = _tangents(u)
+    return _rows(J, blocks, k) + _rows(w[:, :, None] * t1[:, None, :], blocks, geo) + _rows(
+        w[:, :, None] * t2[:, None, :], blocks, geo)
 
 
-def _darboux_rows(q, pairs, rest, length, kb, kt, P) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Bend-twist rows: J on theta_j = (2 / l) A, on theta_i minus that, A = 1/2 (w I - [v]x) R_i^T."""
+def _darboux_rows(q, pairs, rest, length, kb, kt, P) -> Blocks:
+    """Bend-twist rows: J on theta_j = (2 / l) A, on theta_i minus that, A = 1/2 (w I - [v]x) R_i^T;
+    their blocks B = A^T diag(k) A on (j, j) and (i, i), -B on (i, j) and (j, i)."""
     on = (kb > 0.0) | (kt > 0.0)
     pairs, rest, length, kb, kt = pairs[on], rest[on], length[on], kb[on], kt[on]
     i, j = pairs[:, 0], pairs[:, 1]
@@ -113,18 +132,18 @@ def _darboux_rows(q, pairs, rest, length, kb, kt, P) -> tuple[np.ndarray, np.nda
     skew[:, 1, 0], skew[:, 2, 0], skew[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
     Rt = np.stack([rotate_np(conj_np(q[i]), np.broadcast_to(np.eye(3)[c], v.shape)) for c in range(3)], axis=2)
     A = 0.5 * (w[:, None, None] * np.eye(3) - skew) @ Rt * (2.0 / length)[:, None, None]
-    J = np.stack([np.stack([-A[:, c], A[:, c]], axis=1) for c in range(3)], axis=1).reshape(-1, 2, 3)
-    blocks = np.repeat(np.stack([P + i, P + j], axis=1), 3, axis=0)
-    k = (np.stack([kb, kb, kt], axis=1) * length[:, None]).ravel()
-    return J, blocks, k
+    k = np.stack([kb, kb, kt], axis=1) * length[:, None]
+    B = np.einsum("rci,rc,rcj->rij", A, k, A)
+    sign = np.array([[1.0, -1.0], [-1.0, 1.0]])
+    return Blocks(sign[None, :, :, None, None] * B[:, None, None], np.stack([P + i, P + j], axis=1))
 
 
 def hessian(setup: MechSetup, ms: MechState) -> sp.csr_matrix:
     """The Gauss-Newton Hessian of the potential E over [x (P, 3), theta (n, 3)] (module docstring)."""
-    return _matrix(_hessian_rows(setup, ms), setup.n_particles + setup.n_elements)
+    return _matrix(_hessian_rows(setup, ms), setup.n_particles + setup.n_elements).tocsr()
 
 
-def _hessian_rows(setup: MechSetup, ms: MechState) -> list[Triplets]:
+def _hessian_rows(setup: MechSetup, ms: MechState) -> list[Blocks]:
     """:func:`hessian` as COO triplets, term by term."""
     P = setup.n_particles
     e = np.flatnonzero(ms.element_ok)
@@ -132,23 +151,25 @@ def _hessian_rows(setup: MechSetup, ms: MechState) -> list[Triplets]:
     d = ms.x[b] - ms.x[a]
     L = np.linalg.norm(d, axis=1)
     u = d / np.maximum(L, 1e-300)[:, None]
-    parts = _distance(np.stack([-u, u], axis=1), np.stack([a, b], axis=1), u, setup.k_stretch[e] / l, L - l, L)
+    parts = [_distance(np.stack([-u, u], axis=1), np.stack([a, b], axis=1), u, setup.k_stretch[e] / l, L - l, L)]
     g = d / l[:, None]
+    shear = []
     for axis in np.eye(3)[:2]:
         dk = rotate_np(ms.q[e], np.broadcast_to(axis, g.shape))
         J = np.stack([-dk / l[:, None], dk / l[:, None], np.cross(dk, g)], axis=1)
-        parts.append(_rows(J, np.stack([a, b, P + e], axis=1), setup.k_shear[e] * l))
+        shear.append(_rows(J, np.stack([a, b, P + e], axis=1), setup.k_shear[e] * l))
+    parts.append(shear[0] + shear[1])
     kb, kt = joint_stiffness(setup, ms)
-    parts.append(_rows(*_darboux_rows(ms.q, setup.joints, setup.joint_rest, setup.joint_length, kb, kt, P)))
+    parts.append(_darboux_rows(ms.q, setup.joints, setup.joint_rest, setup.joint_length, kb, kt, P))
     k_conn, k_pb, k_pt = equilibrium.reg_stiffness(setup, ms)
     c = np.flatnonzero(k_conn > 0.0)
     ai, aj = setup.fp[setup.edges[c, 0]], setup.fp[setup.edges[c, 1]]
     d = 0.5 * (ms.x[aj] + ms.x[aj + 1] - ms.x[ai] - ms.x[ai + 1])
     L = np.linalg.norm(d, axis=1)
     u = d / np.maximum(L, 1e-300)[:, None]
-    parts += _distance(0.5 * np.stack([-u, -u, u, u], axis=1), np.stack([ai, ai + 1, aj, aj + 1], axis=1), u,
-                       k_conn[c], L - ms.rest_offset[c], L)
-    parts.append(_rows(*_darboux_rows(ms.q, setup.edges, setup.edge_rest, setup.edge_length, k_pb, k_pt, P)))
+    parts.append(_distance(0.5 * np.stack([-u, -u, u, u], axis=1), np.stack([ai, ai + 1, aj, aj + 1], axis=1), u,
+                           k_conn[c], L - ms.rest_offset[c], L))
+    parts.append(_darboux_rows(ms.q, setup.edges, setup.edge_rest, setup.edge_length, k_pb, k_pt, P))
     for row in setup.colliders:
         sd, normal = collider_distance_reference(row, ms.x)
         phi = ms.radius_p - sd
@@ -159,7 +180,7 @@ def _hessian_rows(setup: MechSetup, ms: MechState) -> list[Triplets]:
     return parts
 
 
-def _pair_rows(setup: MechSetup, ms: MechState) -> Triplets:
+def _pair_rows(setup: MechSetup, ms: MechState) -> Blocks:
     """2 k_col phi J^T J of the capsule pairs in contact (Eq. 4), J the closest points' weights
     times the normal."""
     pc = equilibrium.pair_contacts(setup, ms)
@@ -211,11 +232,12 @@ class _Friction(NamedTuple):
         per = (self.w[:, :, None] * f[:, None, :]).reshape(-1, 3)
         return np.stack([np.bincount(self.blocks.ravel(), per[:, c], minlength=len(x)) for c in range(3)], axis=1)
 
-    def rows(self, x: np.ndarray) -> Triplets:
+    def rows(self, x: np.ndarray) -> Blocks:
         """(mu N / max(|u|, STICK)) (I - n n^T) per contact, as the two tangent rows."""
         k = self.muN / np.maximum(np.linalg.norm(self.slip(x), axis=1), STICK)
-        J = np.concatenate([self.w[:, :, None] * t[:, None, :] for t in _tangents(self.n)])
-        return _rows(J, np.concatenate([self.blocks, self.blocks]), np.concatenate([k, k]))
+        t1, t2 = _tangents(self.n)
+        return _rows(self.w[:, :, None] * t1[:, None, :], self.blocks, k) + _rows(
+            self.w[:, :, None] * t2[:, None, :], self.blocks, k)
 
 
 def _friction(setup: MechSetup, ms: MechState, x0: np.ndarray) -> _Friction:
@@ -261,12 +283,21 @@ def _inertia(setup: MechSetup, ms: MechState, h: float) -> _Inertia:
                     w * ms.mass_e * setup.inertia_factor)
 
 
-def _solve(H: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
-    """H^-1 b by conjugate gradients on the diagonally scaled system (translation and rotation
-    stiffnesses differ by orders of magnitude) to LINEAR_TOL of |b|: an inexact Newton direction."""
-    scale = 1.0 / np.sqrt(H.diagonal())
-    S = sp.diags(scale)
-    y, _ = spla.cg((S @ H @ S).tocsr(), b * scale, rtol=LINEAR_TOL, maxiter=LINEAR_CAP)
+def _solve(H: sp.bsr_matrix, b: np.ndarray, strand: np.ndarray, position: np.ndarray, modes: sp.csr_matrix
+           ) -> np.ndarray:
+    """H^-1 b by conjugate gradients to LINEAR_TOL of |b| (an inexact Newton direction) on the
+    diagonally scaled system (translation and rotation stiffnesses differ by orders of magnitude),
+    preconditioned by :func:`~wooddecay.sim.precondition.two_level` over the blocks' ``strand``,
+    ``position`` and the coarse ``modes``. Unknowns without stiffness or inertia (a failed
+    element's rotation in a static solve) stay."""
+    diag = H.diagonal()
+    live = diag > 0.0
+    scale = np.where(live, 1.0 / np.sqrt(np.where(live, diag, 1.0)), 0.0)
+    A = H.tocsr()
+    A = (sp.diags(scale) @ A @ sp.diags(scale) + sp.diags((~live).astype(float))).tocsr()
+    M = precondition.two_level(A, strand, position, (sp.diags(np.where(live, 1.0 / np.where(live, scale, 1.0), 0.0))
+                                                     @ modes).tocsr())
+    y, _ = spla.cg(A, b * scale, rtol=LINEAR_TOL, maxiter=LINEAR_CAP, M=M)
     return y * scale
 
 
@@ -277,8 +308,12 @@ def step(setup: MechSetup, ms: MechState, h: float = np.inf, tol: float = 1e-3, 
     P, n = setup.n_particles, setup.n_elements
     inertia, friction = _inertia(setup, ms, h), _friction(setup, ms, ms.x)
     x0, q0 = ms.x.copy(), ms.q.copy()
-    free = np.concatenate([np.repeat(~setup.anchored_p, 3), np.repeat(~setup.anchored_e, 3)])
-    M = np.concatenate([np.repeat(inertia.m, 3), np.repeat(inertia.I, 3)])
+    free_blocks = np.concatenate([~setup.anchored_p, ~setup.anchored_e])
+    free = np.repeat(free_blocks, 3)
+    mass = Blocks(np.concatenate([inertia.m, inertia.I])[:, None, None, None, None] * np.eye(3),
+                  np.arange(P + n)[:, None])
+    strand, position = (a[free_blocks] for a in precondition.strand_of_blocks(setup))
+    modes = precondition.rigid_modes(setup, ms, precondition.aggregates(setup, ms))[free]
     moving = MechState.copy(ms)
     res = equilibrium.equilibrium_residual(setup, moving, inertia.forces(moving))
     history = [res]
@@ -291,9 +326,9 @@ def step(setup: MechSetup, ms: MechState, h: float = np.inf, tol: float = 1e-3, 
         fi, ti = inertia.forces(moving)
         grad = -np.concatenate([(F.f + fi + friction.forces(moving.x)).ravel(), (F.tau + ti).ravel()])
         phi0 = F.energy + inertia.energy(moving) + friction.energy(moving.x)
-        H = (_matrix(_hessian_rows(setup, moving) + [friction.rows(moving.x)], N) + sp.diags(M)).tocsr()[free][:, free]
+        H = _matrix(_hessian_rows(setup, moving) + [friction.rows(moving.x), mass], N, free_blocks)
         d = np.zeros(3 * (P + n))
-        d[free] = _solve(H, -grad[free])
+        d[free] = _solve(H, -grad[free], strand, position, modes)
         slope = float(grad @ d)
         alpha, trial = 1.0, moving
         for _ in range(LINE_SEARCH):
