@@ -158,11 +158,12 @@ def test_broken_scenes_exit_2_with_one_line_and_no_output(bad, tmp_path):
 
 
 @pytest.mark.slow
-def test_killed_bake_keeps_earlier_outputs_and_resume_equals_uninterrupted(tmp_path):
-    args = ["--days", "6", "--frames", "7"]
+@pytest.mark.parametrize("solver", ["xpbd", "implicit"])
+def test_killed_bake_keeps_earlier_outputs_and_resume_equals_uninterrupted(tmp_path, solver):
+    args = ["--days", "6", "--frames", "7", "--set", f"mechanics.solver={solver}"]
     out, ref = tmp_path / "out", tmp_path / "ref"
     assert run("bake", TINY, "-o", ref, *args).exit_code == 0
-    assert run("bake", TINY, "-o", out, "--days", "1", "--frames", "2").exit_code == 0
+    assert run("bake", TINY, "-o", out, "--days", "1", "--frames", "2", *args[4:]).exit_code == 0
     before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
     env = dict(os.environ, NUMBA_NUM_THREADS="1")
     proc = subprocess.Popen([sys.executable, "-m", "wooddecay.cli", "bake", TINY, "-o", str(out), *args],
@@ -200,11 +201,12 @@ def test_auto_beside_busy_cores_runs_one_thread_and_says_why(tmp_path, monkeypat
     assert f"({used['held_by_load']} held to fewer threads by other processes' load)" in res.output
 
 
-def test_any_thread_count_bakes_the_same_stage_and_the_summary_says_which(tmp_path):
+@pytest.mark.parametrize("solver", ["xpbd", pytest.param("implicit", marks=pytest.mark.slow)])
+def test_any_thread_count_bakes_the_same_stage_and_the_summary_says_which(tmp_path, solver):
     outs = {}
     for threads in ("1", "2", "auto"):
         out = tmp_path / threads
-        res = run("bake", TINY, "-o", out, *SHORT, "--threads", threads)
+        res = run("bake", TINY, "-o", out, *SHORT, "--threads", threads, "--set", f"mechanics.solver={solver}")
         assert res.exit_code == 0, res.output
         outs[threads] = out
         used = json.loads((out / "summary.json").read_text())["threads"]

@@ -51,7 +51,7 @@ from .signature import signature
 from .state import FIELDS, SimState, initial_state
 from .threads import ThreadChoice
 
-CHECKPOINT_VERSION = 9
+CHECKPOINT_VERSION = 10
 
 
 @dataclass(frozen=True, eq=False)
@@ -169,8 +169,9 @@ class Simulation:
         if not self.mechanics:
             return None
         rows = [self.history[0]["mechanics"]] + [f.diagnostics["mechanics"] for f in frames]
+        ms = cast(MechState, self.state.mech)
         return convergence(self.model.mech, [r["strain_excess"] for r in rows],
-                           [r["equilibrium_residual"] for r in rows], int(cast(MechState, self.state.mech).unconverged[0]))
+                           [r["equilibrium_residual"] for r in rows], int(ms.unconverged[0]), int(ms.resolves[0]))
 
     def advance(self, days: float) -> None:
         """Advance by ``days`` in macro steps of at most ``time.dt_bio``, equal between the days

@@ -29,10 +29,10 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..quaternion import conj_np, mul_np, normalize_np, rotate_np
-from . import equilibrium, failure, mechanics, precondition, sleep
+from ..wood import WoodModel
+from . import break_order, equilibrium, failure, mechanics, precondition, sleep
 from .contact.colliders import collider_distance_reference
 from .mechanics import MechSetup, MechState, joint_stiffness
-from ..wood import WoodModel
 
 #: backtracking halvings before a Newton iteration gives up on decreasing Phi
 LINE_SEARCH = 30
@@ -42,8 +42,8 @@ STICK = 1e-6
 LAG = 4
 #: relative tolerance and iteration cap of the Newton direction's conjugate gradients
 LINEAR_TOL, LINEAR_CAP = 1e-3, 5000
-#: equilibrium residual a bake's steps solve to, and steps after failures per macro step at most
-BAKE_TOL, FAILURE_ROUNDS = 0.01, 8
+#: equilibrium residual a bake's steps solve to, and rounds of failure in order per macro step at most
+BAKE_TOL, FAILURE_ROUNDS = 0.01, 24
 #: Newton iterations the static settling may take (from the rest shape, pressed into the ground)
 SETTLE_NEWTON = 200
 #: shortest step (s) of a bake's implicit macro step
@@ -68,7 +68,7 @@ class Blocks(NamedTuple):
     values: np.ndarray  # (r, nb, nb, 3, 3) float64
     blocks: np.ndarray  # (r, nb) int64: particle p is block p, element e's rotation block P + e
 
-    def __add__(self, other: "Blocks") -> "Blocks":  # type: ignore[override]
+    def __add__(self, other: Blocks) -> Blocks:  # type: ignore[override]
         """The sum of two terms over the same rows and blocks."""
         return Blocks(self.values + other.values, self.blocks)
 
@@ -86,7 +86,6 @@ def _matrix(parts: list[Blocks], n_blocks: int, free: np.ndarray | None = None) 
         index[~free] = -1
     keys, vals = [], []
     for part in parts:
-        r, nb = part.blocks.shape
         b = index[part.blocks]
         keep = ((b[:, :, None] >= 0) & (b[:, None, :] >= 0)).ravel()
         keys.append((b[:, :, None] * n_blocks + b[:, None, :]).ravel()[keep])
@@ -283,22 +282,72 @@ def _inertia(setup: MechSetup, ms: MechState, h: float) -> _Inertia:
                     w * ms.mass_e * setup.inertia_factor)
 
 
-def _solve(H: sp.bsr_matrix, b: np.ndarray, strand: np.ndarray, position: np.ndarray, modes: sp.csr_matrix
-           ) -> np.ndarray:
-    """H^-1 b by conjugate gradients to LINEAR_TOL of |b| (an inexact Newton direction) on the
-    diagonally scaled system (translation and rotation stiffnesses differ by orders of magnitude),
-    preconditioned by :func:`~wooddecay.sim.precondition.two_level` over the blocks' ``strand``,
-    ``position`` and the coarse ``modes``. Unknowns without stiffness or inertia (a failed
-    element's rotation in a static solve) stay."""
+class Layout(NamedTuple):
+    """What a step's Newton systems share: the free unknowns, the inertia's blocks and the
+    preconditioner's structure (:mod:`~wooddecay.sim.precondition`) over the free blocks."""
+
+    free_blocks: np.ndarray  # (P + n,) bool: particles, then element rotations, not anchored
+    mass: Blocks  # M / h^2 on the diagonal blocks
+    strand: np.ndarray  # (free blocks,) int64: the strand of each
+    position: np.ndarray  # (free blocks,) float64: its place along the strand
+    modes: sp.csr_matrix  # (free DOFs, 6 k): the aggregates' rigid modes
+
+    @property
+    def free(self) -> np.ndarray:
+        return np.repeat(self.free_blocks, 3)
+
+
+def layout(setup: MechSetup, ms: MechState, h: float) -> Layout:
+    """The :class:`Layout` of a step of ``h`` from ``ms``."""
+    inertia = _inertia(setup, ms, h)
+    free_blocks = np.concatenate([~setup.anchored_p, ~setup.anchored_e])
+    mass = Blocks(np.concatenate([inertia.m, inertia.I])[:, None, None, None, None] * np.eye(3),
+                  np.arange(len(free_blocks))[:, None])
+    strand, position = (a[free_blocks] for a in precondition.strand_of_blocks(setup))
+    modes = precondition.rigid_modes(setup, ms, precondition.aggregates(setup, ms))[np.repeat(free_blocks, 3)]
+    return Layout(free_blocks, mass, strand, position, modes)
+
+
+def scaled(H: sp.bsr_matrix, modes: sp.csr_matrix) -> tuple[sp.csr_matrix, np.ndarray, sp.csr_matrix]:
+    """H diagonally scaled to a unit diagonal (translation and rotation stiffnesses differ by
+    orders of magnitude), the scale, and ``modes`` in the scaled unknowns. Unknowns without
+    stiffness or inertia (a failed element's rotation in a static solve) get a unit row and a
+    zero scale: they stay."""
     diag = H.diagonal()
     live = diag > 0.0
     scale = np.where(live, 1.0 / np.sqrt(np.where(live, diag, 1.0)), 0.0)
-    A = H.tocsr()
-    A = (sp.diags(scale) @ A @ sp.diags(scale) + sp.diags((~live).astype(float))).tocsr()
-    M = precondition.two_level(A, strand, position, (sp.diags(np.where(live, 1.0 / np.where(live, scale, 1.0), 0.0))
-                                                     @ modes).tocsr())
-    y, _ = spla.cg(A, b * scale, rtol=LINEAR_TOL, maxiter=LINEAR_CAP, M=M)
+    A = (sp.diags(scale) @ H.tocsr() @ sp.diags(scale) + sp.diags((~live).astype(float))).tocsr()
+    return A, scale, (sp.diags(np.where(live, np.sqrt(np.where(live, diag, 1.0)), 0.0)) @ modes).tocsr()
+
+
+def _solve(H: sp.bsr_matrix, b: np.ndarray, lay: Layout) -> np.ndarray:
+    """H^-1 b by conjugate gradients to LINEAR_TOL of |b| (an inexact Newton direction) on the
+    :func:`scaled` system, preconditioned by :func:`~wooddecay.sim.precondition.two_level`."""
+    A, scale, modes = scaled(H, lay.modes)
+    y, _ = spla.cg(A, b * scale, rtol=LINEAR_TOL, maxiter=LINEAR_CAP,
+                   M=precondition.two_level(A, lay.strand, lay.position, modes))
     return y * scale
+
+
+def newton_system(setup: MechSetup, ms: MechState, inertia: _Inertia, friction: _Friction, lay: Layout
+                  ) -> tuple[sp.bsr_matrix, np.ndarray, float]:
+    """The Newton system of the incremental potential at ``ms``: the Hessian over the free
+    blocks, the gradient over all unknowns, and Phi."""
+    F, _ = equilibrium.forces(setup, ms)
+    fi, ti = inertia.forces(ms)
+    grad = -np.concatenate([(F.f + fi + friction.forces(ms.x)).ravel(), (F.tau + ti).ravel()])
+    phi = F.energy + inertia.energy(ms) + friction.energy(ms.x)
+    H = _matrix(_hessian_rows(setup, ms) + [friction.rows(ms.x), lay.mass], len(lay.free_blocks), lay.free_blocks)
+    return H, grad, phi
+
+
+def first_system(setup: MechSetup, ms: MechState, h: float) -> tuple[sp.csr_matrix, np.ndarray, Layout, sp.csr_matrix]:
+    """The first Newton system :func:`step` solves for a step of ``h`` from ``ms``, :func:`scaled`:
+    the matrix, the right-hand side, the layout and the coarse modes (for benchmarks)."""
+    lay = layout(setup, ms, h)
+    H, grad, _ = newton_system(setup, ms, _inertia(setup, ms, h), _friction(setup, ms, ms.x), lay)
+    A, scale, modes = scaled(H, lay.modes)
+    return A, -grad[lay.free] * scale, lay, modes
 
 
 def step(setup: MechSetup, ms: MechState, h: float = np.inf, tol: float = 1e-3, max_newton: int = 30,
@@ -308,27 +357,18 @@ def step(setup: MechSetup, ms: MechState, h: float = np.inf, tol: float = 1e-3, 
     P, n = setup.n_particles, setup.n_elements
     inertia, friction = _inertia(setup, ms, h), _friction(setup, ms, ms.x)
     x0, q0 = ms.x.copy(), ms.q.copy()
-    free_blocks = np.concatenate([~setup.anchored_p, ~setup.anchored_e])
-    free = np.repeat(free_blocks, 3)
-    mass = Blocks(np.concatenate([inertia.m, inertia.I])[:, None, None, None, None] * np.eye(3),
-                  np.arange(P + n)[:, None])
-    strand, position = (a[free_blocks] for a in precondition.strand_of_blocks(setup))
-    modes = precondition.rigid_modes(setup, ms, precondition.aggregates(setup, ms))[free]
+    lay = layout(setup, ms, h)
+    free = lay.free
     moving = MechState.copy(ms)
     res = equilibrium.equilibrium_residual(setup, moving, inertia.forces(moving))
     history = [res]
     it = 0
-    N = P + n
     for it in range(1, max_newton + 1):
         if it % LAG == 0:  # the contacts and their normal forces where the solve has got to
             friction = _friction(setup, moving, moving.x if np.isinf(h) else x0)
-        F, _ = equilibrium.forces(setup, moving)
-        fi, ti = inertia.forces(moving)
-        grad = -np.concatenate([(F.f + fi + friction.forces(moving.x)).ravel(), (F.tau + ti).ravel()])
-        phi0 = F.energy + inertia.energy(moving) + friction.energy(moving.x)
-        H = _matrix(_hessian_rows(setup, moving) + [friction.rows(moving.x), mass], N, free_blocks)
+        H, grad, phi0 = newton_system(setup, moving, inertia, friction, lay)
         d = np.zeros(3 * (P + n))
-        d[free] = _solve(H, -grad[free], strand, position, modes)
+        d[free] = _solve(H, -grad[free], lay)
         slope = float(grad @ d)
         alpha, trial = 1.0, moving
         for _ in range(LINE_SEARCH):
@@ -361,14 +401,16 @@ def span(setup: MechSetup, n_sub: int) -> float:
 def macro_step(model: WoodModel, state, n_sub: int) -> int:
     """Algorithm 1 lines 4-8 with ``mechanics.solver = "implicit"``: one backward Euler step of
     :func:`span` under the loads of the day (a stalled one goes on in a step of BREAK_STEP), then
-    the failure test; while anything failed, a step of BREAK_STEP from there and the test again
-    (at most FAILURE_ROUNDS times): what a break frees moves, and the inertia of short steps keeps
-    Newton well-posed. Returns the new failures."""
+    failure in order (:mod:`~wooddecay.sim.break_order`): while anything is over its limit, the
+    round's breaks, each furthest over its limit within its neighbourhood, and a step of
+    BREAK_STEP from there (what a break frees moves, and the inertia of short steps keeps Newton
+    well-posed); the last of FAILURE_ROUNDS rounds breaks all that is over. Returns the new
+    failures; ``ms.resolves`` counts the steps after breaks."""
     setup, ms = model.mech, state.mech
     ms.force = mechanics.external_forces(setup, state.t_days)
     h = span(setup, n_sub)
     new = 0
-    for _ in range(FAILURE_ROUNDS):
+    for round_ in range(FAILURE_ROUNDS):
         ms.pairs_x = None
         mechanics.refresh_pairs(setup, ms)
         report = step(setup, ms, h, tol=BAKE_TOL, stall=STALL)
@@ -377,7 +419,9 @@ def macro_step(model: WoodModel, state, n_sub: int) -> int:
             report = step(setup, ms, BREAK_STEP, tol=BAKE_TOL)
             ms.t_seconds += BREAK_STEP
         ms.unconverged[0] += not report.converged
-        count = failure.update(setup, ms)
+        ms.resolves[0] += round_ > 0
+        last = round_ == FAILURE_ROUNDS - 1
+        count = failure.update(setup, ms, tested=None if last else break_order.select(setup, ms))
         new += count
         if not count:
             break

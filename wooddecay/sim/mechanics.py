@@ -227,6 +227,8 @@ class MechState:
     quiet: np.ndarray = field(default_factory=lambda: np.zeros(1, dtype=bool))
     #: implicit steps that stopped at their Newton cap above their tolerance (checkpointed)
     unconverged: np.ndarray = field(default_factory=lambda: np.zeros(1, dtype=np.int64))
+    #: implicit steps re-solved after a round of breaks (:mod:`~wooddecay.sim.break_order`; checkpointed)
+    resolves: np.ndarray = field(default_factory=lambda: np.zeros(1, dtype=np.int64))
     #: the last exact failure test of every REG edge within this :func:`_advance`
     #: (:class:`failure.Epoch`; not checkpointed: each call starts with an exact test)
     fail_epoch: failure.Epoch | None = None
@@ -726,18 +728,20 @@ def strain_excess(setup: MechSetup, ms: MechState) -> float:
     return num / den if den > 0.0 else 0.0
 
 
-def convergence(setup: MechSetup, excess, residual, unconverged: int = 0) -> dict:
+def convergence(setup: MechSetup, excess, residual, unconverged: int = 0, resolves: int = 0) -> dict:
     """The bake's convergence report from the :func:`strain_excess` and the
     :func:`~wooddecay.sim.equilibrium.equilibrium_residual` of the settled rods and of every frame
     (``excess``, ``residual``, in that order; the excess is None under the implicit solver, which
-    has no multipliers) and the implicit steps that stopped at their cap (``unconverged``): the
+    has no multipliers), the implicit steps that stopped at their cap (``unconverged``) and those
+    re-solved after breaks (``resolves``): the
     largest values, whether the solver converged (XPBD: the excess within
     STRAIN_EXCESS_TOLERANCE; implicit: every step within its tolerance) and, if not, the remedy."""
     rmax = max(residual)
     out = {"equilibrium_residual_settled": residual[0], "equilibrium_residual_max": rmax}
     if setup.solver == "implicit":
         ok = unconverged == 0
-        return out | {"unconverged_steps": unconverged, "converged": ok, "remedy": None if ok else (
+        return out | {"unconverged_steps": unconverged, "resolves_after_breaks": resolves, "converged": ok,
+                      "remedy": None if ok else (
             f"{unconverged} implicit step(s) of the rods stopped at their Newton cap above their tolerance "
             f"(largest equilibrium residual {rmax:.3g}); lower mechanics.dt_mech or time.N_mech")}
     worst = max(excess)

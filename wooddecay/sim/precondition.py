@@ -67,24 +67,23 @@ def rigid_modes(setup: MechSetup, ms: MechState, agg: np.ndarray) -> sp.csr_matr
     count = np.bincount(agg_p)
     centre = np.stack([np.bincount(agg_p, ms.x[:, c]) for c in range(3)], axis=1) / np.maximum(count, 1)[:, None]
     r = ms.x - centre[agg_p]
-    rows, cols, vals = [], [], []
     p3, e3 = 3 * np.arange(P), 3 * (P + np.arange(n))
+    entries = []  # (rows, columns, values)
     for k in range(3):
-        rows.append(p3 + k), cols.append(6 * agg_p + k), vals.append(np.ones(P))
+        entries.append((p3 + k, 6 * agg_p + k, np.ones(P)))
         t = np.cross(np.eye(3)[k], r)
-        for m in range(3):
-            rows.append(p3 + m), cols.append(6 * agg_p + 3 + k), vals.append(t[:, m])
-        rows.append(e3 + k), cols.append(6 * agg + 3 + k), vals.append(np.ones(n))
+        entries += [(p3 + m, 6 * agg_p + 3 + k, t[:, m]) for m in range(3)]
+        entries.append((e3 + k, 6 * agg + 3 + k, np.ones(n)))
+    rows, cols, vals = (np.concatenate(c) for c in zip(*entries))
     k_agg = int(agg.max()) + 1 if len(agg) else 0
-    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                         shape=(3 * (P + n), 6 * k_agg))
+    return sp.csr_matrix((vals, (rows, cols)), shape=(3 * (P + n), 6 * k_agg))
 
 
 def two_level(A: sp.spmatrix, strand: np.ndarray, position: np.ndarray, modes: sp.csr_matrix
               ) -> spla.LinearOperator:
     """M^-1 (module docstring) for the scaled matrix ``A`` (3 b x 3 b) over b blocks whose strand
     and position along it are ``strand``, ``position``; ``modes`` the coarse basis in A's
-    (scaled) unknowns."""
+    (scaled) unknowns (no columns: strand blocks alone; a strand per block: 3x3 block Jacobi)."""
     dof_strand = np.repeat(strand, 3)
     order = np.argsort(np.repeat(position, 3) * 3.0 + np.tile(np.arange(3.0), len(position)), kind="stable")
     coo = A.tocoo()
@@ -97,9 +96,10 @@ def two_level(A: sp.spmatrix, strand: np.ndarray, position: np.ndarray, modes: s
     coarse = (modes_t @ (A @ modes)).toarray()
     d = np.diag(coarse).copy()
     coarse[np.diag_indices_from(coarse)] = np.where(d > 0.0, d * (1.0 + 1e-12), 1.0)
-    factor = sla.cho_factor(coarse)
+    factor = sla.cho_factor(coarse) if len(d) else None
 
     def apply(r: np.ndarray) -> np.ndarray:
-        return lu.solve(r[order])[rank] + modes @ sla.cho_solve(factor, modes_t @ r)
+        z = lu.solve(r[order])[rank]
+        return z if factor is None else z + modes @ sla.cho_solve(factor, modes_t @ r)
 
     return spla.LinearOperator(A.shape, apply, dtype=float)
