@@ -432,14 +432,20 @@ def macro_step(model: WoodModel, state, n_sub: int) -> int:
 def settle(model: WoodModel, state) -> None:
     """The rods' static equilibrium under gravity with infinite limits (only decayed connections
     and crumbled elements fail), its strains the reference of :func:`failure.update`, as
-    :func:`wooddecay.sim.mechanics.settle` does by settling in time."""
+    :func:`wooddecay.sim.mechanics.settle` does by settling in time. Wood that nothing can hold
+    (no anchor, no collider) has no static equilibrium: it falls, in steps of BREAK_STEP over
+    ``time.settle`` seconds, as XPBD's settling lets it."""
     setup, ms = model.mech, state.mech
     limits = ms.limit_elem, ms.limit_edge
     ms.limit_elem, ms.limit_edge = np.full_like(limits[0], np.inf), np.full_like(limits[1], np.inf)
     ms.force = np.zeros((setup.n_particles, 3))
     failure.update(setup, ms)
     mechanics.refresh_pairs(setup, ms)
-    ms.unconverged[0] += not step(setup, ms, np.inf, tol=BAKE_TOL, max_newton=SETTLE_NEWTON).converged
+    if setup.anchored_p.any() or len(setup.colliders):
+        ms.unconverged[0] += not step(setup, ms, np.inf, tol=BAKE_TOL, max_newton=SETTLE_NEWTON).converged
+    else:
+        for _ in range(int(np.ceil(model.time.settle / BREAK_STEP - 1e-9))):
+            ms.unconverged[0] += not step(setup, ms, BREAK_STEP, tol=BAKE_TOL).converged
     ms.limit_elem, ms.limit_edge = limits
     ms.strain_ref_elem, ms.strain_ref_edge = failure.strains(setup, ms)
     ms.v[:] = 0.0
