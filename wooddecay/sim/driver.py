@@ -152,6 +152,8 @@ class Simulation:
         for h in steps:
             if h["due"] is not None:
                 reasons[h["due"]] = reasons.get(h["due"], 0) + 1
+            if h.get("frame_solve"):
+                reasons["frame"] = reasons.get("frame", 0) + 1
         return {"schedule": self.model.time.schedule, "macro_steps": len(steps),
                 "solves": sum(reasons.values()), "chunks": sum(h["chunks"] for h in steps),
                 "mechanics_seconds": cast(MechState, self.state.mech).t_seconds if self.mechanics else 0.0, "due": reasons,
@@ -187,6 +189,15 @@ class Simulation:
             for _ in range(n):
                 self.macro_step(span / n)
 
+    def _frame_solve(self) -> None:
+        """Under the implicit solver, solve the rods against the rest data the last macro step's
+        coupling changed, so a frame shows wood in equilibrium (docs/decisions.md, "Implicit
+        frames"); counted in the last macro step's chunks and as a "frame" solve (the settled
+        rods of frame 0 are solved already)."""
+        last = self.history[-1]["mechanics"]
+        last["chunks"] += schedule.solve(self.model, self.state, self.model.time.tolerances, "frame")
+        last["frame_solve"] = True
+
     def frame(self, index: int) -> Frame:
         rods = {}
         if self.mechanics:
@@ -208,6 +219,8 @@ class Simulation:
             if k <= self.last_frame:
                 continue
             self.advance(t - self.state.t_days)
+            if self.mechanics and self.model.mech.solver == "implicit" and "chunks" in self.history[-1]["mechanics"]:
+                self._frame_solve()
             self.last_frame = k
             if self.checkpoint_dir is not None and self.checkpoint_every > 0 and k % self.checkpoint_every == 0:
                 self.save_checkpoint(self.checkpoint_dir / f"frame_{k:05d}.npz")
