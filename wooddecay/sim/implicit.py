@@ -15,10 +15,11 @@ Unknowns are the positions of the particles and a world rotation increment per e
 Gauss-Newton Hessian H = sum_c k_c J_c^T J_c of every constraint row c (C the constraint, J_c its
 gradient, as in :mod:`~wooddecay.sim.equilibrium`; contact 2 k_col phi n n^T) plus the geometric
 stiffness of stretched distances (projected Newton: positive semidefinite), exact where the
-constraints are satisfied, by Jacobi-preconditioned conjugate gradients; a backtracking line search keeps Phi
-decreasing. It stops when :func:`~wooddecay.sim.equilibrium.equilibrium_residual`, the inertia
-forces -M (x - x~) / h^2 included, is at most ``tol``, or, given ``stall``, as stalled when that
-many iterations have not halved it. Anchored particles and elements stay.
+constraints are satisfied, by conjugate gradients with the two-level preconditioner of
+:mod:`~wooddecay.sim.precondition`; a backtracking line search keeps Phi decreasing. It stops
+when :func:`~wooddecay.sim.equilibrium.equilibrium_residual`, the inertia forces -M (x - x~) / h^2
+included, is at most ``tol``, or, given ``stall``, as stalled when that many iterations have not
+halved it. Anchored particles and elements stay.
 """
 from __future__ import annotations
 
@@ -68,9 +69,10 @@ class Blocks(NamedTuple):
     values: np.ndarray  # (r, nb, nb, 3, 3) float64
     blocks: np.ndarray  # (r, nb) int64: particle p is block p, element e's rotation block P + e
 
-    def __add__(self, other: Blocks) -> Blocks:  # type: ignore[override]
-        """The sum of two terms over the same rows and blocks."""
-        return Blocks(self.values + other.values, self.blocks)
+
+def _summed(*terms: Blocks) -> Blocks:
+    """The sum of terms over the same rows and blocks."""
+    return Blocks(np.sum([t.values for t in terms], axis=0), terms[0].blocks)
 
 
 def _rows(J: np.ndarray, blocks: np.ndarray, k: np.ndarray) -> Blocks:
@@ -114,8 +116,8 @@ def _distance(J: np.ndarray, blocks: np.ndarray, u: np.ndarray, k: np.ndarray, C
     geo = k * np.maximum(C, 0.0) / np.maximum(L, 1e-300)
     w = np.einsum("rbc,rc->rb", J, u)  # the weights w_b
     t1, t2 = _tangents(u)
-    return _rows(J, blocks, k) + _rows(w[:, :, None] * t1[:, None, :], blocks, geo) + _rows(
-        w[:, :, None] * t2[:, None, :], blocks, geo)
+    return _summed(_rows(J, blocks, k), _rows(w[:, :, None] * t1[:, None, :], blocks, geo),
+                   _rows(w[:, :, None] * t2[:, None, :], blocks, geo))
 
 
 def _darboux_rows(q, pairs, rest, length, kb, kt, P) -> Blocks:
@@ -143,7 +145,7 @@ def hessian(setup: MechSetup, ms: MechState) -> sp.csr_matrix:
 
 
 def _hessian_rows(setup: MechSetup, ms: MechState) -> list[Blocks]:
-    """:func:`hessian` as COO triplets, term by term."""
+    """:func:`hessian` as :class:`Blocks`, term by term."""
     P = setup.n_particles
     e = np.flatnonzero(ms.element_ok)
     a, b, l = setup.fp[e], setup.fp[e] + 1, ms.rest_length[e]
@@ -157,7 +159,7 @@ def _hessian_rows(setup: MechSetup, ms: MechState) -> list[Blocks]:
         dk = rotate_np(ms.q[e], np.broadcast_to(axis, g.shape))
         J = np.stack([-dk / l[:, None], dk / l[:, None], np.cross(dk, g)], axis=1)
         shear.append(_rows(J, np.stack([a, b, P + e], axis=1), setup.k_shear[e] * l))
-    parts.append(shear[0] + shear[1])
+    parts.append(_summed(*shear))
     kb, kt = joint_stiffness(setup, ms)
     parts.append(_darboux_rows(ms.q, setup.joints, setup.joint_rest, setup.joint_length, kb, kt, P))
     k_conn, k_pb, k_pt = equilibrium.reg_stiffness(setup, ms)
@@ -235,8 +237,8 @@ class _Friction(NamedTuple):
         """(mu N / max(|u|, STICK)) (I - n n^T) per contact, as the two tangent rows."""
         k = self.muN / np.maximum(np.linalg.norm(self.slip(x), axis=1), STICK)
         t1, t2 = _tangents(self.n)
-        return _rows(self.w[:, :, None] * t1[:, None, :], self.blocks, k) + _rows(
-            self.w[:, :, None] * t2[:, None, :], self.blocks, k)
+        return _summed(_rows(self.w[:, :, None] * t1[:, None, :], self.blocks, k),
+                       _rows(self.w[:, :, None] * t2[:, None, :], self.blocks, k))
 
 
 def _friction(setup: MechSetup, ms: MechState, x0: np.ndarray) -> _Friction:
@@ -297,9 +299,8 @@ class Layout(NamedTuple):
         return np.repeat(self.free_blocks, 3)
 
 
-def layout(setup: MechSetup, ms: MechState, h: float) -> Layout:
-    """The :class:`Layout` of a step of ``h`` from ``ms``."""
-    inertia = _inertia(setup, ms, h)
+def layout(setup: MechSetup, ms: MechState, inertia: _Inertia) -> Layout:
+    """The :class:`Layout` of a step from ``ms`` with the :class:`_Inertia` ``inertia``."""
     free_blocks = np.concatenate([~setup.anchored_p, ~setup.anchored_e])
     mass = Blocks(np.concatenate([inertia.m, inertia.I])[:, None, None, None, None] * np.eye(3),
                   np.arange(len(free_blocks))[:, None])
@@ -344,8 +345,9 @@ def newton_system(setup: MechSetup, ms: MechState, inertia: _Inertia, friction: 
 def first_system(setup: MechSetup, ms: MechState, h: float) -> tuple[sp.csr_matrix, np.ndarray, Layout, sp.csr_matrix]:
     """The first Newton system :func:`step` solves for a step of ``h`` from ``ms``, :func:`scaled`:
     the matrix, the right-hand side, the layout and the coarse modes (for benchmarks)."""
-    lay = layout(setup, ms, h)
-    H, grad, _ = newton_system(setup, ms, _inertia(setup, ms, h), _friction(setup, ms, ms.x), lay)
+    inertia = _inertia(setup, ms, h)
+    lay = layout(setup, ms, inertia)
+    H, grad, _ = newton_system(setup, ms, inertia, _friction(setup, ms, ms.x), lay)
     A, scale, modes = scaled(H, lay.modes)
     return A, -grad[lay.free] * scale, lay, modes
 
@@ -357,7 +359,7 @@ def step(setup: MechSetup, ms: MechState, h: float = np.inf, tol: float = 1e-3, 
     P, n = setup.n_particles, setup.n_elements
     inertia, friction = _inertia(setup, ms, h), _friction(setup, ms, ms.x)
     x0, q0 = ms.x.copy(), ms.q.copy()
-    lay = layout(setup, ms, h)
+    lay = layout(setup, ms, inertia)
     free = lay.free
     moving = MechState.copy(ms)
     res = equilibrium.equilibrium_residual(setup, moving, inertia.forces(moving))
