@@ -175,7 +175,9 @@ def _bake(scene, out: Path, resume: bool, quality: str, progress, threads: int |
     seconds["meshing"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    usd = export_usd(out / f"{scene.name}.usdc", model, mesh, frames, version=__version__)
+    ex = scene.export
+    usd = export_usd(out / f"{scene.name}.usdc", model, mesh, frames, version=__version__,
+                     point_tolerance=ex.point_tolerance, field_step=ex.field_step)
     glb = export_gltf(out / f"{scene.name}.glb", model, mesh, frames[-1], version=__version__)
     seconds["export"] = time.perf_counter() - t0
 

@@ -11,6 +11,11 @@
   anything else (tokens, strings, topology counts) exactly;
 * relationships (e.g. material bindings) by their targets.
 
+Stages of two formats (a bake of an older wooddecay against one of this) are compared by what
+they hold: the layer metadata without the keys that say how it was written, and the wood of each
+at every frame as one mesh in the bake's order (:func:`wooddecay.export.wood_read.wood_at`:
+world points, faces, every primvar flattened), under the same tolerances.
+
 A file that cannot be opened, or a stage of a newer format than this wooddecay reads
 (customLayerData ``format_version``, :func:`wooddecay.export.usd.stage_format`; a stage without it
 is format 1), raises :class:`~wooddecay.errors.InputError` (exit 2 in the CLI).
@@ -53,8 +58,7 @@ def _open(path):
         raise InputError(str(p), "", "not a readable USD file")
     from .usd import stage_format
 
-    stage_format(stage.GetRootLayer().customLayerData, p)  # a newer stage is refused, not compared
-    return stage
+    return stage, stage_format(stage.GetRootLayer().customLayerData, p)  # a newer stage is refused
 
 
 def _as_array(v):
@@ -90,7 +94,7 @@ def compare_usd(a, b, rtol: float = 1e-6, atol: float = 1e-9) -> list[Difference
     """Differences between the USD files ``a`` and ``b`` (module docstring)."""
     from pxr import Usd, UsdGeom
 
-    sa, sb = _open(a), _open(b)
+    (sa, fa), (sb, fb) = _open(a), _open(b)
     out: list[Difference] = []
     meta = (("upAxis", UsdGeom.GetStageUpAxis), ("metersPerUnit", UsdGeom.GetStageMetersPerUnit),
             ("timeCodesPerSecond", Usd.Stage.GetTimeCodesPerSecond),
@@ -100,11 +104,18 @@ def compare_usd(a, b, rtol: float = 1e-6, atol: float = 1e-9) -> list[Difference
         if get(sa) != get(sb):
             out.append(Difference("", "metadata", f"{name} {get(sa)!r} != {get(sb)!r}"))
     ca, cb = dict(sa.GetRootLayer().customLayerData), dict(sb.GetRootLayer().customLayerData)
+    if fa != fb:
+        for k in WRITING:
+            ca.pop(k, None)
+            cb.pop(k, None)
     for k in sorted(set(ca) | set(cb)):
         if k not in ca or k not in cb:
             out.append(Difference("", "metadata", f"customLayerData[{k}] only in {'a' if k in ca else 'b'}"))
         else:
             _compare_values("", ca[k], cb[k], rtol, atol, f"customLayerData[{k}]", out)
+    if fa != fb:
+        _compare_wood(sa, sb, a, b, rtol, atol, out)
+        return out
     pa = {str(p.GetPath()): p for p in sa.Traverse()}
     pb = {str(p.GetPath()): p for p in sb.Traverse()}
     for path in sorted(set(pa) ^ set(pb)):
@@ -146,3 +157,21 @@ def _compare_prim(xa, xb, rtol, atol, out):
     for name in sorted(set(ra) | set(rb)):
         if ra.get(name) != rb.get(name):
             out.append(Difference(f"{base}.{name}", "relationship", f"{ra.get(name)} != {rb.get(name)}"))
+
+
+#: customLayerData keys that say how a stage is written, not what it holds
+WRITING = ("format_version", "point_tolerance", "field_step")
+
+
+def _compare_wood(sa, sb, a, b, rtol, atol, out):
+    """Stages of two formats: the wood of each (:func:`wooddecay.export.wood_read.wood_at`)
+    compared array by array at every frame."""
+    from .wood_read import wood_at
+
+    start, end = int(sa.GetStartTimeCode()), int(sa.GetEndTimeCode())
+    for t in range(start, end + 1):
+        wa, wb = wood_at(sa, t, a), wood_at(sb, t, b)
+        for name in sorted(set(wa) ^ set(wb)):
+            out.append(Difference(f"wood.{name}", "attribute", f"only in {'a' if name in wa else 'b'}"))
+        for name in sorted(set(wa) & set(wb)):
+            _compare_values(f"wood.{name}", wa[name], wb[name], rtol, atol, f"time {t:g}", out)

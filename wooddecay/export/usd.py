@@ -44,12 +44,14 @@ import numpy as np
 from . import bark_surface as surface
 from . import bark_texture as texture
 from ..errors import InputError
+from ..scene.schema import get_param
 from ..meshlets import skin as skin_mod
 from ..meshlets.visibility import NEVER, exposure
 from ..sim.state import FIELDS
 from . import stage as stage_mod
 from .colors import rot_color
 from .png import write_png16
+from .tracks import PoseTrack, changed, piece_max
 
 #: the bark's vertex primvars (:mod:`wooddecay.export.bark_surface`)
 BARK_PRIMVARS = ("bark_crack", "bark_crack_depth")
@@ -57,12 +59,17 @@ BARK_PRIMVARS = ("bark_crack", "bark_crack_depth")
 #: The baked stage's format, written as customLayerData ``format_version``. A change to what the
 #: stage holds or means (a prim, primvar or metadata key renamed, removed or reinterpreted) bumps it
 #: and is listed in CHANGELOG.md; readers refuse a stage of a newer format.
-FORMAT = 1
+FORMAT = 2
 #: the oldest stage format this wooddecay reads
 FORMAT_MIN = 1
 #: the format of a stage baked before ``format_version`` existed
 FORMAT_UNDECLARED = 1
 FORMAT_KEY = "format_version"
+#: ``[export] point_tolerance`` and ``field_step`` by default
+POINT_TOLERANCE = get_param("export.point_tolerance").default
+FIELD_STEP = get_param("export.field_step").default
+#: levels of H_c, H_l and M in the displayColor palette (a preview: 1/63 of the rot, 1/7 of the moisture)
+PALETTE = (64, 64, 8)
 
 
 def stage_format(custom_layer_data, file) -> int:
@@ -118,13 +125,32 @@ def crack_map_files(path) -> list[Path]:
             + ([single] if single.exists() else []))
 
 
-def export_usd(path, model, mesh, frames, version: str = "") -> Path:
+def _piece_runs(key: np.ndarray):
+    """(order, start): ``key`` sorted stably into runs of one piece each (piece k's items are
+    ``order[start[k]:start[k + 1]]``)."""
+    order = np.argsort(key, kind="stable")
+    return order, np.searchsorted(key[order], np.arange(int(key.max(initial=-1)) + 2))
+
+
+def _matrix(R, c):
+    """The row-vector USD matrix of world = R local + c."""
+    from pxr import Gf
+
+    m = np.eye(4)
+    m[:3, :3], m[3, :3] = R.T, c
+    return Gf.Matrix4d(*m.ravel().tolist())
+
+
+def export_usd(path, model, mesh, frames, version: str = "", point_tolerance: float = POINT_TOLERANCE,
+               field_step: float = FIELD_STEP) -> Path:
     """Write the baked stage (module docstring) for ``frames`` (a list of
-    :class:`wooddecay.sim.driver.Frame`) to ``path`` (.usda, .usdc or .usd)."""
+    :class:`wooddecay.sim.driver.Frame`) to ``path`` (.usda, .usdc or .usd); the tolerances are
+    ``[export]``'s."""
     from pxr import Gf, Sdf, UsdGeom, UsdShade, Vt
 
     path = stage_mod.check_usd_path(path, "baked")
     frames = list(frames)
+    tol_x, step_f = float(point_tolerance), float(field_step)
     stage, root = stage_mod.new_stage(model.info.name)
     stage.SetStartTimeCode(float(frames[0].index))
     stage.SetEndTimeCode(float(frames[-1].index))
@@ -135,66 +161,129 @@ def export_usd(path, model, mesh, frames, version: str = "") -> Path:
         FORMAT_KEY: FORMAT, "wooddecay_version": version, "scene": model.info.name, "seed": int(model.info.seed),
         "scene_hash": model.info.hash,
         "days_per_frame": float(model.time.days) / max(int(model.time.frames) - 1, 1),
-        "frame_days": Vt.DoubleArray(days),
+        "frame_days": Vt.DoubleArray(days), "point_tolerance": tol_x, "field_step": step_f,
     }
     link = skin_mod.links(model, mesh)
     first = exposure(model, mesh, frames)
     keep = first != NEVER
     index = np.array([f.index for f in frames], dtype=np.int32)
     shown_from = index[first[keep]]
-    faces = mesh.faces[keep]
-    used, inv = np.unique(faces, return_inverse=True)
+    used, inv = np.unique(mesh.faces[keep], return_inverse=True)
     faces = inv.reshape(-1, 3)
     fe = mesh.face_element[keep]
+    final = frames[-1].mech["component"] if frames[-1].mech else np.zeros(model.n_elements, dtype=np.int64)
+    ids, vpiece = np.unique(final[mesh.vertex_element[used]], return_inverse=True)
+    vorder, vstart = _piece_runs(vpiece)
+    forder, fstart = _piece_runs(vpiece[faces[:, 0]])
+    rank = np.empty_like(vorder)
+    rank[vorder] = np.arange(len(vorder))
+    local = rank[faces[forder]] - vstart[vpiece[faces[forder, 0]]][:, None]
+    fe, shown_from = fe[forder], shown_from[forder]
 
-    wood = UsdGeom.Mesh.Define(stage, f"{root}/Wood")
-    wood.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
-    wood.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(faces), 3, dtype=np.int32)))
-    wood.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(faces.astype(np.int32).ravel()))
-    pv = UsdGeom.PrimvarsAPI(wood)
     T = Sdf.ValueTypeNames
-    pv.CreatePrimvar("wood", T.Float3Array, UsdGeom.Tokens.vertex).Set(
-        Vt.Vec3fArray.FromNumpy(mesh.wood[used].astype(np.float32)))
-    pv.CreatePrimvar("ring", T.FloatArray, UsdGeom.Tokens.vertex).Set(
-        Vt.FloatArray.FromNumpy(mesh.ring[used].astype(np.float32)))
+    wood = UsdGeom.Xform.Define(stage, f"{root}/Wood")
     for old in crack_map_files(path):
         old.unlink()
     tiles = texture.crack_maps(model, frames)
+    uv = None
     if tiles is not None:
         for k, tile in enumerate(tiles):
             write_png16(path.with_name(texture.file_name(path.stem, k)), tile, "bark crack map")
         stage.GetRootLayer().customLayerData = {**stage.GetRootLayer().customLayerData,
                                                 "bark_texture": texture.file_name(path.stem)}
-        pv.CreatePrimvar("barkUV", T.TexCoord2fArray, UsdGeom.Tokens.faceVarying).Set(
-            Vt.Vec2fArray.FromNumpy(texture.bark_uv(model, mesh, mesh.faces[keep]).astype(np.float32)))
-    for name, values in (("element", fe), ("tissue", model.tissue[fe]), ("faceKind", mesh.face_kind[keep]),
-                         ("exposedFrame", shown_from)):
-        pv.CreatePrimvar(name, T.IntArray, UsdGeom.Tokens.uniform).Set(
-            Vt.IntArray.FromNumpy(np.asarray(values, dtype=np.int32)))
-    piece = pv.CreatePrimvar("piece", T.IntArray, UsdGeom.Tokens.uniform)
-    fields = {f: pv.CreatePrimvar(f, T.FloatArray, UsdGeom.Tokens.vertex) for f in FIELDS + BARK_PRIMVARS}
-    color = wood.CreateDisplayColorPrimvar(UsdGeom.Tokens.vertex)
-    points, extent = wood.CreatePointsAttr(), wood.CreateExtentAttr()
-    held = 0  # faces hidden at the last sample of holeIndices; no sample while none is hidden
+        uv = texture.bark_uv(model, mesh, mesh.faces[keep]).astype(np.float32).reshape(-1, 3, 2)[forder]
+    static_v = {"wood": (T.Float3Array, mesh.wood[used][vorder].astype(np.float32), Vt.Vec3fArray),
+                "ring": (T.FloatArray, mesh.ring[used][vorder].astype(np.float32), Vt.FloatArray),
+                "vertex": (T.IntArray, vorder.astype(np.int32), Vt.IntArray)}
+    static_f = {"face": forder, "element": fe, "tissue": model.tissue[fe], "faceKind": mesh.face_kind[keep][forder],
+                "exposedFrame": shown_from}
+    prims = []
+    for k, piece in enumerate(ids.tolist()):
+        vs, fs = slice(vstart[k], vstart[k + 1]), slice(fstart[k], fstart[k + 1])
+        m = UsdGeom.Mesh.Define(stage, f"{root}/Wood/piece_{piece}")
+        m.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+        m.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(fs.stop - fs.start, 3, dtype=np.int32)))
+        m.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(local[fs].astype(np.int32).ravel()))
+        pv = UsdGeom.PrimvarsAPI(m)
+        for name, (kind, values, vt) in static_v.items():
+            pv.CreatePrimvar(name, kind, UsdGeom.Tokens.vertex).Set(vt.FromNumpy(np.ascontiguousarray(values[vs])))
+        for name, values in static_f.items():
+            pv.CreatePrimvar(name, T.IntArray, UsdGeom.Tokens.uniform).Set(
+                Vt.IntArray.FromNumpy(np.asarray(values[fs], dtype=np.int32)))
+        if uv is not None:
+            pv.CreatePrimvar("barkUV", T.TexCoord2fArray, UsdGeom.Tokens.faceVarying).Set(
+                Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(uv[fs].reshape(-1, 2))))
+        tabled = {f: pv.CreatePrimvar(f, T.FloatArray, UsdGeom.Tokens.vertex) for f in FIELDS + BARK_PRIMVARS}
+        tabled["displayColor"] = m.CreateDisplayColorPrimvar(UsdGeom.Tokens.vertex)
+        attrs = {"xform": m.AddTransformOp(), "points": m.CreatePointsAttr(), "extent": m.CreateExtentAttr(),
+                 "piece": pv.CreatePrimvar("piece", T.IntArray, UsdGeom.Tokens.uniform).GetAttr(),
+                 "holeIndices": m.CreateHoleIndicesAttr()}
+        attrs.update((f, p.CreateIndicesAttr()) for f, p in tabled.items())
+        prims.append((vs, fs, attrs, {name: [] for name in attrs}, tabled))
+
+    columns = FIELDS + BARK_PRIMVARS
+    step = np.array([step_f] * (len(FIELDS) + 1) + [tol_x])  # bark_crack_depth is a length
+    lo = np.array([min(float(f.fields[c].min(initial=0.0)) for f in frames) for c in FIELDS] + [0.0, 0.0])
+    hi = np.array([max(float(f.fields[c].max(initial=0.0)) for f in frames) for c in FIELDS]
+                  + [1.0, float(model.bark_thickness)])
+    k_lo, k_hi = np.floor(lo / step).astype(np.int64), np.ceil(hi / step).astype(np.int64)
+    tables = [Vt.FloatArray.FromNumpy((np.arange(k_lo[j], k_hi[j] + 1) * step[j]).astype(np.float32))
+              for j in range(len(columns))]
+    ix = {f: j for j, f in enumerate(columns)}
+    colour = [ix[f] for f in ("H_c", "H_l", "M")]
+    grid = np.meshgrid(*(np.linspace(0.0, 1.0, n) for n in PALETTE), indexing="ij")
+    palette = Vt.Vec3fArray.FromNumpy(rot_color(*(g.ravel() for g in grid)))
+    for *_, tabled in prims:
+        for f, table in zip(columns, tables):
+            tabled[f].Set(table)
+        tabled["displayColor"].Set(palette)
+    track = level = held_piece = prev = None
     for fr in frames:
-        t = float(fr.index)
-        hidden = np.flatnonzero(shown_from > fr.index).astype(np.int32)
-        if len(hidden) != held:  # the hidden set only shrinks
-            wood.CreateHoleIndicesAttr().Set(Vt.IntArray.FromNumpy(hidden), t)
-            held = len(hidden)
         crack, depth, offset = surface.frame_bark(model, mesh, fr)
         P, F = skin_mod.frame_arrays(model, mesh, link, fr, offset)
-        P, F = P[used].astype(np.float32), F[used].astype(np.float32)
-        points.Set(Vt.Vec3fArray.FromNumpy(P), t)
-        extent.Set(Vt.Vec3fArray([Gf.Vec3f(*P.min(0).tolist()), Gf.Vec3f(*P.max(0).tolist())]), t)
-        for k, f in enumerate(FIELDS):
-            fields[f].Set(Vt.FloatArray.FromNumpy(np.ascontiguousarray(F[:, k])), t)
-        for f, v in zip(BARK_PRIMVARS, (crack, depth)):
-            fields[f].Set(Vt.FloatArray.FromNumpy(v[used].astype(np.float32)), t)
-        ix = {f: k for k, f in enumerate(FIELDS)}
-        color.Set(Vt.Vec3fArray.FromNumpy(rot_color(F[:, ix["H_c"]], F[:, ix["H_l"]], F[:, ix["M"]])), t)
-        comp = fr.mech["component"][fe] if fr.mech else np.zeros(len(fe))
-        piece.Set(Vt.IntArray.FromNumpy(comp.astype(np.int32)), t)
+        X = P[used][vorder]
+        values = np.concatenate([F[used], crack[used][:, None], depth[used][:, None]], 1)[vorder]
+        now = np.clip(np.rint(values / step).astype(np.int64), k_lo, k_hi) - k_lo
+        comp = (fr.mech["component"][fe] if fr.mech else np.zeros(len(fe))).astype(np.int32)
+        hidden = shown_from > fr.index
+        if track is None:
+            track, level, held_piece = PoseTrack(X, vstart), now, comp.copy()
+            pose = shape = regroup = hidden_now = np.ones(len(ids), dtype=bool)
+            fresh = np.ones((len(ids), len(columns)), dtype=bool)
+        else:
+            pose, shape = track.update(X, tol_x)
+            fresh = changed(now, level, vstart, 0)
+            level = now
+            regroup = piece_max((comp != held_piece).astype(np.float64), fstart) > 0
+            held_piece = comp
+            hidden_now = piece_max((hidden != (shown_from > prev)).astype(np.float64), fstart) > 0
+        prev = fr.index
+        tint = fresh[:, colour].any(1)
+        cell = [np.rint(values[:, j] * (n - 1)).clip(0, n - 1).astype(np.int64) for j, n in zip(colour, PALETTE)]
+        swatch = ((cell[0] * PALETTE[1] + cell[1]) * PALETTE[2] + cell[2]).astype(np.int32)
+        for k, (vs, fs, attrs, samples, _) in enumerate(prims):
+            def put(name, make, new):
+                samples[name].append(make() if new or not samples[name] else samples[name][-1])
+            L = track.L[vs].astype(np.float32)
+            put("xform", lambda: _matrix(track.R[k], track.c[k]), pose[k])
+            put("points", lambda: Vt.Vec3fArray.FromNumpy(L), shape[k])
+            put("extent", lambda: Vt.Vec3fArray([Gf.Vec3f(*L.min(0).tolist()), Gf.Vec3f(*L.max(0).tolist())]),
+                shape[k])
+            for j, f in enumerate(columns):
+                put(f, lambda: Vt.IntArray.FromNumpy(level[vs, j].astype(np.int32)), fresh[k, j])
+            put("displayColor", lambda: Vt.IntArray.FromNumpy(swatch[vs]), tint[k])
+            put("piece", lambda: Vt.IntArray.FromNumpy(held_piece[fs]), regroup[k])
+            put("holeIndices", lambda: Vt.IntArray.FromNumpy(np.flatnonzero(hidden[fs]).astype(np.int32)),
+                hidden_now[k])
+
+    for _, _, attrs, samples, _ in prims:
+        for name, values in samples.items():
+            if len({id(v) for v in values}) == 1:
+                if name != "holeIndices" or len(values[0]):
+                    attrs[name].Set(values[0])
+            else:
+                for fr, v in zip(frames, values):
+                    attrs[name].Set(v, float(fr.index))
 
     UsdGeom.Scope.Define(stage, f"{root}/Looks")
     mat = UsdShade.Material.Define(stage, f"{root}/Looks/Wood")

@@ -269,6 +269,8 @@ _SCHEMA: dict[str, list[tuple]] = {
         ("usd", True, "", "", "Write the USD stage <name>.usdc."),
         ("gltf", True, "", "", "Write the glTF binary <name>.glb."),
         ("gltf_frame", -1, "", "any", "Frame exported to glTF; negative counts from the end (-1 = last)."),
+        ("point_tolerance", 2e-4, "m", "(0, 0.1]", "A piece's points are written again at a frame only where the frame's points lie further than this from the last written ones carried by the piece's rigid motion (itself written as the piece's transform when it moved a point further than this); the same bound on bark_crack_depth (docs/architecture.md \"USD stage\")."),
+        ("field_step", 2e-3, "", "(0, 1]", "H_c, H_l, M, R_w, R_b, C and bark_crack are written as indices into a table of values this far apart (indexed primvars), so a written value is off by at most half of it (a quarter of a step of an 8-bit colour); a piece's indices are written again only at a frame where one changed (docs/architecture.md \"USD stage\")."),
     ],
 }
 
