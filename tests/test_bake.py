@@ -8,10 +8,12 @@ import subprocess
 import sys
 import time
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
 from wooddecay.cli import main
+from wooddecay.export.wood_read import wood_at, wood_meshes
 from wooddecay.sim import implicit
 from wooddecay.sim.threads import LoadMonitor
 
@@ -107,19 +109,25 @@ def test_baked_stage_follows_the_contract(baked):
     assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (0.0, 2.0)
     meta = stage.GetRootLayer().customLayerData
     assert meta["scene"] == "tiny" and len(meta["scene_hash"]) == 64
-    wood = UsdGeom.Mesh(stage.GetPrimAtPath("/World/tiny/Wood"))
-    assert wood.GetPointsAttr().GetTimeSamples() == [0.0, 1.0, 2.0]
-    pv = UsdGeom.PrimvarsAPI(wood)
-    for name in ("H_c", "H_l", "M", "R_w", "R_b", "C"):
-        p = pv.GetPrimvar(name)
-        assert p.GetInterpolation() == "vertex" and p.GetAttr().GetTimeSamples() == [0.0, 1.0, 2.0]
-    for name in ("element", "tissue", "faceKind", "piece"):
-        assert pv.GetPrimvar(name).GetInterpolation() == "uniform"
-    assert pv.GetPrimvar("wood").GetAttr().GetTimeSamples() == []
-    H_c0 = pv.GetPrimvar("H_c").Get(0.0)
-    H_c2 = pv.GetPrimvar("H_c").Get(2.0)
-    assert min(H_c2) < max(H_c0)  # brown rot from the root end lowers H_c
-    mat, _ = UsdShade.MaterialBindingAPI(wood.GetPrim()).ComputeBoundMaterial()
+    assert meta["format_version"] == 2 and meta["point_tolerance"] == 2e-4 and meta["field_step"] == 2e-3
+    wood = stage.GetPrimAtPath("/World/tiny/Wood")
+    pieces = wood_meshes(stage)
+    assert wood.GetTypeName() == "Xform" and pieces and all(p.GetParent() == wood for p in pieces)
+    for piece in pieces:
+        pv = UsdGeom.PrimvarsAPI(piece)
+        for name in ("H_c", "H_l", "M", "R_w", "R_b", "C", "bark_crack", "bark_crack_depth", "displayColor"):
+            p = pv.GetPrimvar(name)
+            assert p.GetInterpolation() == "vertex" and p.IsIndexed() and p.GetAttr().GetTimeSamples() == []
+        for name in ("element", "tissue", "faceKind", "piece", "face", "exposedFrame"):
+            assert pv.GetPrimvar(name).GetInterpolation() == "uniform"
+        assert pv.GetPrimvar("wood").GetAttr().GetTimeSamples() == []
+        assert UsdGeom.Mesh(piece).GetOrderedXformOps()[0].GetOpName() == "xformOp:transform"
+    H_c0, H_c2 = wood_at(stage, 0.0)["H_c"], wood_at(stage, 2.0)["H_c"]
+    assert H_c2.min() < H_c0.max()  # brown rot from the root end lowers H_c
+    changing = [p for p in pieces if UsdGeom.PrimvarsAPI(p).GetPrimvar("H_c").GetIndicesAttr().GetTimeSamples()]
+    assert changing and all(UsdGeom.PrimvarsAPI(p).GetPrimvar("H_c").GetIndicesAttr().GetTimeSamples()
+                            == [0.0, 1.0, 2.0] for p in changing)
+    mat, _ = UsdShade.MaterialBindingAPI(pieces[0]).ComputeBoundMaterial()
     assert mat.GetPath() == "/World/tiny/Looks/Wood"
 
 
@@ -131,14 +139,15 @@ def test_diff_same_seed_equal_perturbed_different_malformed_error(baked, tmp_pat
     from pxr import Usd, UsdGeom, Vt
 
     stage = Usd.Stage.Open(str(other / "tiny.usdc"))
-    h = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/World/tiny/Wood")).GetPrimvar("H_l").GetAttr()
-    vals = list(h.Get(1.0))
-    vals[7] += 0.01
-    h.Set(Vt.FloatArray(vals), 1.0)
+    piece = wood_meshes(stage)[0]
+    h = UsdGeom.PrimvarsAPI(piece).GetPrimvar("H_l").GetAttr()
+    vals = list(h.Get())
+    vals[-1] += 0.01
+    h.Set(Vt.FloatArray(vals))
     stage.GetRootLayer().Export(str(tmp_path / "perturbed.usda"))
     res = run("diff", baked / "tiny.usdc", tmp_path / "perturbed.usda")
     assert res.exit_code == 1
-    assert "/World/tiny/Wood.primvars:H_l" in res.output and "max abs 0.01" in res.output
+    assert f"{piece.GetPath()}.primvars:H_l" in res.output and "max abs 0.01" in res.output
     (tmp_path / "bad.usda").write_text("#usda 1.0\n(\n  nonsense = [\n")
     res = run("diff", baked / "tiny.usdc", tmp_path / "bad.usda")
     assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1 and "bad.usda" in res.output
@@ -193,6 +202,28 @@ def test_golden_tiny_bake(tmp_path):
     assert res.exit_code == 0, res.output
     diff = run("diff", GOLDEN, tmp_path / "tiny.usdc", "--rtol", "1e-4", "--atol", "1e-5")
     assert diff.exit_code == 0, diff.output
+
+
+def test_diff_reads_a_format_1_stage_against_format_2():
+    """The golden bake written in format 1 (one Mesh, every value at every frame) and in format 2
+    hold the same wood: fields within half of ``export.field_step``, points within
+    ``export.point_tolerance``, faces, holes and the static primvars equal; the preview colour
+    within the palette's step. ``wooddecay diff`` reads both (exit 0 within those tolerances, 1
+    below them)."""
+    from pxr import Usd
+
+    old, new = (Usd.Stage.Open(str(p)) for p in (GOLDEN.with_name("tiny_format1.usda"), GOLDEN))
+    for t in (0.0, 1.0):
+        a, b = wood_at(old, t), wood_at(new, t)
+        assert set(a) == set(b)
+        for name in a:
+            bound = {"points": 2e-4 + 1e-6, "displayColor": 0.014, "bark_crack_depth": 1e-4 + 1e-6}.get(
+                name, 1e-3 + 1e-6 if a[name].dtype.kind == "f" else 0)
+            assert np.abs(a[name].astype(float) - b[name]).max(initial=0) <= bound, name
+    fine = run("diff", GOLDEN.with_name("tiny_format1.usda"), GOLDEN, "--rtol", "0", "--atol", "0.014")
+    assert fine.exit_code == 0, fine.output
+    coarse = run("diff", GOLDEN.with_name("tiny_format1.usda"), GOLDEN, "--rtol", "0", "--atol", "1e-4")
+    assert coarse.exit_code == 1 and "wood.H_c" in coarse.output
 
 
 def test_auto_beside_busy_cores_runs_one_thread_and_says_why(tmp_path, monkeypatch):

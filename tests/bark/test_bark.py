@@ -358,14 +358,16 @@ def test_bake_exports_crack_primvars_and_signature(tmp_path):
     assert 0.0 <= sig["bark_crack_along_grain"] <= 1.0 and sig["bark_shed_fraction"] == 0.0
     from pxr import Usd, UsdGeom
 
+    from wooddecay.export.wood_read import wood_at, wood_meshes
+
     stage = Usd.Stage.Open(str(tmp_path / "tiny.usdc"))
-    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/World/tiny/Wood"))
-    pv = UsdGeom.PrimvarsAPI(mesh)
-    crack = np.array(pv.GetPrimvar("bark_crack").Get(1.0))
-    assert crack.max() > 0.5 and np.array(pv.GetPrimvar("bark_crack_depth").Get(1.0)).max() > 0.0
-    uv = pv.GetPrimvar("barkUV")
-    assert uv.GetInterpolation() == UsdGeom.Tokens.faceVarying
-    assert len(uv.Get()) == 3 * len(mesh.GetFaceVertexCountsAttr().Get())
+    wood = wood_at(stage, 1.0)
+    assert wood["bark_crack"].max() > 0.5 and wood["bark_crack_depth"].max() > 0.0
+    assert len(wood["barkUV"]) == 3 * len(wood["faces"])
+    for piece in wood_meshes(stage):
+        uv = UsdGeom.PrimvarsAPI(piece).GetPrimvar("barkUV")
+        assert uv.GetInterpolation() == UsdGeom.Tokens.faceVarying
+        assert len(uv.Get()) == 3 * len(UsdGeom.Mesh(piece).GetFaceVertexCountsAttr().Get())
     assert stage.GetRootLayer().customLayerData["bark_texture"] == "tiny_bark.<UDIM>.png"
     tiles = sorted(p.name for p in tmp_path.glob("tiny_bark*"))
     assert tiles == ["tiny_bark.1001.png", "tiny_bark.1002.png"]  # one per frame

@@ -45,7 +45,7 @@ def _stage(folder: Path, name: str, meta: str) -> Path:
 
 
 def test_the_stage_format_key_follows_customlayerdata_naming():
-    assert FORMAT == 1 and FORMAT_UNDECLARED == 1 and FORMAT_KEY == "format_version"
+    assert FORMAT == 2 and FORMAT_UNDECLARED == 1 and FORMAT_KEY == "format_version"
 
 
 def test_the_golden_stage_declares_the_current_format():
@@ -62,7 +62,7 @@ def test_stage_format_reads_an_older_stage_as_format_1(data, expected):
 
 
 @pytest.mark.parametrize("value, needle", [
-    (2, f"stage format 2 is newer than wooddecay {wd.__version__} reads (formats {RANGE})"),
+    (FORMAT + 1, f"stage format {FORMAT + 1} is newer than wooddecay {wd.__version__} reads (formats {RANGE})"),
     (0, f"stage format 0 is older than wooddecay {wd.__version__} reads (formats {RANGE})"),
     ("1", f"expected a whole number in {RANGE}"),
     (1.0, f"expected a whole number in {RANGE}"),
@@ -87,7 +87,7 @@ def test_diff_compares_stages_of_format_1_with_or_without_the_key(tmp_path):
 @pytest.mark.parametrize("which", ["a", "b"])
 def test_diff_refuses_a_newer_stage_in_one_line_exit_2(tmp_path, which):
     ok = _stage(tmp_path, "ok", "int format_version = 1")
-    future = _stage(tmp_path, "future", "int format_version = 2")
+    future = _stage(tmp_path, "future", f"int format_version = {FORMAT + 1}")
     with pytest.raises(InputError) as info:
         wd.compare_usd(*((future, ok) if which == "a" else (ok, future)))
     assert info.value.file == str(future)
@@ -95,7 +95,7 @@ def test_diff_refuses_a_newer_stage_in_one_line_exit_2(tmp_path, which):
     r = CliRunner().invoke(main, ["diff", *args])
     assert r.exit_code == 2, r.output
     lines = r.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith(f"error: {future}: customLayerData.{FORMAT_KEY}: stage format 2")
+    assert len(lines) == 1 and lines[0].startswith(f"error: {future}: customLayerData.{FORMAT_KEY}: stage format {FORMAT + 1}")
     assert RANGE in lines[0] and "Traceback" not in r.output
 
 
@@ -123,9 +123,9 @@ def test_inspect_bake_reads_format_1_and_older_bakes(tmp_path, meta):
 
 
 def test_inspect_bake_refuses_a_newer_stage_in_one_line_exit_2(tmp_path):
-    out = _bake_dir(tmp_path, "int format_version = 3")
+    out = _bake_dir(tmp_path, f"int format_version = {FORMAT + 1}")
     r = CliRunner().invoke(main, ["inspect", str(out)])
     assert r.exit_code == 2, r.output
     lines = r.stderr.strip().splitlines()
-    assert len(lines) == 1 and str(out / "log.usda") in lines[0] and "stage format 3 is newer" in lines[0]
+    assert len(lines) == 1 and str(out / "log.usda") in lines[0] and f"stage format {FORMAT + 1} is newer" in lines[0]
     assert RANGE in lines[0] and "Traceback" not in r.output

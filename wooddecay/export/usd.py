@@ -231,12 +231,9 @@ def export_usd(path, model, mesh, frames, version: str = "", point_tolerance: fl
               for j in range(len(columns))]
     ix = {f: j for j, f in enumerate(columns)}
     colour = [ix[f] for f in ("H_c", "H_l", "M")]
-    grid = np.meshgrid(*(np.linspace(0.0, 1.0, n) for n in PALETTE), indexing="ij")
-    palette = Vt.Vec3fArray.FromNumpy(rot_color(*(g.ravel() for g in grid)))
     for *_, tabled in prims:
         for f, table in zip(columns, tables):
             tabled[f].Set(table)
-        tabled["displayColor"].Set(palette)
     track = level = held_piece = prev = None
     for fr in frames:
         crack, depth, offset = surface.frame_bark(model, mesh, fr)
@@ -271,12 +268,19 @@ def export_usd(path, model, mesh, frames, version: str = "", point_tolerance: fl
                 shape[k])
             for j, f in enumerate(columns):
                 put(f, lambda: Vt.IntArray.FromNumpy(level[vs, j].astype(np.int32)), fresh[k, j])
-            put("displayColor", lambda: Vt.IntArray.FromNumpy(swatch[vs]), tint[k])
+            put("displayColor", lambda: swatch[vs], tint[k])
             put("piece", lambda: Vt.IntArray.FromNumpy(held_piece[fs]), regroup[k])
             put("holeIndices", lambda: Vt.IntArray.FromNumpy(np.flatnonzero(hidden[fs]).astype(np.int32)),
                 hidden_now[k])
 
-    for _, _, attrs, samples, _ in prims:
+    swatches = np.unique(np.concatenate([s for *_, samples, _ in prims for s in samples["displayColor"]]))
+    grid = np.unravel_index(swatches, PALETTE)
+    palette = Vt.Vec3fArray.FromNumpy(rot_color(*(g / (n - 1.0) for g, n in zip(grid, PALETTE))))
+    for _, _, attrs, samples, tabled in prims:
+        tabled["displayColor"].Set(palette)
+        made: dict[int, object] = {}
+        samples["displayColor"] = [made.setdefault(id(s), Vt.IntArray.FromNumpy(
+            np.searchsorted(swatches, s).astype(np.int32))) for s in samples["displayColor"]]
         for name, values in samples.items():
             if len({id(v) for v in values}) == 1:
                 if name != "holeIndices" or len(values[0]):
