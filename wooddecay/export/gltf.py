@@ -43,6 +43,7 @@ from ..meshlets import skin as skin_mod
 from ..meshlets.visibility import visible_faces
 from ..sim.state import FIELDS
 from .colors import rot_color
+from .tracks import piece_max, rigid_fit
 
 SUFFIXES = (".glb",)
 GLB_MAGIC, GLB_VERSION = 0x46546C67, 2  # b"glTF"
@@ -93,12 +94,14 @@ class _Bin:
         self.parts, self.size = [], 0
         self.views, self.accessors = [], []
 
-    def add(self, array, kind: str, target: int, minmax: bool = False) -> int:
+    def add(self, array, kind: str, target: int | None, minmax: bool = False) -> int:
+        """An accessor of ``array`` in a view of its own (``target`` None: animation data)."""
         array = np.ascontiguousarray(array)
         ctype = {np.dtype(np.float32): FLOAT, np.dtype(np.uint16): UNSIGNED_SHORT,
                  np.dtype(np.uint32): UNSIGNED_INT}[array.dtype]
         data = array.astype(array.dtype.newbyteorder("<"), copy=False).tobytes()
-        self.views.append({"buffer": 0, "byteOffset": self.size, "byteLength": len(data), "target": target})
+        view = {"buffer": 0, "byteOffset": self.size, "byteLength": len(data)}
+        self.views.append(view if target is None else view | {"target": target})
         pad = (-len(data)) % 4
         self.parts.append(data + b"\0" * pad)
         self.size += len(data) + pad
@@ -127,8 +130,30 @@ def glb_bytes(doc: dict, binary: bytes) -> bytes:
     return b"".join(out)
 
 
-def gltf_document(model: WoodModel, mesh, frame, version: str = "", link=None) -> tuple[dict, bytes]:
-    """The glTF JSON document and its binary buffer for ``frame`` (module docstring)."""
+def _motion(model: WoodModel, mesh, link, frames, src, vorder, vstart, local):
+    """Per frame of ``frames`` and per piece, the rotation (K, 4) quaternion (x, y, z, w) and the
+    translation (K, 3) (Y up) that carry the piece's mesh ``local`` (its vertices ``src[vorder]``
+    less its node translation, in runs ``vstart``) closest to its skinned points at that frame
+    (:func:`wooddecay.export.tracks.rigid_fit`)."""
+    from scipy.spatial.transform import Rotation
+
+    quats, moves = [], []
+    for fr in frames:
+        _, _, offset = surface.frame_bark(model, mesh, fr)
+        P, _ = skin_mod.frame_arrays(model, mesh, link, fr, offset)
+        R, c, _ = rigid_fit(local, P[src[vorder]] @ Z_TO_Y_UP.T, vstart)
+        q = Rotation.from_matrix(R).as_quat()
+        if quats:  # the shorter way round from the frame before
+            q *= np.where(np.einsum("ki,ki->k", q, quats[-1]) < 0, -1.0, 1.0)[:, None]
+        quats.append(q)
+        moves.append(c)
+    return np.stack(quats), np.stack(moves)
+
+
+def gltf_document(model: WoodModel, mesh, frame, version: str = "", link=None, frames=(),
+                  point_tolerance: float = 0.0) -> tuple[dict, bytes]:
+    """The glTF JSON document and its binary buffer for ``frame`` (module docstring), animated over
+    ``frames`` when given (pieces whose pose moves a point by more than ``point_tolerance``)."""
     if link is None:
         link = skin_mod.links(model, mesh)
     mech = frame.mech or None
@@ -188,6 +213,26 @@ def gltf_document(model: WoodModel, mesh, frame, version: str = "", link=None) -
         nodes.append({"name": f"{name}_piece_{piece}", "mesh": k,
                       "translation": [float(v) for v in centre], "extras": {"piece": int(piece)}})
 
+    animation = None
+    if len(frames) > 1 and nodes:
+        centre = np.array([n["translation"] for n in nodes])
+        piece_of = np.repeat(np.arange(len(nodes)), np.diff(vstart))
+        local = points[vorder] - centre[piece_of]
+        quat, move = _motion(model, mesh, link, frames, src, vorder, vstart, local)
+        reach = piece_max(np.linalg.norm(local, axis=1), vstart)
+        angle = 2.0 * np.arccos(np.clip(np.abs(quat[..., 3]), 0.0, 1.0))
+        moving = np.flatnonzero((np.linalg.norm(move - centre, axis=2) + angle * reach).max(0) > point_tolerance)
+        if len(moving):
+            times = np.array([f.index for f in frames], dtype=np.float32) / np.float32(model.time.fps)
+            t_in = buf.add(times, "SCALAR", None, minmax=True)
+            samplers, channels = [], []
+            for k in moving.tolist():
+                for path, values, kind in (("translation", move[:, k], "VEC3"), ("rotation", quat[:, k], "VEC4")):
+                    out = buf.add(values.astype(f32), kind, None)
+                    samplers.append({"input": t_in, "output": out, "interpolation": "LINEAR"})
+                    channels.append({"sampler": len(samplers) - 1, "target": {"node": k, "path": path}})
+            animation = {"name": f"{name}_pieces", "samplers": samplers, "channels": channels}
+
     binary = buf.bytes()
     doc = {
         "asset": {"version": "2.0", "generator": "wooddecay",
@@ -202,12 +247,17 @@ def gltf_document(model: WoodModel, mesh, frame, version: str = "", link=None) -
     if nodes:
         doc.update(nodes=nodes, meshes=meshes, accessors=buf.accessors, bufferViews=buf.views,
                    buffers=[{"byteLength": len(binary)}])
+    if animation:
+        doc["animations"] = [animation]
     return doc, binary
 
 
-def export_gltf(path, model, mesh, frame, version: str = "", link=None) -> Path:
+def export_gltf(path, model, mesh, frame, version: str = "", link=None, frames=(),
+                point_tolerance: float = 0.0) -> Path:
     """Write ``frame`` (a :class:`wooddecay.sim.driver.Frame`) as a binary glTF to ``path``
-    (.glb); ``link`` (from :func:`wooddecay.meshlets.skin.links`) may be passed to reuse it."""
+    (.glb), its pieces animated over ``frames`` (module docstring); ``link`` (from
+    :func:`wooddecay.meshlets.skin.links`) may be passed to reuse it."""
     path = check_glb_path(path)
-    doc, binary = gltf_document(model, mesh, frame, version=version, link=link)
+    doc, binary = gltf_document(model, mesh, frame, version=version, link=link, frames=frames,
+                                point_tolerance=point_tolerance)
     return write_bytes(path, glb_bytes(doc, binary), "glTF")

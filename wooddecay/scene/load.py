@@ -322,6 +322,12 @@ def _resolve(data: dict, ctx: _Ctx, base_dir: Path, path: Path | None, default_n
                              f"{format_value(time['years'])} ({format_value(days)} days); give one of the two")
         time["days"] = days
 
+    frames = int(time["frames"])
+    if not -frames <= values["export"]["gltf_frame"] < frames:
+        raise InputError(ctx.src("export.gltf_frame", "time.frames"), "export.gltf_frame",
+                         f"{format_value(values['export']['gltf_frame'])} is not a frame of the bake: allowed "
+                         f"[{-frames}, {frames - 1}] with time.frames = {frames} (negative counts from the end)")
+
     # -- skeleton
     if "skeleton" not in data:
         raise InputError(file, "skeleton", "missing [skeleton] table (inline [[skeleton.node]] or file = \"...\")")
