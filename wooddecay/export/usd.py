@@ -1,39 +1,45 @@
 """The baked USD stage (docs/architecture.md "USD stage": the contract between bake, the add-on and CI).
 
-``export_usd(path, model, mesh, frames)`` writes:
+``export_usd(path, model, mesh, frames)`` writes format 2 (:data:`FORMAT`):
 
 * stage metadata: Z up, metersPerUnit 1, defaultPrim ``/World``, timeCodesPerSecond = ``time.fps``,
-  start/end time codes = the first and last frame index, customLayerData (``format_version``: the
-  stage's format :data:`FORMAT`, wooddecay version, scene name, seed, hash of the resolved scene,
-  days per frame, frame days);
-* ``/World/<scene>/Wood``: one Mesh of all meshlets as disjoint closed shells (triangles,
-  subdivisionScheme none, static ``faceVertexIndices``), ``points`` and ``extent`` time-sampled (the skinned
-  meshlets of :mod:`wooddecay.meshlets.skin`); vertex primvars H_c, H_l, M, R_w, R_b, C
-  (time-sampled, interpolated with the skinning weights), ``bark_crack`` and ``bark_crack_depth``
-  (time-sampled, :mod:`wooddecay.export.bark_surface`; the bark's grooves are in ``points``), the
+  start/end time codes = the first and last frame index, customLayerData (``format_version``,
+  wooddecay version, scene name, seed, hash of the resolved scene, days per frame, frame days,
+  ``point_tolerance`` and ``field_step``);
+* ``/World/<scene>/Wood``: an Xform of one Mesh ``piece_<id>`` per piece of the last frame, its
+  meshlets as disjoint closed shells (triangles, subdivisionScheme none, static topology). What a
+  frame changes is written only where it changed (:mod:`wooddecay.export.tracks`): the piece's
+  ``xformOp:transform`` where it moved as a rigid body, its local ``points`` and ``extent`` where it
+  changed shape (every written point within ``point_tolerance`` of the skinned meshlets of
+  :mod:`wooddecay.meshlets.skin`); the vertex primvars H_c, H_l, M, R_w, R_b, C (interpolated with
+  the skinning weights) and ``bark_crack`` as indices into a static table of values ``field_step``
+  apart, ``bark_crack_depth`` into one ``point_tolerance`` apart (:mod:`wooddecay.export.bark_surface`;
+  the bark's grooves are in ``points``), ``displayColor`` into a palette of the rot preview colours
+  the bake uses (:func:`wooddecay.export.colors.rot_color`), indices written where one changed; the
   face-varying ``barkUV`` into the crack map, one UDIM tile per frame ``<stem>_bark.<UDIM>.png``
-  written beside the stage (:mod:`wooddecay.export.bark_texture`; customLayerData ``bark_texture`` names
-  the set, tiles of an earlier bake there are removed) and ``displayColor`` (a rot preview, see
-  :func:`wooddecay.export.colors.rot_color`); static ``wood`` (float3 rest wood-local r, phi, s)
-  and ``ring``; uniform int ``element``, ``tissue``, ``faceKind`` (0 bark, 1 side, 2 cap),
-  ``exposedFrame`` (the time code from which the face shows) and time-sampled ``piece`` (the
-  connected component of the face's element);
+  written beside the stage (:mod:`wooddecay.export.bark_texture`; customLayerData ``bark_texture``
+  names the set, tiles of an earlier bake there are removed); static ``wood`` (float3 rest
+  wood-local r, phi, s), ``ring`` and ``vertex`` (the vertex's index in the whole wood); uniform int
+  ``face`` (the face's index in the whole wood), ``element``, ``tissue``, ``faceKind`` (0 bark, 1
+  side, 2 cap), ``exposedFrame`` (the time code from which the face shows) and time-sampled
+  ``piece`` (the connected component of the face's element). An attribute that changes has a
+  sample at every frame (a repeated value is stored once), one that never does only a default;
 * faces between meshlets that hold together for the whole bake are left out
   (:func:`wooddecay.meshlets.visibility.exposure`: side faces across a connection that never
   breaks or between neighbours that stay in one piece, caps across a strand link never cut, none
-  next to dwindling wood). A face that a later frame exposes is a hole (``holeIndices``,
-  time-sampled where the hidden set changes; not authored when nothing is ever hidden) until that
-  frame, so a frame shows the faces of its own state whatever the bake's length; the add-on drops
-  them by ``exposedFrame``;
+  next to dwindling wood). A face that a later frame exposes is a hole of its piece
+  (``holeIndices``; not authored when nothing is ever hidden) until that frame, so a frame shows the
+  faces of its own state whatever the bake's length; the add-on drops them by ``exposedFrame``;
 * ``/World/<scene>/Looks/Wood``: a UsdPreviewSurface whose diffuseColor reads ``displayColor``
-  through a UsdPrimvarReader_float3, so any USD viewer shows the rot.
+  through a UsdPrimvarReader_float3, bound to the Wood Xform, so any USD viewer shows the rot.
 
 Written atomically (:func:`wooddecay.export.stage.export_atomic`).
 
 Readers (``wooddecay diff``, ``wooddecay inspect BAKE_DIR``) check a stage's format with
 :func:`stage_format` / :func:`check_bake_format`: a stage without ``format_version`` was baked
-before the key existed and is format 1; one of a newer format than this wooddecay reads is refused
-in one line (:class:`~wooddecay.errors.InputError`, exit 2).
+before the key existed and is format 1 (one Mesh ``/World/<scene>/Wood`` with every value at every
+frame; :func:`wooddecay.export.wood_read.wood_at` reads both); one of a newer format than this
+wooddecay reads is refused in one line (:class:`~wooddecay.errors.InputError`, exit 2).
 """
 from __future__ import annotations
 
