@@ -74,3 +74,11 @@ def test_changed_and_piece_max():
     new = old.copy()
     new[3, 1] = 1
     assert changed(new, old, start, 0).tolist() == [[False, False], [False, False], [False, True]]
+
+
+def test_the_exporters_defaults_are_the_schemas():
+    from wooddecay.export.usd import FIELD_STEP, POINT_TOLERANCE
+    from wooddecay.scene.schema import get_param
+
+    assert get_param("export.point_tolerance").default == POINT_TOLERANCE
+    assert get_param("export.field_step").default == FIELD_STEP
