@@ -353,3 +353,36 @@ def test_gallery_bake_reuses_a_finished_bake_of_the_same_scene_elsewhere(tmp_pat
     out = Path("DIR") / "fig20"
     assert own_bakes("fig12", out, FIGURES) == (Path("DIR/fig12/uniform"),)
     assert own_bakes("fig14", out, FIGURES) == (Path("DIR/fig14/trunk"),)
+
+
+ONE_STRAND = """[scene]
+name = "twig"
+[[skeleton.node]]
+id = "a"
+position = [0.0, 0.0, 0.05]
+profile = { kind = "circle", radius = 0.009 }
+[[skeleton.node]]
+id = "b"
+position = [0.4, 0.0, 0.05]
+parent = "a"
+profile = { kind = "circle", radius = 0.009 }
+[time]
+days = 4
+frames = 2
+"""
+
+
+def test_a_branch_of_one_strand_bakes(tmp_path):
+    """A branch as thin as one strand (no REG edges) bakes: its stage holds the one strand's
+    closed meshlets, and its glTF one piece."""
+    from pxr import Usd
+
+    scene = tmp_path / "twig.toml"
+    scene.write_text(ONE_STRAND)
+    res = run("bake", scene, "-o", tmp_path / "out")
+    assert res.exit_code == 0, res.output
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["counts"]["strands"] == 1 and summary["counts"]["reg_edges"] == 0
+    wood = wood_at(Usd.Stage.Open(str(tmp_path / "out" / "twig.usdc")), 1.0)
+    assert len(wood["faces"]) > 0 and np.isfinite(wood["points"]).all()
+    assert set(np.unique(wood["element"])) == set(range(summary["counts"]["elements"]))

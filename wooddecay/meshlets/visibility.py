@@ -68,6 +68,7 @@ def _shown(model: WoodModel, frame, o, n, cap, edge, has) -> np.ndarray:
         shown |= (scale[o] < 1.0) | (scale[n] < 1.0)
     m = frame.mech
     if m:
-        broken = np.where(has, ~m["edge_ok"][edge, 0], m["component"][o] != m["component"][n])
+        broken = m["component"][o] != m["component"][n]
+        broken[has] = ~m["edge_ok"][edge[has], 0]  # wood without REG edges has none to index
         shown |= np.where(cap, ~m["element_ok"][np.minimum(o, n)], broken)
     return shown
