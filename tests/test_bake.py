@@ -209,19 +209,20 @@ def test_diff_reads_a_format_1_stage_against_format_2():
     hold the same wood: fields within half of ``export.field_step``, points within
     ``export.point_tolerance``, faces, holes and the static primvars equal; the preview colour
     within the palette's step. ``wooddecay diff`` reads both (exit 0 within those tolerances, 1
-    below them)."""
+    below them), format 2 adding only the rest shape."""
     from pxr import Usd
 
     old, new = (Usd.Stage.Open(str(p)) for p in (GOLDEN.with_name("tiny_format1.usda"), GOLDEN))
     for t in (0.0, 1.0):
         a, b = wood_at(old, t), wood_at(new, t)
-        assert set(a) == set(b)
+        assert set(b) - set(a) == {"rest"} and set(a) <= set(b)
         for name in a:
             bound = {"points": 2e-4 + 1e-6, "displayColor": 0.014, "bark_crack_depth": 1e-4 + 1e-6}.get(
                 name, 1e-3 + 1e-6 if a[name].dtype.kind == "f" else 0)
             assert np.abs(a[name].astype(float) - b[name]).max(initial=0) <= bound, name
     fine = run("diff", GOLDEN.with_name("tiny_format1.usda"), GOLDEN, "--rtol", "0", "--atol", "0.014")
-    assert fine.exit_code == 0, fine.output
+    assert fine.exit_code == 1 and len(fine.output.splitlines()) == 2, fine.output  # and the count
+    assert fine.output.splitlines()[0].startswith("attribute     wood.rest: only in b")
     coarse = run("diff", GOLDEN.with_name("tiny_format1.usda"), GOLDEN, "--rtol", "0", "--atol", "1e-4")
     assert coarse.exit_code == 1 and "wood.H_c" in coarse.output
 
@@ -386,3 +387,20 @@ def test_a_branch_of_one_strand_bakes(tmp_path):
     wood = wood_at(Usd.Stage.Open(str(tmp_path / "out" / "twig.usdc")), 1.0)
     assert len(wood["faces"]) > 0 and np.isfinite(wood["points"]).all()
     assert set(np.unique(wood["element"])) == set(range(summary["counts"]["elements"]))
+
+
+def test_the_stage_carries_the_as_built_rest_shape(baked):
+    """``rest`` is the meshlets as built, before the rods settled (each of its points one of the
+    model's rest meshlet points), so a frame's points less it are how far the wood moved from the
+    shape it was built in."""
+    from pxr import Usd
+    from scipy.spatial import cKDTree
+
+    import wooddecay as wd
+
+    mesh = wd.build_meshlets(wd.build_model(wd.load_scene(TINY, overrides={"time.days": 2, "time.frames": 3})))
+    wood = wood_at(Usd.Stage.Open(str(baked / "tiny.usdc")), 0.0)
+    gap, _ = cKDTree(mesh.points).query(wood["rest"])
+    assert gap.max() < 1e-6
+    moved = np.linalg.norm(wood["points"] - wood["rest"], axis=1)
+    assert 1e-5 < moved.max() < 0.05, moved.max()

@@ -19,7 +19,9 @@
   face-varying ``barkUV`` into the crack map, one UDIM tile per frame ``<stem>_bark.<UDIM>.png``
   written beside the stage (:mod:`wooddecay.export.bark_texture`; customLayerData ``bark_texture``
   names the set, tiles of an earlier bake there are removed); static ``wood`` (float3 rest
-  wood-local r, phi, s), ``ring`` and ``vertex`` (the vertex's index in the whole wood); uniform int
+  wood-local r, phi, s), ``ring``, ``vertex`` (the vertex's index in the whole wood) and ``rest``
+  (point3f: the as-built meshlets before the rods settled, in the piece's space at the first
+  frame, whose transform carries it to the world); uniform int
   ``face`` (the face's index in the whole wood), ``element``, ``tissue``, ``faceKind`` (0 bark, 1
   side, 2 cap), ``exposedFrame`` (the time code from which the face shows) and time-sampled
   ``piece`` (the connected component of the face's element). An attribute that changes has a
@@ -225,7 +227,7 @@ def export_usd(path, model, mesh, frames, version: str = "", point_tolerance: fl
                  "piece": pv.CreatePrimvar("piece", T.IntArray, UsdGeom.Tokens.uniform).GetAttr(),
                  "holeIndices": m.CreateHoleIndicesAttr()}
         attrs.update((f, p.CreateIndicesAttr()) for f, p in tabled.items())
-        prims.append((vs, fs, attrs, {name: [] for name in attrs}, tabled))
+        prims.append((vs, fs, attrs, {name: [] for name in attrs}, tabled, pv))
 
     columns = FIELDS + BARK_PRIMVARS
     step = np.array([step_f] * (len(FIELDS) + 1) + [tol_x])  # bark_crack_depth is a length
@@ -237,7 +239,7 @@ def export_usd(path, model, mesh, frames, version: str = "", point_tolerance: fl
               for j in range(len(columns))]
     ix = {f: j for j, f in enumerate(columns)}
     colour = [ix[f] for f in ("H_c", "H_l", "M")]
-    for *_, tabled in prims:
+    for *_, tabled, _ in prims:
         for f, table in zip(columns, tables):
             tabled[f].Set(table)
     track = level = held_piece = prev = None
@@ -251,6 +253,7 @@ def export_usd(path, model, mesh, frames, version: str = "", point_tolerance: fl
         hidden = shown_from > fr.index
         if track is None:
             track, level, held_piece = PoseTrack(X, vstart), now, comp.copy()
+            rest = mesh.points[used][vorder] - track.c[track.piece]
             pose = shape = regroup = hidden_now = np.ones(len(ids), dtype=bool)
             fresh = np.ones((len(ids), len(columns)), dtype=bool)
         else:
@@ -264,7 +267,7 @@ def export_usd(path, model, mesh, frames, version: str = "", point_tolerance: fl
         tint = fresh[:, colour].any(1)
         cell = [np.rint(values[:, j] * (n - 1)).clip(0, n - 1).astype(np.int64) for j, n in zip(colour, PALETTE)]
         swatch = ((cell[0] * PALETTE[1] + cell[1]) * PALETTE[2] + cell[2]).astype(np.int32)
-        for k, (vs, fs, attrs, samples, _) in enumerate(prims):
+        for k, (vs, fs, attrs, samples, *_) in enumerate(prims):
             def put(name, make, new):
                 samples[name].append(make() if new or not samples[name] else samples[name][-1])
             L = track.L[vs].astype(np.float32)
@@ -279,10 +282,12 @@ def export_usd(path, model, mesh, frames, version: str = "", point_tolerance: fl
             put("holeIndices", lambda: Vt.IntArray.FromNumpy(np.flatnonzero(hidden[fs]).astype(np.int32)),
                 hidden_now[k])
 
-    swatches = np.unique(np.concatenate([s for *_, samples, _ in prims for s in samples["displayColor"]]))
+    swatches = np.unique(np.concatenate([s for _, _, _, samples, *_ in prims for s in samples["displayColor"]]))
     grid = np.unravel_index(swatches, PALETTE)
     palette = Vt.Vec3fArray.FromNumpy(rot_color(*(g / (n - 1.0) for g, n in zip(grid, PALETTE))))
-    for _, _, attrs, samples, tabled in prims:
+    for vs, _, attrs, samples, tabled, pv in prims:
+        pv.CreatePrimvar("rest", T.Point3fArray, UsdGeom.Tokens.vertex).Set(
+            Vt.Vec3fArray.FromNumpy(rest[vs].astype(np.float32)))
         tabled["displayColor"].Set(palette)
         made: dict[int, object] = {}
         samples["displayColor"] = [made.setdefault(id(s), Vt.IntArray.FromNumpy(

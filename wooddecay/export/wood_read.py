@@ -10,7 +10,8 @@ numbers vertices and faces:
   the world by its transform, its vertices and faces put in place by its ``vertex`` and ``face``
   primvars (which are then left out, as format 1 has none).
 
-``holeIndices`` become a per-face bool ``hole``. Values are float64 (ints stay ints).
+``holeIndices`` become a per-face bool ``hole``; ``rest`` (format 2) is carried to the world by
+the piece's transform at the first frame. Values are float64 (ints stay ints).
 """
 from __future__ import annotations
 
@@ -46,12 +47,15 @@ def wood_at(stage, time: float, file="") -> dict[str, np.ndarray]:
         hole = np.zeros(len(faces), dtype=bool)
         hole[np.asarray(mesh.GetHoleIndicesAttr().Get(t) or [], dtype=np.int64)] = True
         per = {"vertex": {"points": local @ m[:3, :3] + m[3, :3]}, "uniform": {"hole": hole}, "faceVarying": {}}
+        first = np.asarray(mesh.ComputeLocalToWorldTransform(Usd.TimeCode(stage.GetStartTimeCode())))
         for pv in UsdGeom.PrimvarsAPI(prim).GetPrimvars():
             v = pv.ComputeFlattened(t)
             kind = {"varying": "vertex"}.get(pv.GetInterpolation(), pv.GetInterpolation())
             if v is not None and kind in per:
                 v = np.asarray(v)
                 per[kind][pv.GetPrimvarName()] = v.astype(np.float64) if v.dtype.kind == "f" else v
+        if "rest" in per["vertex"]:  # in the piece's space at the first frame
+            per["vertex"]["rest"] = per["vertex"]["rest"] @ first[:3, :3] + first[3, :3]
         vertex = per["vertex"].pop("vertex", np.arange(n_v, n_v + len(local)))
         face = per["uniform"].pop("face", np.arange(n_f, n_f + len(faces)))
         per["uniform"]["faces"] = vertex[faces]
