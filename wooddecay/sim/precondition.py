@@ -27,6 +27,9 @@ from .mechanics import MechSetup, MechState
 
 #: elements per aggregate of the coarse space (the grid's cell holds about this many)
 AGGREGATE = 40
+#: added to the strand blocks' unit diagonal: a strand that nothing else holds (no REG edge, no
+#: contact, a static step) has rigid modes that make its block singular; the sum stays SPD
+REGULAR = 1e-10
 
 
 def strand_of_blocks(setup: MechSetup) -> tuple[np.ndarray, np.ndarray]:
@@ -91,6 +94,7 @@ def two_level(A: sp.spmatrix, strand: np.ndarray, position: np.ndarray, modes: s
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
     S = sp.csc_matrix((coo.data[same], (rank[coo.row[same]], rank[coo.col[same]])), shape=A.shape)
+    S += REGULAR * sp.identity(S.shape[0], format="csc")  # a strand free of all else has rigid modes
     lu = spla.splu(S, permc_spec="NATURAL", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
     modes_t = modes.T.tocsr()
     coarse = (modes_t @ (A @ modes)).toarray()

@@ -337,6 +337,9 @@ def parse_nodes(nodes, source: str, key: str = "skeleton.node") -> Skeleton:
     new_parent = np.array([new_index[parent[i]] if parent[i] >= 0 else -1 for i in order], dtype=np.int64)
     new_ids = [ids[i] for i in order]
     _check_edges(positions, new_parent, new_ids, source, key)
+    if not (new_parent >= 0).any():
+        raise InputError(source, key, f"has {len(ids)} node(s) and no edge: wood grows along edges, so give at "
+                         "least two nodes, one the parent of the other")
     anchored = np.array([parsed[i][4] for i in order], dtype=bool)
     return _make_skeleton(new_ids, positions, new_parent, [parsed[i][3] for i in order], anchored, source)
 
