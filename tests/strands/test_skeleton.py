@@ -49,10 +49,20 @@ def test_parse_valid_tree_reorders_parents_first():
 
 
 def test_ellipse_angle_defaults_to_zero_and_empty_parent_is_root():
-    nodes = [{"id": "r", "parent": "", "position": [0, 0, 0], "profile": {"kind": "ellipse", "a": 0.2, "b": 0.1}}]
+    nodes = [{"id": "r", "parent": "", "position": [0, 0, 0], "profile": {"kind": "ellipse", "a": 0.2, "b": 0.1}},
+             {"id": "t", "parent": "r", "position": [1, 0, 0], "profile": {"kind": "circle", "radius": 0.1}}]
     sk = parse_nodes(nodes, SRC)
-    assert sk.parent.tolist() == [-1]
+    assert sk.parent.tolist() == [-1, 0]
     assert dict(sk.profiles[0].params)["angle"] == 0.0
+
+
+def test_a_skeleton_without_an_edge_is_refused_in_one_line():
+    """Wood grows along edges: a lone node (or roots only) is refused at validation, not at the
+    build (where strand sampling found nothing to concatenate)."""
+    nodes = [{"id": "r", "position": [0, 0, 0], "profile": {"kind": "circle", "radius": 0.1}}]
+    with pytest.raises(InputError) as info:
+        parse_nodes(nodes, SRC)
+    assert "no edge" in str(info.value) and "\n" not in str(info.value)
 
 
 def test_reject_cycle():
