@@ -137,7 +137,8 @@ def _motion(model: WoodModel, mesh, link, frames, src, vorder, vstart, local):
     (:func:`wooddecay.export.tracks.rigid_fit`)."""
     from scipy.spatial.transform import Rotation
 
-    quats, moves = [], []
+    quats: list[np.ndarray] = []
+    moves: list[np.ndarray] = []
     for fr in frames:
         _, _, offset = surface.frame_bark(model, mesh, fr)
         P, _ = skin_mod.frame_arrays(model, mesh, link, fr, offset)

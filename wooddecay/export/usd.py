@@ -205,7 +205,7 @@ def export_usd(path, model, mesh, frames, version: str = "", point_tolerance: fl
                 "vertex": (T.IntArray, vorder.astype(np.int32), Vt.IntArray)}
     static_f = {"face": forder, "element": fe, "tissue": model.tissue[fe], "faceKind": mesh.face_kind[keep][forder],
                 "exposedFrame": shown_from}
-    prims = []
+    prims: list[tuple] = []
     for k, piece in enumerate(ids.tolist()):
         vs, fs = slice(vstart[k], vstart[k + 1]), slice(fstart[k], fstart[k + 1])
         m = UsdGeom.Mesh.Define(stage, f"{root}/Wood/piece_{piece}")
@@ -242,7 +242,10 @@ def export_usd(path, model, mesh, frames, version: str = "", point_tolerance: fl
     for *_, tabled, _ in prims:
         for f, table in zip(columns, tables):
             tabled[f].Set(table)
-    track = level = held_piece = prev = None
+    track: PoseTrack | None = None
+    level: np.ndarray = np.zeros(0, dtype=np.int64)
+    held_piece: np.ndarray = np.zeros(0, dtype=np.int32)
+    prev = frames[0].index
     for fr in frames:
         crack, depth, offset = surface.frame_bark(model, mesh, fr)
         P, F = skin_mod.frame_arrays(model, mesh, link, fr, offset)
