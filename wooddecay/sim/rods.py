@@ -214,18 +214,23 @@ def color_edges(edges: np.ndarray, fp: np.ndarray, n_particles: int) -> tuple[np
     """Greedy colouring of the REG edges so that no two edges of a colour share a particle
     (each element owns particles fp and fp + 1). Returns (colour_ptr, edge order): the edges of
     colour c are ``order[ptr[c]:ptr[c + 1]]``, in increasing id. Deterministic (edge order)."""
-    color = _greedy_colors(np.ascontiguousarray(edges, dtype=np.int64), fp.astype(np.int64), n_particles)
+    edges = np.ascontiguousarray(edges, dtype=np.int64)
+    fp = fp.astype(np.int64)
+    parts = np.stack([fp[edges[:, 0]], fp[edges[:, 0]] + 1, fp[edges[:, 1]], fp[edges[:, 1]] + 1], axis=1)
+    touching = np.bincount(parts.ravel(), minlength=n_particles)
+    # an edge meets at most this many others at its four particles, so greedy needs one colour more
+    meets = int((touching[parts].sum(axis=1) - 4).max(initial=0))
+    color = _greedy_colors(edges, fp, n_particles, meets // 64 + 1)
     order = np.argsort(color, kind="stable")
     ptr = np.concatenate([[0], np.cumsum(np.bincount(color, minlength=color.max(initial=-1) + 1))])
     return ptr.astype(np.int64), order.astype(np.int64)
 
 
 @nb.njit(cache=True)
-def _greedy_colors(edges, fp, n_particles):
+def _greedy_colors(edges, fp, n_particles, words):
     m = len(edges)
     color = np.empty(m, dtype=np.int64)
-    # colours used at each particle, as a bit set over up to 64 * WORDS colours
-    words = 4
+    # colours used at each particle, as a bit set over 64 * words colours
     used = np.zeros((n_particles, words), dtype=np.uint64)
     for k in range(m):
         i, j = edges[k, 0], edges[k, 1]
@@ -239,8 +244,6 @@ def _greedy_colors(edges, fp, n_particles):
                     b += 1
                 c = 64 * w + b
                 break
-        if c < 0:
-            raise ValueError("REG colouring needs more than 256 colours")
         color[k] = c
         bit = np.uint64(1) << np.uint64(c % 64)
         for p in parts:
