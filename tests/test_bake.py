@@ -404,3 +404,47 @@ def test_the_stage_carries_the_as_built_rest_shape(baked):
     assert gap.max() < 1e-6
     moved = np.linalg.norm(wood["points"] - wood["rest"], axis=1)
     assert 1e-5 < moved.max() < 0.05, moved.max()
+
+
+ONE_ELEMENT = """[scene]
+name = "one"
+seed = 1
+quality = "draft"
+[[skeleton.node]]
+id = "n0"
+position = [0, 0, 0.008]
+profile = { kind = "circle", radius = 0.008 }
+[[skeleton.node]]
+id = "n1"
+position = [0.12, 0, 0.008]
+profile = { kind = "polygon", points = [[0.008, 0], [-0.004, 0.0069282], [-0.004, -0.0069282]] }
+parent = "n0"
+[strands]
+r_s = 0.004
+rod_length = 0.012
+[rings]
+bark_thickness = 0
+[bsp]
+cells = 1
+[mechanics]
+solver = "xpbd"
+ground = false
+[climate]
+preset = "temperate"
+[time]
+days = 0.5
+frames = 1
+[bark]
+cracks = false
+"""
+
+
+def test_wood_of_one_element_bakes(tmp_path):
+    """The fuzzer's find: a draft twig of one element has no transport edge at all, and the
+    fronts' spacing divided numpy's int64 bincount of nothing (a casting error at the build)."""
+    scene = tmp_path / "one.toml"
+    scene.write_text(ONE_ELEMENT)
+    res = run("bake", scene, "-o", tmp_path / "out")
+    assert res.exit_code == 0, res.output
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["counts"]["elements"] == 1

@@ -2,7 +2,8 @@
 (skeletons of 1-5 nodes with forks, every profile kind, branches from one strand to many, anchors,
 colliders, loads, climates, inoculations or none, bark or none, 1-4 frames, both qualities and
 solvers, short spans, export keys) and bakes each in seconds. A draw either bakes, with finite
-outputs whose fields stay in their ranges and a stage usd-core's validators pass, or is refused
+outputs whose fields stay in their ranges, a stage usd-core's validators pass, a glTF the Khronos
+validator passes and closed, oriented meshlets, or is refused
 with one line (an InputError, before anything is written). The default run draws a few scenes;
 the ``slow`` run many more, each baked again on two threads to the same stage.
 """
@@ -19,6 +20,10 @@ import wooddecay as wd
 from wooddecay.bake import bake
 from wooddecay.errors import InputError
 from wooddecay.export.wood_read import wood_at
+from wooddecay.meshlets.checks import closed_oriented
+
+from .export.test_gltf import gltf_validator, validate  # noqa: F401 (a fixture)
+from .export.test_gltf import summary as gltf_summary
 
 
 def _vec(v) -> str:
@@ -84,8 +89,9 @@ def scenes(draw) -> tuple[str, dict]:
     return "\n".join(lines) + "\n", overrides
 
 
-def check_bake(tmp_path, text: str, overrides: dict, threads: int = 1) -> dict | None:
-    """Bake the drawn scene; None when validation refused it in one line."""
+def check_bake(tmp_path, text: str, overrides: dict, validator, threads: int = 1) -> dict | None:
+    """Bake the drawn scene; None when validation refused it in one line. ``validator``: the
+    glTF validator's command (:func:`tests.export.test_gltf.gltf_validator`)."""
     path = tmp_path / "fuzz.toml"
     path.write_text(text)
     out = tmp_path / f"out{threads}"
@@ -113,23 +119,27 @@ def check_bake(tmp_path, text: str, overrides: dict, threads: int = 1) -> dict |
         for name in ("H_c", "H_l"):
             assert (wood[name] >= -step).all() and (wood[name] <= 1 + step).all(), name
     assert (out / "fuzz.glb").exists() == overrides.get("export.gltf", True)
+    if (out / "fuzz.glb").exists():
+        report = validate(validator, out / "fuzz.glb")
+        assert report["issues"]["numErrors"] == 0, gltf_summary(report)
+    assert closed_oriented(wd.build_meshlets(wd.build_model(scene))).all()
     return summary
 
 
 @settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
                                                                 HealthCheck.function_scoped_fixture])
 @given(scenes())
-def test_a_drawn_scene_bakes_or_is_refused_in_one_line(tmp_path_factory, drawn):
-    check_bake(tmp_path_factory.mktemp("fuzz"), *drawn)
+def test_a_drawn_scene_bakes_or_is_refused_in_one_line(tmp_path_factory, gltf_validator, drawn):
+    check_bake(tmp_path_factory.mktemp("fuzz"), *drawn, gltf_validator)
 
 
 @pytest.mark.slow
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
                                                                  HealthCheck.function_scoped_fixture])
 @given(scenes())
-def test_many_drawn_scenes_bake_the_same_stage_on_one_and_two_threads(tmp_path_factory, drawn):
+def test_many_drawn_scenes_bake_the_same_stage_on_one_and_two_threads(tmp_path_factory, gltf_validator, drawn):
     tmp = tmp_path_factory.mktemp("fuzz")
-    if check_bake(tmp, *drawn, threads=1) is None:
+    if check_bake(tmp, *drawn, gltf_validator, threads=1) is None:
         return
-    check_bake(tmp, *drawn, threads=2)
+    check_bake(tmp, *drawn, gltf_validator, threads=2)
     assert wd.compare_usd(tmp / "out1" / "fuzz.usdc", tmp / "out2" / "fuzz.usdc", rtol=0, atol=0) == []

@@ -72,8 +72,9 @@ def spacing(rows: np.ndarray, d: np.ndarray, weight: np.ndarray, n: int) -> np.n
     """(n, 3) h_ik (module docstring) from the CSR entries' ``rows``, their displacements ``d``
     (nnz, 3) in the row element's frame (e_r, e_t, e_l) and their ``weight``; 0 where an element
     has no neighbour along e_k."""
-    m2 = np.stack([np.bincount(rows, weight * d[:, k] ** 2, minlength=n) for k in range(3)], axis=1)
-    m4 = np.stack([np.bincount(rows, weight * d[:, k] ** 4, minlength=n) for k in range(3)], axis=1)
+    # float even where there is no entry at all (numpy's bincount of nothing is int64)
+    m2 = np.stack([np.bincount(rows, weight * d[:, k] ** 2, minlength=n) for k in range(3)], axis=1).astype(float)
+    m4 = np.stack([np.bincount(rows, weight * d[:, k] ** 4, minlength=n) for k in range(3)], axis=1).astype(float)
     return np.sqrt(np.divide(m4, m2, out=np.zeros_like(m4), where=m2 > 0.0))
 
 
