@@ -23,7 +23,7 @@ from ..errors import InputError
 def wood_meshes(stage, file="") -> list:
     """The wood's Mesh prims: the one Mesh of format 1 or the pieces of format 2."""
     root = stage.GetDefaultPrim()
-    scenes = [c for c in root.GetChildren()] if root else []
+    scenes = list(root.GetChildren()) if root else []
     wood = next((c.GetChild("Wood") for c in scenes if c.GetChild("Wood")), None)
     if wood is None:
         raise InputError(str(file), "/World/<scene>/Wood", "not a wooddecay bake: the stage has no wood")
