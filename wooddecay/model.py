@@ -135,7 +135,8 @@ def empty_branch_notes(skel: Skeleton, topo, branch: np.ndarray, r_s: float, rod
 
 
 def _scene_info(scene) -> SceneInfo:
-    return SceneInfo(name=str(scene.name), seed=int(scene.seed), hash=scene.hash, settle_hash=scene.settle_hash)
+    return SceneInfo(name=str(scene.name), seed=int(scene.seed), hash=scene.hash, settle_hash=scene.settle_hash,
+                     description=str(scene.description))
 
 
 def _time_spec(scene) -> TimeSpec:
@@ -185,8 +186,37 @@ class Rings(NamedTuple):
     noise: np.ndarray
 
 
-def _rings(skel: Skeleton, topo, strands, samp, node_a: np.ndarray, node_b: np.ndarray, edge_t: np.ndarray, rg,
-           rng: np.random.Generator) -> Rings:
+def _control_point_s(strands, topo) -> np.ndarray:
+    """Distance to the root of every control point: its node's, or for a strand end part-way
+    along an edge, linear between the edge's nodes."""
+    part = np.flatnonzero(strands.frac < 1.0)
+    f = strands.frac[part]
+    cp_prev = np.where(part > 0, strands.node[np.maximum(part - 1, 0)], 0)
+    cp_s = topo.s[strands.node].astype(float)
+    cp_s[part] = (1.0 - f) * topo.s[cp_prev] + f * topo.s[strands.node[part]]
+    return cp_s
+
+
+def _clamp_cuts(skel: Skeleton, strands, cp_s: np.ndarray, depth: float) -> np.ndarray:
+    """Per strand, the distance to the root of its clamp plane (``[mechanics] clamp_depth``) when
+    its tree's root is anchored and the strand starts before the plane, else NaN."""
+    root_of = np.arange(len(skel.ids))
+    for i in range(len(skel.ids)):  # parents precede children
+        if skel.parent[i] >= 0:
+            root_of[i] = root_of[skel.parent[i]]
+    first = strands.offsets[:-1]
+    held = skel.anchored[root_of[strands.node[first]]] & (cp_s[first] < depth)
+    return np.where(held, depth, np.nan)
+
+
+def _anchored(samp, n_elements: int) -> np.ndarray:
+    """The elements inside a clamp: those of a held strand before its particle on the plane."""
+    local = np.arange(n_elements) - samp.element_offsets[samp.strand]
+    return local < samp.cut[samp.strand]
+
+
+def _rings(skel: Skeleton, topo, strands, samp, cp_s: np.ndarray, node_a: np.ndarray, node_b: np.ndarray,
+           edge_t: np.ndarray, rg, rng: np.random.Generator) -> Rings:
     """Rings and tissues of the elements: bark distance and radial coordinate q on every control
     point in its node's profile (a strand end between two profiles interpolated), then each
     element's ring age and tissue (:mod:`wooddecay.strands.rings`)."""
@@ -207,9 +237,6 @@ def _rings(skel: Skeleton, topo, strands, samp, node_a: np.ndarray, node_b: np.n
         fv = f.reshape(f.shape + (1,) * (v.ndim - 1))
         v[part] = (1.0 - fv) * v[part - 1] + fv * v[part]
     cp, t = samp.cp, samp.t
-    cp_prev = np.where(part > 0, strands.node[np.maximum(part - 1, 0)], 0)
-    cp_s = topo.s[strands.node].astype(float)
-    cp_s[part] = (1.0 - f) * topo.s[cp_prev] + f * topo.s[strands.node[part]]
     particle_s = _particle_s(strands, samp, cp_s)
     uv = _lerp(cp_uv[cp], cp_uv[cp + 1], t)
     bd = _lerp(cp_bd[cp], cp_bd[cp + 1], t)
@@ -237,24 +264,22 @@ def build_model(scene) -> WoodModel:
                                 stage_rng(scene.seed, "strands"))
         notes = narrow_notes(skel, float(st.r_s))
     with _timed(sec, "elements"):
-        samp = sample_strands(strands, st.rod_length, stage_rng(scene.seed, "sampling"))
+        cp_s = _control_point_s(strands, topo)
+        samp = sample_strands(strands, st.rod_length, stage_rng(scene.seed, "sampling"), cp_s,
+                              _clamp_cuts(skel, strands, cp_s, float(scene.mechanics.clamp_depth)))
         node_a, node_b = strands.node[samp.cp], strands.node[samp.cp + 1]
         edge_t = samp.t * strands.frac[samp.cp + 1]  # a strand's end lies part-way along its edge
         geo = element_geometry(samp, node_a, node_b, edge_t, skel.positions, topo.frames, topo.s)
     with _timed(sec, "rings"):
         cp_uv, cp_s, particle_s, uv, bd, age, tissue, years, noise = _rings(
-            skel, topo, strands, samp, node_a, node_b, edge_t, rg, stage_rng(scene.seed, "rings"))
+            skel, topo, strands, samp, cp_s, node_a, node_b, edge_t, rg, stage_rng(scene.seed, "rings"))
         wood_coords = np.stack([fm.hypot(uv[:, 0], uv[:, 1]), fm.arctan2(uv[:, 1], uv[:, 0]), geo.s], axis=1)
         materials = Materials({k: tuple(scene.tissue_param(t, k) for t in TISSUES) for k in TISSUE_KEYS}, tissue)
         mass = (materials.per_element("rho_dry") * (1.0 + materials.per_element("M_init")) * np.pi * st.r_s**2
                 * geo.rest_length)
         branch = topo.branch[node_b]
         notes += empty_branch_notes(skel, topo, branch, float(st.r_s), float(st.rod_length))
-        root_of = np.arange(len(skel.ids))
-        for i in range(len(skel.ids)):  # parents precede children
-            if skel.parent[i] >= 0:
-                root_of[i] = root_of[skel.parent[i]]
-        anchored = skel.anchored[root_of[node_a]] & (geo.s < st.rod_length)
+        anchored = _anchored(samp, len(geo.centers))
     with _timed(sec, "reg"):
         pa = samp.particles[samp.first_particle]
         pb = samp.particles[samp.first_particle + 1]

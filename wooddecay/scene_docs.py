@@ -20,6 +20,7 @@ from wooddecay.export.usd import FORMAT_UNDECLARED as STAGE_FORMAT_UNDECLARED
 from wooddecay.scene.schema import (
     ARRAY_TABLES,
     BARK_SPECIES,
+    CONDITIONAL,
     DRAFT_SCALE,
     FORMAT,
     FORMAT_MIN,
@@ -107,7 +108,12 @@ def _table(rows: list[tuple[str, ...]]) -> list[str]:
 
 
 def _param_rows(params, required: bool = False) -> list[tuple[str, ...]]:
-    return [(f"`{p.name}`", default_text(p, required), p.unit, allowed_text(p), p.doc) for p in params]
+    return [(f"`{p.name}`", default_text(p, required), p.unit, allowed_text(p), p.doc + _when(p)) for p in params]
+
+
+def _when(p) -> str:
+    """" Acts only ..." for a key of :data:`~wooddecay.scene.schema.CONDITIONAL`."""
+    return f" *Acts only {CONDITIONAL[p.key][0]}.*" if p.key in CONDITIONAL else ""
 
 
 def _check_skeleton_rows() -> None:

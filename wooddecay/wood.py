@@ -117,6 +117,7 @@ class SceneInfo:
     seed: int
     hash: str
     settle_hash: str
+    description: str = ""
 
 
 @dataclass(frozen=True)

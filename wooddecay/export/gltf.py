@@ -23,7 +23,8 @@
 * glTF is Y up: points and normals are turned from the model's Z up by (x, y, z) -> (x, z, -y),
   which Blender's glTF importer turns back;
 * one ``pbrMetallicRoughness`` material (white base colour times ``COLOR_0``, roughness 0.8);
-  ``asset.extras``: wooddecay version, scene name, seed, scene hash, frame index and day.
+  ``asset.extras``: wooddecay version, scene name, seed, scene hash, frame index, day and the
+  scene's description.
 
 Plain numpy + struct + json (the container is small; see docs/decisions.md, "glTF"). Written
 atomically: a hidden temporary file in the target folder, then ``os.replace``.
@@ -239,7 +240,7 @@ def gltf_document(model: WoodModel, mesh, frame, version: str = "", link=None, f
         "asset": {"version": "2.0", "generator": "wooddecay",
                   "extras": {"wooddecay_version": version, "scene": name, "seed": int(model.info.seed),
                              "scene_hash": model.info.hash, "frame": int(frame.index),
-                             "t_days": float(frame.t_days)}},
+                             "t_days": float(frame.t_days), "description": model.info.description}},
         "scene": 0,
         "scenes": [{"name": name, "nodes": list(range(len(nodes)))} if nodes else {"name": name}],
         "materials": [{"name": "Wood", "pbrMetallicRoughness": {

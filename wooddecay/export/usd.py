@@ -5,7 +5,7 @@
 * stage metadata: Z up, metersPerUnit 1, defaultPrim ``/World``, timeCodesPerSecond = ``time.fps``,
   start/end time codes = the first and last frame index, customLayerData (``format_version``,
   wooddecay version, scene name, seed, hash of the resolved scene, days per frame, frame days,
-  ``point_tolerance`` and ``field_step``);
+  ``point_tolerance`` and ``field_step``), the scene's description as the root layer's documentation;
 * ``/World/<scene>/Wood``: an Xform of one Mesh ``piece_<id>`` per piece of the last frame, its
   meshlets as disjoint closed shells (triangles, subdivisionScheme none, static topology). What a
   frame changes is written only where it changed (:mod:`wooddecay.export.tracks`): the piece's
@@ -171,6 +171,7 @@ def export_usd(path, model, mesh, frames, version: str = "", point_tolerance: fl
         "days_per_frame": float(model.time.days) / max(int(model.time.frames) - 1, 1),
         "frame_days": Vt.DoubleArray(days), "point_tolerance": tol_x, "field_step": step_f,
     }
+    stage.GetRootLayer().documentation = model.info.description
     link = skin_mod.links(model, mesh)
     first = exposure(model, mesh, frames)
     keep = first != NEVER

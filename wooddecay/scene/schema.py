@@ -104,7 +104,7 @@ _SCHEMA: dict[str, list[tuple]] = {
         ("name", None, "", "", "Scene name used for output files and the USD prim; default: the scene file stem.", "str"),
         ("seed", 0, "", "[0, inf)", "Seed of the numpy Generator that drives every random choice (packing, rings, noise, BSP)."),
         ("quality", "final", "", "", "Quality preset: 'draft' multiplies strands.r_s, strands.rod_length (and connect_radius) by 1.5 after validation.", "enum:draft|final"),
-        ("description", "", "", "", "Free text describing the scene."),
+        ("description", "", "", "", "Free text describing the scene; the stage carries it as its root layer's documentation, the glTF as asset.extras.description."),
     ],
     "strands": [
         ("r_s", 0.006, "m", "(0, 1]", f"Strand radius r_s (docs/model.md §2); also the capsule radius r_i of contact, {_T3} typical [0.005, 0.05] m."),
@@ -233,6 +233,7 @@ _SCHEMA: dict[str, list[tuple]] = {
         ("sleep_time", 0.2, "s", "(0, 100]", "Window over which sleep_speed is measured (sim/sleep.py)."),
         ("ground", True, "", "", "Ground plane collider at z = ground_height (woodstock §5.1 colliders)."),
         ("ground_height", 0.0, "m", "any", "Height of the ground plane."),
+        ("clamp_depth", 0.05, "m", "(0, 10]", "Depth of the clamp at an anchored root: every strand of its tree that starts before the plane this far along the wood from the root (distance to the root along the skeleton) gets a particle on that plane, held with the wood before it; beyond it the wood is free (docs/model.md §7). Without an anchored node it has no effect."),
     ],
     "time": [
         ("days", 365.0, "day", "[0, 1e6]", "Simulated biological time."),
@@ -353,6 +354,47 @@ _TABLE_SCHEMA: dict[str, dict[str, list[tuple]]] = {
             ("radius", None, "m", _LENGTH, "Radius.", "float"),
         ],
     },
+}
+
+#: Keys whose effect shows only in some scenes: ``{dotted key: (when, overrides)}``. ``when`` says in
+#: words when the key acts (docs/scene.md prints it with the key); ``overrides`` are dotted keys (or
+#: ``skeleton.node.<i>.<key>``, a node's key) that make the small bake of tests/test_keys.py such a
+#: scene, where the test checks that moving the key changes the bake.
+_DRYING = ("while the wood dries below mechanics.M_0", {"mechanics.M_0": 0.6})
+_BREAKS = ("when connections break", {"mechanics.M_0": 0.6})
+#: a drying log clamped at its root with no ground, under ten times its weight: its rods bend,
+#: twist, shear and stretch
+_LOADED = {"skeleton.node.0.anchored": True, "mechanics.gravity": [0.0, 0.0, -100.0], "mechanics.M_0": 0.6,
+           "mechanics.ground": False}
+_NEAR = "where a load bends, twists, shears or stretches the rods near that limit"
+_DECAYED = {"wood.H_c_init": 0.2, "wood.H_l_init": 0.2}
+_SETTLING = ("while pieces settle for longer than sleep_time seconds of mechanics",
+             {"time.schedule": "fixed", "mechanics.N_mech": 2000, "mechanics.ground_height": -0.3})
+CONDITIONAL: dict[str, tuple[str, dict[str, Any]]] = {
+    "weakpoints.junction_boost": ("near a fork of the skeleton", {}),
+    "weakpoints.junction_radius": ("near a fork of the skeleton", {}),
+    "fungi.M_min": ("where the wood is drier than the window's lower end", {"moisture.M_init": 0.3}),
+    "mechanics.S": _DRYING, "mechanics.s": _DRYING, "mechanics.S_R": _DRYING, "mechanics.S_T": _DRYING,
+    "bark.drying": _DRYING,
+    "time.strain_tolerance": ("while the wood dries below mechanics.M_0 and nothing else calls a solve",
+                              {"mechanics.M_0": 0.6, "time.tolerance": 1.0}),
+    "mechanics.L_0_stretch": _BREAKS, "mechanics.L_0_shear": _BREAKS, "mechanics.L_0_bundle": _BREAKS,
+    "mechanics.L_knee": _BREAKS, "mechanics.p_l_bundle": _BREAKS,
+    "mechanics.L_0_bend": (_NEAR, _LOADED), "mechanics.L_0_twist": (_NEAR, _LOADED),
+    "mechanics.p_l_stretch": (_NEAR, _LOADED),
+    "mechanics.p_l_shear": (_NEAR, {**_LOADED, "mechanics.L_0_shear": 0.002}),
+    "mechanics.p_l_bend": (_NEAR, {**_LOADED, "mechanics.L_0_bend": 0.002}),
+    "mechanics.p_l_twist": (_NEAR, {**_LOADED, "mechanics.L_0_twist": 0.0002}),
+    "mechanics.I_fail": ("where decay brings a connection's integrity near it",
+                         {"wood.H_c_init": 0.6, "wood.H_l_init": 0.6}),
+    "mechanics.m_crumble": ("where decay brings an element's remaining mass near it", _DECAYED),
+    "mechanics.N_mech": ("with time.schedule = 'fixed' (the adaptive schedule runs to rest)",
+                         {"time.schedule": "fixed"}),
+    "mechanics.sleep_speed": _SETTLING, "mechanics.sleep_time": _SETTLING,
+    "time.max_mechanics": ("while a piece moves for longer than that in one macro step (a fall)",
+                           {"mechanics.ground_height": -1.0}),
+    "mechanics.clamp_depth": ("with an anchored root", {"skeleton.node.0.anchored": True}),
+    "bark.shedding": ("where the wood under the bark has decayed or its moisture cycles", _DECAYED),
 }
 
 #: Sections whose parameters may be overridden per tissue (``[tissue.<name>]``).

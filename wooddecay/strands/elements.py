@@ -4,7 +4,9 @@ Woodstock §5 (opening), Fig. 3b; docs/model.md §2. A strand's centreline is a 
 control points (chord-length parameter). Rod particles are placed along it by arc length at
 ``rod_length`` spacing with a random phase per strand, so element boundaries of neighbouring
 strands do not line up (the "randomly subdivided strand group"); the first and last elements
-are between 0.5 and 1.5 ``rod_length`` long. An element is two consecutive particles.
+are between 0.5 and 1.5 ``rod_length`` long. A strand a clamp holds also has a particle on the
+clamp plane; the elements inside the clamp may be shorter (they do not move). An element is two
+consecutive particles.
 
 Per element: rest length, rest orientation (material frame d1, d2, d3 with d3 along the segment,
 d1 carried by parallel transport along the strand), the wood frame (e_r, e_t, e_l): e_l along
@@ -37,11 +39,17 @@ class Sampling:
     cp: np.ndarray  # (n_e,) control point (row of StrandSet) at the start of the element's edge
     t: np.ndarray  # (n_e,) fraction along that edge (control point cp -> cp + 1)
     u: np.ndarray  # (n_p,) spline parameter of each particle (chord length along the control points)
+    cut: np.ndarray  # (n_strands,) particle on the clamp plane, counted along the strand; -1: none
 
 
-def arc_positions(length: float, rod_length: float, phase: float) -> np.ndarray:
+def arc_positions(length: float, rod_length: float, phase: float, cut: float = -1.0) -> np.ndarray:
     """Particle arc positions on a strand of ``length``: 0, phase + k L (kept >= L/2 from both
-    ends), length. ``phase`` in [0, 1) of a rod length."""
+    ends), length. ``phase`` in [0, 1) of a rod length. A ``cut`` in (0, length) is a particle
+    too (the clamp plane, :func:`sample_strands`): the rod breaks then keep L/2 from it as well,
+    counted from it, so the elements beyond it are as long as anywhere else."""
+    if 0.0 < cut < length:
+        ahead = arc_positions(cut, rod_length, phase)
+        return np.concatenate([ahead, cut + arc_positions(length - cut, rod_length, phase)[1:]])
     first = phase * rod_length
     k = np.arange(int(np.ceil(length / rod_length)) + 2)
     b = first + k * rod_length
@@ -49,10 +57,17 @@ def arc_positions(length: float, rod_length: float, phase: float) -> np.ndarray:
     return np.concatenate([[0.0], b, [length]])
 
 
-def sample_strands(strands: StrandSet, rod_length: float, rng: np.random.Generator) -> Sampling:
-    """Sample every strand's B-spline into rod particles (one Python iteration per strand)."""
+def sample_strands(strands: StrandSet, rod_length: float, rng: np.random.Generator,
+                   cp_s: np.ndarray | None = None, cut_s: np.ndarray | None = None) -> Sampling:
+    """Sample every strand's B-spline into rod particles (one Python iteration per strand).
+
+    ``cut_s`` (per strand, NaN for none) puts a particle where the strand's distance to the root
+    (linear in the spline parameter between the control points' ``cp_s``) reaches that value: the
+    plane a clamp holds every strand at (docs/model.md §7). ``Sampling.cut`` is its index on the
+    strand: the strand's length when the strand ends before the plane, -1 without a cut."""
     phases = rng.uniform(0.0, 1.0, strands.count)
-    parts, p_counts, cps, ts, us = [], [], [], [], []
+    cut_s = np.full(strands.count, np.nan) if cut_s is None else cut_s
+    parts, p_counts, cps, ts, us, cuts = [], [], [], [], [], []
     for k in range(strands.count):
         o0, o1 = strands.offsets[k], strands.offsets[k + 1]
         P = strands.xyz[o0:o1]
@@ -61,7 +76,12 @@ def sample_strands(strands: StrandSet, rod_length: float, rng: np.random.Generat
         n_dense = max(16, int(np.ceil(u_cp[-1] / rod_length * ARC_SAMPLES_PER_ROD)) + 1)
         uu = np.linspace(0.0, u_cp[-1], n_dense)
         arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(spline(uu), axis=0), axis=1))])
-        u_p = np.interp(arc_positions(arc[-1], rod_length, phases[k]), arc, uu)
+        cut = -1.0
+        if not np.isnan(cut_s[k]):
+            cut = float(np.interp(np.interp(cut_s[k], cp_s[o0:o1], u_cp), uu, arc))
+        u_p = np.interp(arc_positions(arc[-1], rod_length, phases[k], cut), arc, uu)
+        cuts.append(-1 if np.isnan(cut_s[k]) else len(u_p) - 1 if cut >= arc[-1]
+                    else int(np.searchsorted(u_p, np.interp(cut, arc, uu))))
         parts.append(spline(u_p))
         us.append(u_p)
         p_counts.append(len(u_p))
@@ -84,6 +104,7 @@ def sample_strands(strands: StrandSet, rod_length: float, rng: np.random.Generat
         cp=np.concatenate(cps).astype(np.int64),
         t=np.concatenate(ts),
         u=np.concatenate(us),
+        cut=np.array(cuts, dtype=np.int64),
     )
 
 

@@ -2,8 +2,8 @@
 ``benchmarks/cantilever.py`` and ``wooddecay chart mechanics``).
 
 The strand comes from the real pipeline: a two-node skeleton whose circular profile holds
-exactly one strand (radius 1.3 r_s), anchored at its root, so the first element is clamped.
-The free length L runs from the clamped element's far particle to the tip.
+exactly one strand (radius 1.3 r_s), anchored at its root with the clamp plane one element deep
+(``[mechanics] clamp_depth``). The free length L runs from the particle on that plane to the tip.
 
 * :func:`cantilever`: gravity, horizontal strand; tip deflection against q L^4 / (8 E I).
 * :func:`tip_moment`: no gravity, a moment M about the world y axis at the tip element; with
@@ -64,8 +64,8 @@ def strand_scene(length: float = 0.5, n: int = 20, direction=(1.0, 0.0, 0.0), r_
              {"id": "tip", "position": [float(c) for c in end], "parent": "root", "profile": profile}]
     return scene_template("cantilever", {
         "strands.r_s": r_s, "strands.rod_length": rod, "mechanics.E": E, "mechanics.G": G, "mechanics.rho_dry": rho,
-        "mechanics.gravity": [0.0, 0.0, g], "mechanics.damping": damping, "mechanics.dt_mech": dt,
-        "mechanics.iterations": iterations, "mechanics.strand_solver": solver}, nodes)
+        "mechanics.gravity": [0.0, 0.0, g], "mechanics.clamp_depth": rod, "mechanics.damping": damping,
+        "mechanics.dt_mech": dt, "mechanics.iterations": iterations, "mechanics.strand_solver": solver}, nodes)
 
 
 def strand(length: float = 0.5, n: int = 20, direction=(1.0, 0.0, 0.0), r_s: float = 0.006,
