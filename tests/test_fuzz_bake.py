@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 import wooddecay as wd
@@ -136,17 +136,21 @@ def check_bake(tmp_path, text: str, overrides: dict, files: dict, validator, thr
     path.write_text(text)
     for name, content in files.items():
         (tmp_path / name).write_text(content)
+    event("skeleton: " + {"tree.csv": "TreeQSM table", "log.obj": "surface mesh"}.get(next(iter(files), ""), "nodes"))
     out = tmp_path / f"out{threads}"
     try:
         scene = wd.load_scene(path, overrides=overrides)
     except InputError as err:
         assert "\n" not in str(err)
+        event("refused at validation")
         return None
     try:
         summary = bake(scene, out, threads=threads)
-    except InputError as err:  # the memory check: before anything is written
+    except InputError as err:  # the memory check or the build: before anything is written
         assert "\n" not in str(err) and not (out / "fuzz.usdc").exists()
+        event("refused before writing")
         return None
+    event("baked")
     from pxr import Usd, UsdValidation
 
     stage = Usd.Stage.Open(str(out / "fuzz.usdc"))
