@@ -257,6 +257,36 @@ def test_any_thread_count_bakes_the_same_stage_and_the_summary_says_which(tmp_pa
     assert bad.exit_code == 2 and "--threads: must be" in bad.output and not (tmp_path / "bad").exists()
 
 
+@pytest.mark.parametrize("stop", [RuntimeError, KeyboardInterrupt])
+def test_a_bake_that_stops_mid_run_says_how_to_resume_it(tmp_path, monkeypatch, stop):
+    """A failure (or Ctrl-C) after the first frame keeps the frames and the checkpoint and says so:
+    the exception carries the note (a traceback prints it), the CLI prints it after Ctrl-C, and
+    --resume finishes the bake."""
+    import wooddecay.bake as bake_mod
+
+    saved = []
+    real = bake_mod.save_frame
+
+    def save_frame(path, frame):
+        if saved:
+            raise stop("stopped")
+        saved.append(path)
+        real(path, frame)
+
+    monkeypatch.setattr(bake_mod, "save_frame", save_frame)
+    out = tmp_path / "out"
+    res = run("bake", TINY, "-o", out, *SHORT)
+    assert res.exit_code == 1 and not (out / "tiny.usdc").exists()
+    note = f"the bake stopped after 1 of 3 frames; its frames and checkpoint are kept in {out / '.bake'}"
+    if stop is KeyboardInterrupt:
+        assert f"note: {note}" in res.output, res.output
+    else:
+        assert note in res.exception.__notes__[0]
+    monkeypatch.setattr(bake_mod, "save_frame", real)
+    res = run("bake", TINY, "-o", out, *SHORT, "--resume")
+    assert res.exit_code == 0 and (out / "tiny.usdc").exists(), res.output
+
+
 def test_resumed_bake_counts_the_simulation_seconds_of_the_runs_it_continues(tmp_path):
     """summary.json ``seconds.simulation`` of a resumed bake adds the seconds checkpointed by the
     run it continues: resuming a finished bake simulates nothing and keeps its total."""

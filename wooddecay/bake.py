@@ -119,13 +119,19 @@ def bake(scene, out, resume: bool = False, quality: str = "final", progress=None
     budget.check(scene, max_memory)
     out = Path(out)
     created = not out.exists()
+    started = time.time()
     try:
         return _bake(scene, out, resume, quality, progress, threads, model, meshlets)
-    except BaseException:
+    except BaseException as err:
         # a bake that fails before its first frame leaves nothing; a later failure keeps the frames
-        # and the checkpoint for --resume
-        if created and not (out / ".bake" / "checkpoint.npz").exists():
+        # and the checkpoint for --resume, and says so
+        ckpt = out / ".bake" / "checkpoint.npz"
+        if created and not ckpt.exists():
             shutil.rmtree(out, ignore_errors=True)
+        elif ckpt.exists() and (resume or ckpt.stat().st_mtime >= started - 1.0):
+            done = len(list(ckpt.parent.glob("frame_*.npz")))
+            err.add_note(f"the bake stopped after {done} of {int(scene.time.frames)} frames; its frames and "
+                         f"checkpoint are kept in {ckpt.parent}: bake again with --resume to continue")
         raise
 
 

@@ -326,9 +326,14 @@ def bake(scene_path: str, out: str | None, days: float | None, years: float | No
                        + (f"  broken {mech['broken_connections']}  pieces {mech['components']}" if mech else ""),
                        err=True)
 
-    with bar if bar is not None else contextlib.nullcontext():
-        summary = run_bake(scene, out_dir, resume=resume, quality=quality, progress=progress, threads=n_threads,
-                           max_memory=limit)
+    try:
+        with bar if bar is not None else contextlib.nullcontext():
+            summary = run_bake(scene, out_dir, resume=resume, quality=quality, progress=progress,
+                               threads=n_threads, max_memory=limit)
+    except KeyboardInterrupt as err:  # click says only "aborted"; a traceback prints the note itself
+        for note in getattr(err, "__notes__", ()):
+            click.echo(f"note: {note}", err=True)
+        raise
     sec = summary["seconds"]
     from .export.bark_texture import file_name, tile_number
 
