@@ -148,6 +148,10 @@ a batch file's `[batch.set]` and `[batch.grid]`. Overrides are checked exactly l
 A value that is wrong, out of range or inconsistent with another is refused with one line naming
 the file, the key and what is allowed (exit code 2).
 
+Every key changes a bake. A key marked *Acts only ...* changes it only in scenes of that kind (a
+drying span, a clamp, a load); `tests/test_keys.py` bakes each key moved off its value, under that
+condition where there is one (docs/decisions.md, "Every key acts, or says when").
+
 ## Format version
 
 `[scene] format` is the version of the scene file format: this wooddecay reads formats

@@ -233,7 +233,7 @@ _SCHEMA: dict[str, list[tuple]] = {
         ("sleep_time", 0.2, "s", "(0, 100]", "Window over which sleep_speed is measured (sim/sleep.py)."),
         ("ground", True, "", "", "Ground plane collider at z = ground_height (woodstock §5.1 colliders)."),
         ("ground_height", 0.0, "m", "any", "Height of the ground plane."),
-        ("clamp_depth", 0.05, "m", "(0, 10]", "Depth of the clamp at an anchored root: every strand of its tree that starts before the plane this far along the wood from the root (distance to the root along the skeleton) gets a particle on that plane, held with the wood before it; beyond it the wood is free (docs/model.md §7). Without an anchored node it has no effect."),
+        ("clamp_depth", 0.05, "m", "(0, 10]", "Depth of the clamp at an anchored root: every strand of its tree that starts before the plane this far along the wood from the root (distance to the root along the skeleton) gets a particle on that plane, held with the wood before it; beyond it the wood is free (docs/model.md §7)."),
     ],
     "time": [
         ("days", 365.0, "day", "[0, 1e6]", "Simulated biological time."),
