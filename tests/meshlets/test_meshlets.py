@@ -204,6 +204,39 @@ def test_skinning_kernel_equals_reference_and_rest():
     assert np.abs(P - P2).max() < 1e-12 and np.abs(Fv - F2).max() < 1e-12
 
 
+def test_a_vertex_cut_off_from_every_candidate_follows_its_owner_rigidly():
+    """Everything broken (every link and element failed, each element its own piece): a vertex
+    whose owner is not among its candidates (a corner skinned by its neighbours, here made by
+    dropping the owner's entry from every seventh vertex) has no candidate left, and follows its
+    owner's rigid motion with the owner's fields, in the kernel and in the reference."""
+    from dataclasses import replace
+
+    _, model, mesh = meshed("tiny")
+    link = skin.links(model, mesh)
+    rows = np.repeat(np.arange(len(mesh.points)), np.diff(mesh.skin_indptr))
+    cut = (mesh.skin_element == mesh.vertex_element[rows]) & (rows % 7 == 0)
+    keep = ~cut
+    mesh = replace(mesh, skin_indptr=np.concatenate([[0], np.cumsum(np.bincount(rows[keep], minlength=len(mesh.points)))]),
+                   skin_element=mesh.skin_element[keep], skin_weight=mesh.skin_weight[keep],
+                   skin_local=mesh.skin_local[keep])
+    link = link[keep]
+    alone = np.zeros(len(mesh.points), dtype=bool)
+    alone[rows[cut]] = True
+    x, q, _, ok = _rest_state(model)
+    ok[:] = False
+    eok = np.zeros(model.n_elements, dtype=bool)
+    comp = np.arange(model.n_elements)
+    F = np.stack([model.ring_age, model.W], axis=1)
+    one = np.ones(model.n_elements)
+    P, Fv = skin.skin(model, mesh, link, x, q, comp, ok, eok, one, F)
+    assert alone.sum() > 100 and np.abs(P[alone] - mesh.points[alone]).max() < 1e-12  # rigid at rest
+    assert np.array_equal(Fv[alone], F[mesh.vertex_element[alone]])
+    xb, qb = _bend(model, x, q, 0.5)
+    P, Fv = skin.skin(model, mesh, link, xb, qb, comp, ok, eok, one, F)
+    P2, F2 = skin.skin_reference(model, mesh, link, xb, qb, comp, ok, eok, one, F)
+    assert np.isfinite(P).all() and np.abs(P - P2).max() < 1e-12 and np.abs(Fv - F2).max() < 1e-12
+
+
 def test_rest_skinning_kernel_equals_reference():
     _, model, mesh = meshed("tiny")
     w, local, ring = skin.rest_skinning(model, mesh.points, mesh.skin_indptr, mesh.skin_element)

@@ -18,7 +18,9 @@ longer spans its two particles, which may belong to different pieces: it is plac
 first particle without stretching along it (l_c = l_c0), c_c = p_a + R_c (0, 0, l_c0 / 2), and so stays with the strand part before it, as its component does. Consumed wood
 dwindles: the copies owned by o are finally drawn towards o's own centre, x <- c_o + s_o (x - c_o),
 with s_o = ``scale`` (:func:`wooddecay.sim.coupling.crumble_scale`: 0 once o crumbled), so a
-crumbled element's meshlet is gone and its neighbours' faces around it are the cavity's walls. Connected meshlets keep sharing their vertices (no gap); across a broken
+crumbled element's meshlet is gone and its neighbours' faces around it are the cavity's walls. A
+copy none of whose candidates is still connected to o (o need not be one: a corner of o's cell
+skinned by its neighbours) follows o rigidly, x = c_o + R_o R_o0^T (x_0 - c_o0), with o's fields. Connected meshlets keep sharing their vertices (no gap); across a broken
 connection each side follows only its own elements, so the crack opens cleanly. Fields (H_c, H_l,
 M, ...) per element are interpolated with the same weights: smooth inside a piece, discontinuous
 across a crack.
@@ -119,6 +121,7 @@ def _centres(model: WoodModel, x, q, element_ok):
 
 def skin_reference(model: WoodModel, mesh, link, x, q, component, edge_ok, element_ok, scale, fields, lateral=None):
     """Plain-numpy twin of :func:`skin` (same maths, vectorised over skinning pairs)."""
+    lateral = np.ones(model.n_elements) if lateral is None else lateral
     V = len(mesh.points)
     cnt = np.diff(mesh.skin_indptr)
     rows = np.repeat(np.arange(V), cnt)
@@ -129,7 +132,7 @@ def skin_reference(model: WoodModel, mesh, link, x, q, component, edge_ok, eleme
     intact = element_ok[c]
     l0 = model.rest_length[c]
     stretch = np.where(intact, np.linalg.norm(b - a, axis=1) / l0, 1.0)
-    across = np.ones(len(c)) if lateral is None else lateral[c]
+    across = lateral[c]
     local = mesh.skin_local * np.stack([across, across, stretch], 1)
     local[:, 2] += np.where(intact, 0.0, 0.5 * l0)
     p = np.where(intact[:, None], 0.5 * (a + b), a) + rotate_np(q[c], local)
@@ -140,12 +143,17 @@ def skin_reference(model: WoodModel, mesh, link, x, q, component, edge_ok, eleme
                   for k in range(fields.shape[1])], 1)
     own = mesh.vertex_element
     centre = _centres(model, x, q, element_ok)[own]
+    alone = wsum == 0.0
+    rest = rotate_np(conj_np(model.rest_quat[own[alone]]), mesh.points[alone] - model.centers[own[alone]])
+    pts[alone] = centre[alone] + rotate_np(q[own[alone]], rest)
+    f[alone] = fields[own[alone]]
+    wsum[alone] = 1.0
     return centre + scale[own, None] * (pts / wsum[:, None] - centre), f / wsum[:, None]
 
 
 @nb.njit(parallel=True, cache=True)
 def _skin_kernel(indptr, owner, cand, weight, local, link, first_particle, rest_length, x, q,
-                 component, edge_ok, element_ok, scale, lateral, fields, out_p, out_f):
+                 component, edge_ok, element_ok, scale, lateral, fields, points, centers, rest_quat, out_p, out_f):
     for v in nb.prange(len(owner)):
         o = owner[v]
         px = py = pz = 0.0
@@ -189,6 +197,15 @@ def _skin_kernel(indptr, owner, cand, weight, local, link, first_particle, rest_
         else:
             rx, ry, rz = rotate(q[o, 0], q[o, 1], q[o, 2], q[o, 3], 0.0, 0.0, 0.5 * rest_length[o])
             ox, oy, oz = x[f, 0] + rx, x[f, 1] + ry, x[f, 2] + rz
+        if wsum == 0.0:  # no candidate still joined to o: o's own rigid motion
+            q0 = rest_quat[o]
+            dx, dy, dz = rotate(q0[0], -q0[1], -q0[2], -q0[3], points[v, 0] - centers[o, 0],
+                                points[v, 1] - centers[o, 1], points[v, 2] - centers[o, 2])
+            rx, ry, rz = rotate(q[o, 0], q[o, 1], q[o, 2], q[o, 3], dx, dy, dz)
+            px, py, pz = ox + rx, oy + ry, oz + rz
+            for j in range(nf):
+                acc[j] = fields[o, j]
+            wsum = 1.0
         s = scale[o]
         out_p[v, 0] = ox + s * (px / wsum - ox)
         out_p[v, 1] = oy + s * (py / wsum - oy)
@@ -208,7 +225,8 @@ def skin(model: WoodModel, mesh, link, x, q, component, edge_ok, element_ok, sca
     out_f = np.empty((len(mesh.points), fields.shape[1]))
     _skin_kernel(mesh.skin_indptr, mesh.vertex_element, mesh.skin_element, mesh.skin_weight,
                  mesh.skin_local, link, model.first_particle, model.rest_length, x, q, component,
-                 edge_ok, element_ok, np.ascontiguousarray(scale, dtype=np.float64), lateral, fields, out_p, out_f)
+                 edge_ok, element_ok, np.ascontiguousarray(scale, dtype=np.float64), lateral, fields,
+                 np.ascontiguousarray(mesh.points, dtype=np.float64), model.centers, model.rest_quat, out_p, out_f)
     return out_p, out_f
 
 
