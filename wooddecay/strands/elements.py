@@ -42,6 +42,12 @@ class Sampling:
     cut: np.ndarray  # (n_strands,) particle on the clamp plane, counted along the strand; -1: none
 
 
+#: a strand's particle on the clamp plane lies up to this fraction of a rod length beyond it (by
+#: the strand's rod phase): element ends of every strand on one exact plane are a degenerate event
+#: of the meshlets' kinetic sweep (docs/decisions.md, "A clamp is a plane")
+CLAMP_SPREAD = 0.0025
+
+
 def arc_positions(length: float, rod_length: float, phase: float, cut: float = -1.0) -> np.ndarray:
     """Particle arc positions on a strand of ``length``: 0, phase + k L (kept >= L/2 from both
     ends), length. ``phase`` in [0, 1) of a rod length. A ``cut`` in (0, length) is a particle
@@ -62,8 +68,8 @@ def sample_strands(strands: StrandSet, rod_length: float, rng: np.random.Generat
     """Sample every strand's B-spline into rod particles (one Python iteration per strand).
 
     ``cut_s`` (per strand, NaN for none) puts a particle where the strand's distance to the root
-    (linear in the spline parameter between the control points' ``cp_s``) reaches that value: the
-    plane a clamp holds every strand at (docs/model.md §7). ``Sampling.cut`` is its index on the
+    (linear in the spline parameter between the control points' ``cp_s``) reaches that value, plus
+    up to :data:`CLAMP_SPREAD` rod lengths: the plane a clamp holds every strand at (docs/model.md §7). ``Sampling.cut`` is its index on the
     strand: the strand's length when the strand ends before the plane, -1 without a cut."""
     phases = rng.uniform(0.0, 1.0, strands.count)
     cut_s = np.full(strands.count, np.nan) if cut_s is None else cut_s
@@ -78,7 +84,7 @@ def sample_strands(strands: StrandSet, rod_length: float, rng: np.random.Generat
         arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(spline(uu), axis=0), axis=1))])
         cut = -1.0
         if not np.isnan(cut_s[k]):
-            cut = float(np.interp(np.interp(cut_s[k], cp_s[o0:o1], u_cp), uu, arc))
+            cut = float(np.interp(np.interp(cut_s[k], cp_s[o0:o1], u_cp), uu, arc)) + CLAMP_SPREAD * rod_length * phases[k]
         u_p = np.interp(arc_positions(arc[-1], rod_length, phases[k], cut), arc, uu)
         cuts.append(-1 if np.isnan(cut_s[k]) else len(u_p) - 1 if cut >= arc[-1]
                     else int(np.searchsorted(u_p, np.interp(cut, arc, uu))))

@@ -24,8 +24,8 @@ specimen at ``quality = "draft"``). docs/decisions.md ("Mechanics") gives reason
   drift by less than ``SETTLE_TOL`` of their limits within 0.05 s). From that equilibrium each
   case settles again for ``resettle`` seconds (default: the scene's ``settle``), on to the same
   tolerance, and takes its own reference strains (a decayed branch, softer, is overdamped at
-  ``settle_damping`` and still sagging after 0.2 s; that sag alone, with no load, pushed its
-  weakened connections past their limits): *healthy* as it is, *decayed* after H_c = H_l =
+  ``settle_damping`` and still sagging after 0.2 s, 0.4 mm more with no load in the draft
+  specimen, a sag that would count against its weakened limits): *healthy* as it is, *decayed* after H_c = H_l =
   ``decay`` in every element and the coupling (Eq. 21: I_ij = (1 - theta_ij k_c (1 - H_c))
   (1 - k_l (1 - H_l)), which scales the pairs' stiffness and strain limits). The whole wood
   decays, as in Fig. 17, where the tree's health is lowered and "the connection loses
