@@ -35,6 +35,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..quaternion import conj_np, mul_np, rotate_np
+from . import rigid
 from .contact.closest import capsule_contact_reference
 from .contact.colliders import collider_distance_reference
 from .mechanics import CONTACT_MARGIN, MechSetup, MechState, joint_stiffness
@@ -215,7 +216,8 @@ def equilibrium_residual(setup: MechSetup, ms: MechState,
                          inertia: tuple[np.ndarray, np.ndarray] | None = None) -> float:
     """Net force and torque on the bound wood over its normaliser (module docstring): 0 in
     equilibrium, 1 for wood that carries its loads with no deformation at all. ``inertia``: the
-    forces (P, 3) and torques (n, 3) of a time step's inertia term, added to the net."""
+    forces (P, 3) and torques (n, 3) of a time step's inertia term, added to the net. A rigid
+    piece (:mod:`~wooddecay.sim.rigid`) is judged as one body: :func:`_rigid_remainder`."""
     F, touching = forces(setup, ms)
     if inertia is not None:
         F = F._replace(f=F.f + inertia[0], tau=F.tau + inertia[1])
@@ -226,7 +228,49 @@ def equilibrium_residual(setup: MechSetup, ms: MechState,
     den = float(F.scale[parts].sum())
     if den <= 0.0:
         return 0.0
-    rest = _friction(F.f[parts], F.contact[parts], setup.mu_f)
-    turn = elems & ~setup.anchored_e
+    rb = rigid.bodies(setup, ms)
+    own = parts & (rb.particle < 0)
+    rest = _friction(F.f[own], F.contact[own], setup.mu_f)
+    turn = elems & ~setup.anchored_e & (rb.element < 0)
     num = np.linalg.norm(rest, axis=1).sum() + (np.linalg.norm(F.tau[turn], axis=1) / ms.rest_length[turn]).sum()
-    return float(num / den)
+    judged = np.zeros(rb.n_pieces, dtype=bool)
+    judged[rb.element[elems & (rb.element >= 0)]] = True
+    return float((num + _rigid_remainder(setup, ms, F, rb)[judged].sum()) / den)
+
+
+#: projected gradient iterations of the rigid pieces' static friction (:func:`_rigid_remainder`)
+FRICTION_ITERATIONS = 100
+
+
+def _rigid_remainder(setup: MechSetup, ms: MechState, F: Forces, rb: rigid.Bodies) -> np.ndarray:
+    """Per rigid piece, |a| + |b| / rho with a and b its net force and its net torque about its
+    centre (its own elastic forces cancel in both) plus the static friction phi_p at its contacts
+    that minimises |a|^2 + |b|^2 / rho^2, each phi_p across its contact's normal force N_p and at
+    most mu_f |N_p| (projected gradient, FRICTION_ITERATIONS steps of 1 / Lipschitz from zero);
+    rho the piece's radius of gyration."""
+    p = np.flatnonzero(rb.particle >= 0)
+    k, size = rb.particle[p], rb.n_pieces
+    r = ms.x[p] - rb.centre[k]
+    e = np.flatnonzero(rb.element >= 0)
+    net = _scatter(k, F.f[p], size)
+    torque = _scatter(k, np.cross(r, F.f[p]), size) + _scatter(rb.element[e], F.tau[e], size)
+    m = np.bincount(k, ms.mass_p[p], minlength=size)
+    gyration = np.sqrt(np.bincount(k, ms.mass_p[p] * (r * r).sum(axis=1), minlength=size) / np.where(m > 0.0, m, 1.0))
+    rho2 = np.where(gyration > 0.0, gyration, 1.0) ** 2
+    N = np.linalg.norm(F.contact[p], axis=1)
+    c = np.flatnonzero(N > 0.0)
+    kc, rc, cap = k[c], r[c], setup.mu_f * N[c]
+    n = F.contact[p][c] / N[c, None]
+    lipschitz = np.bincount(kc, 1.0 + (rc * rc).sum(axis=1) / rho2[kc], minlength=size)
+    step = 1.0 / np.where(lipschitz > 0.0, lipschitz, 1.0)[kc]
+    phi = np.zeros_like(rc)
+    a, b = net, torque
+    for _ in range(FRICTION_ITERATIONS if len(c) else 0):
+        g = a[kc] + np.cross(b[kc], rc) / rho2[kc, None]
+        phi = phi - step[:, None] * g
+        phi -= np.einsum("ij,ij->i", phi, n)[:, None] * n
+        size_phi = np.linalg.norm(phi, axis=1)
+        phi *= (np.minimum(size_phi, cap) / np.where(size_phi > 0.0, size_phi, 1.0))[:, None]
+        a = net + _scatter(kc, phi, size)
+        b = torque + _scatter(kc, np.cross(rc, phi), size)
+    return np.linalg.norm(a, axis=1) + np.linalg.norm(b, axis=1) / np.sqrt(rho2)

@@ -11,7 +11,8 @@ predicted orientation exp(h omega / 2) q_e to q_e, I_e = m_e inertia_factor_e it
 With h = inf the inertia drops out: the static equilibrium of wood an anchor holds.
 
 Unknowns are the positions of the particles and a world rotation increment per element
-(q <- exp(dtheta / 2) q). Each Newton iteration solves (H + M / h^2) d = -grad Phi with the
+(q <- exp(dtheta / 2) q), but for a small loose piece, which moves as one rigid body: a translation
+and a rotation about its centre (:mod:`~wooddecay.sim.rigid`; its system B^T (...) B). Each Newton iteration solves (H + M / h^2) d = -grad Phi with the
 Gauss-Newton Hessian H = sum_c k_c J_c^T J_c of every constraint row c (C the constraint, J_c its
 gradient, as in :mod:`~wooddecay.sim.equilibrium`; contact 2 k_col phi n n^T) plus the geometric
 stiffness of stretched distances (projected Newton: positive semidefinite), exact where the
@@ -31,7 +32,7 @@ import scipy.sparse.linalg as spla
 
 from ..quaternion import conj_np, mul_np, normalize_np, rotate_np
 from ..wood import WoodModel
-from . import break_order, equilibrium, failure, mechanics, precondition, sleep
+from . import break_order, equilibrium, failure, mechanics, precondition, rigid, sleep
 from .contact.colliders import collider_distance_reference
 from .mechanics import MechSetup, MechState, joint_stiffness
 
@@ -286,13 +287,15 @@ def _inertia(setup: MechSetup, ms: MechState, h: float) -> _Inertia:
 
 class Layout(NamedTuple):
     """What a step's Newton systems share: the free unknowns, the inertia's blocks and the
-    preconditioner's structure (:mod:`~wooddecay.sim.precondition`) over the free blocks."""
+    preconditioner's structure (:mod:`~wooddecay.sim.precondition`) over the reduced blocks: the
+    free blocks that are not in a rigid piece (:mod:`~wooddecay.sim.rigid`), then two per rigid
+    piece (its translation, its rotation)."""
 
     free_blocks: np.ndarray  # (P + n,) bool: particles, then element rotations, not anchored
     mass: Blocks  # M / h^2 on the diagonal blocks
-    strand: np.ndarray  # (free blocks,) int64: the strand of each
-    position: np.ndarray  # (free blocks,) float64: its place along the strand
-    modes: sp.csr_matrix  # (free DOFs, 6 k): the aggregates' rigid modes
+    strand: np.ndarray  # (reduced blocks,) int64: the strand of each (a rigid piece its own)
+    position: np.ndarray  # (reduced blocks,) float64: its place along the strand
+    modes: sp.csr_matrix  # (reduced DOFs, 6 k): the aggregates' rigid modes, each rigid piece's own
 
     @property
     def free(self) -> np.ndarray:
@@ -304,12 +307,17 @@ def layout(setup: MechSetup, ms: MechState, inertia: _Inertia) -> Layout:
     free_blocks = np.concatenate([~setup.anchored_p, ~setup.anchored_e])
     mass = Blocks(np.concatenate([inertia.m, inertia.I])[:, None, None, None, None] * np.eye(3),
                   np.arange(len(free_blocks))[:, None])
-    strand, position = (a[free_blocks] for a in precondition.strand_of_blocks(setup))
-    modes = precondition.rigid_modes(setup, ms, precondition.aggregates(setup, ms))[np.repeat(free_blocks, 3)]
+    rb = rigid.bodies(setup, ms)
+    kept, k = free_blocks & ~rb.blocks, rb.n_pieces
+    strand, position = precondition.strand_of_blocks(setup)
+    strand = np.concatenate([strand[kept], int(strand.max()) + 1 + np.repeat(np.arange(k), 2)])
+    position = np.concatenate([position[kept], np.tile([0.0, 1.0], k)])
+    modes = precondition.rigid_modes(setup, ms, precondition.aggregates(setup, ms))[np.repeat(kept, 3)]
+    modes = sp.block_diag([modes, sp.identity(6 * k)], format="csr")
     return Layout(free_blocks, mass, strand, position, modes)
 
 
-def scaled(H: sp.bsr_matrix, modes: sp.csr_matrix) -> tuple[sp.csr_matrix, np.ndarray, sp.csr_matrix]:
+def scaled(H: sp.spmatrix, modes: sp.csr_matrix) -> tuple[sp.csr_matrix, np.ndarray, sp.csr_matrix]:
     """H diagonally scaled to a unit diagonal (translation and rotation stiffnesses differ by
     orders of magnitude), the scale, and ``modes`` in the scaled unknowns. Unknowns without
     stiffness or inertia (a failed element's rotation in a static solve) get a unit row and a
@@ -321,7 +329,7 @@ def scaled(H: sp.bsr_matrix, modes: sp.csr_matrix) -> tuple[sp.csr_matrix, np.nd
     return A, scale, (sp.diags(np.where(live, np.sqrt(np.where(live, diag, 1.0)), 0.0)) @ modes).tocsr()
 
 
-def _solve(H: sp.bsr_matrix, b: np.ndarray, lay: Layout) -> np.ndarray:
+def _solve(H: sp.spmatrix, b: np.ndarray, lay: Layout) -> np.ndarray:
     """H^-1 b by conjugate gradients to LINEAR_TOL of |b| (an inexact Newton direction) on the
     :func:`scaled` system, preconditioned by :func:`~wooddecay.sim.precondition.two_level`."""
     A, scale, modes = scaled(H, lay.modes)
@@ -343,13 +351,15 @@ def newton_system(setup: MechSetup, ms: MechState, inertia: _Inertia, friction: 
 
 
 def first_system(setup: MechSetup, ms: MechState, h: float) -> tuple[sp.csr_matrix, np.ndarray, Layout, sp.csr_matrix]:
-    """The first Newton system :func:`step` solves for a step of ``h`` from ``ms``, :func:`scaled`:
-    the matrix, the right-hand side, the layout and the coarse modes (for benchmarks)."""
+    """The first Newton system :func:`step` solves for a step of ``h`` from ``ms``, reduced to the
+    rigid pieces' unknowns and :func:`scaled`: the matrix, the right-hand side, the layout and the
+    coarse modes (for benchmarks)."""
     inertia = _inertia(setup, ms, h)
     lay = layout(setup, ms, inertia)
     H, grad, _ = newton_system(setup, ms, inertia, _friction(setup, ms, ms.x), lay)
-    A, scale, modes = scaled(H, lay.modes)
-    return A, -grad[lay.free] * scale, lay, modes
+    B = rigid.basis(setup, ms, rigid.bodies(setup, ms), lay.free_blocks)
+    A, scale, modes = scaled(B.T @ H @ B, lay.modes)
+    return A, -(B.T @ grad[lay.free]) * scale, lay, modes
 
 
 def step(setup: MechSetup, ms: MechState, h: float = np.inf, tol: float = 1e-3, max_newton: int = 30,
@@ -369,13 +379,17 @@ def step(setup: MechSetup, ms: MechState, h: float = np.inf, tol: float = 1e-3, 
         if it % LAG == 0:  # the contacts and their normal forces where the solve has got to
             friction = _friction(setup, moving, moving.x if np.isinf(h) else x0)
         H, grad, phi0 = newton_system(setup, moving, inertia, friction, lay)
+        rb = rigid.bodies(setup, moving)
+        B = rigid.basis(setup, moving, rb, lay.free_blocks)
+        reduced = _solve(B.T @ H @ B, -(B.T @ grad[free]), lay)
         d = np.zeros(3 * (P + n))
-        d[free] = _solve(H, -grad[free], lay)
+        d[free] = B @ reduced
+        t, omega = rigid.motions(rb, reduced)
         slope = float(grad @ d)
         alpha, trial = 1.0, moving
         for _ in range(LINE_SEARCH):
             trial = MechState.copy(moving)
-            trial.x = moving.x + alpha * d[:3 * P].reshape(P, 3)
+            trial.x = rigid.moved(moving.x + alpha * d[:3 * P].reshape(P, 3), moving.x, rb, alpha * t, alpha * omega)
             trial.q = _turned(moving.q, alpha * d[3 * P:].reshape(n, 3))
             if (equilibrium.forces(setup, trial)[0].energy + inertia.energy(trial) + friction.energy(trial.x)
                     <= phi0 + 1e-4 * alpha * slope):
@@ -423,6 +437,7 @@ def macro_step(model: WoodModel, state, n_sub: int) -> int:
         ms.unconverged[0] += not report.converged
         ms.resolves[0] += round_ > 0
         last = round_ == FAILURE_ROUNDS - 1
+        rigid.freeze_strains(setup, ms, rigid.bodies(setup, ms))
         count = failure.update(setup, ms, tested=None if last else break_order.select(setup, ms))
         new += count
         if not count:
