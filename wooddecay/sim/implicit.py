@@ -39,7 +39,7 @@ from .mechanics import MechSetup, MechState, joint_stiffness
 #: backtracking halvings before a Newton iteration gives up on decreasing Phi
 LINE_SEARCH = 30
 #: slip (m) up to which static friction holds as a spring (:class:`_Friction`)
-STICK = 1e-6
+STICK = 1e-5
 #: Newton iterations between updates of the friction's contacts and normal forces
 LAG = 4
 #: relative tolerance and iteration cap of the Newton direction's conjugate gradients
