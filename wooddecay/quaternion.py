@@ -56,3 +56,11 @@ def rotate_np(q: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 def normalize_np(q: np.ndarray) -> np.ndarray:
     return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def exp_np(theta: np.ndarray) -> np.ndarray:
+    """The unit quaternions exp(theta / 2) of the rotation vectors ``theta`` (k, 3), row-wise."""
+    angle = np.linalg.norm(theta, axis=1)
+    half = 0.5 * angle
+    axis = theta / np.where(angle > 0.0, angle, 1.0)[:, None]
+    return np.concatenate([np.cos(half)[:, None], np.sin(half)[:, None] * axis], axis=1)

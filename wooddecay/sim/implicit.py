@@ -11,9 +11,9 @@ predicted orientation exp(h omega / 2) q_e to q_e, I_e = m_e inertia_factor_e it
 With h = inf the inertia drops out: the static equilibrium of wood an anchor holds.
 
 Unknowns are the positions of the particles and a world rotation increment per element
-(q <- exp(dtheta / 2) q), but for a small loose piece, which moves as one rigid body: a translation
-and a rotation about its centre (:mod:`~wooddecay.sim.rigid`; its system B^T (...) B). Each Newton iteration solves (H + M / h^2) d = -grad Phi with the
-Gauss-Newton Hessian H = sum_c k_c J_c^T J_c of every constraint row c (C the constraint, J_c its
+(q <- exp(dtheta / 2) q); a small loose piece moves as one rigid body instead, a translation and a
+rotation about its centre (:mod:`~wooddecay.sim.rigid`), its Newton system B^T (...) B. Each
+Newton iteration solves (H + M / h^2) d = -grad Phi with the Gauss-Newton Hessian H = sum_c k_c J_c^T J_c of every constraint row c (C the constraint, J_c its
 gradient, as in :mod:`~wooddecay.sim.equilibrium`; contact 2 k_col phi n n^T) plus the geometric
 stiffness of stretched distances (projected Newton: positive semidefinite), exact where the
 constraints are satisfied, by conjugate gradients with the two-level preconditioner of
@@ -30,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ..quaternion import conj_np, mul_np, normalize_np, rotate_np
+from ..quaternion import conj_np, exp_np, mul_np, normalize_np, rotate_np
 from ..wood import WoodModel
 from . import break_order, equilibrium, failure, mechanics, precondition, rigid, sleep
 from .contact.colliders import collider_distance_reference
@@ -200,11 +200,7 @@ def _rotation_from(q: np.ndarray, q_ref: np.ndarray) -> np.ndarray:
 
 def _turned(q: np.ndarray, theta: np.ndarray) -> np.ndarray:
     """exp(theta / 2) q, row-wise."""
-    angle = np.linalg.norm(theta, axis=1)
-    half = 0.5 * angle
-    axis = theta / np.where(angle > 0.0, angle, 1.0)[:, None]
-    e = np.concatenate([np.cos(half)[:, None], np.sin(half)[:, None] * axis], axis=1)
-    return normalize_np(mul_np(e, q))
+    return normalize_np(mul_np(exp_np(theta), q))
 
 
 class _Friction(NamedTuple):

@@ -1,9 +1,10 @@
 """Rigid pieces of the implicit step (docs/decisions.md, "Rigid pieces").
 
-A piece (connected component, :func:`~wooddecay.sim.failure.components`) that no anchor holds and
-that has fewer than RIGID_FRACTION of the wood's elements intact moves as one rigid body in
+Under ``mechanics.solver = "implicit"``, a piece (connected component,
+:func:`~wooddecay.sim.failure.components`) that no anchor holds and that has fewer than
+RIGID_FRACTION of the wood's elements intact moves as one rigid body in
 :func:`~wooddecay.sim.implicit.step`: its particles and element rotations are replaced by six
-unknowns, under ``mechanics.solver = "implicit"``, a translation t and a rotation omega about its centre of mass c. Its intact elements'
+unknowns, a translation t and a rotation omega about its centre of mass c. Its elements'
 particles move by x_p <- c + t + R(omega) (x_p - c) and their orientations by
 q_e <- exp(omega / 2) q_e, so its own energies (stretch, shear, bend-twist, its REG connections)
 never change: the Newton system over its unknowns is B^T (H + M / h^2) B, the columns of B the
@@ -23,7 +24,7 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
-from ..quaternion import rotate_np
+from ..quaternion import exp_np, rotate_np
 from . import failure
 from .mechanics import MechSetup, MechState
 
@@ -36,9 +37,9 @@ def pieces(setup: MechSetup, ms: MechState) -> np.ndarray:
     component is anchored or has at least RIGID_FRACTION of the elements intact, or the solver is
     XPBD (its pieces are rods). A failed element goes with its component (its REG connections may
     hold it)."""
-    comp = ms.component
     if setup.solver != "implicit":
         return np.full(setup.n_elements, -1, dtype=np.int64)
+    comp = ms.component
     size = np.bincount(comp, weights=ms.element_ok.astype(float))
     held = np.zeros(len(size), dtype=bool)
     held[comp[setup.anchored_e]] = True
@@ -134,11 +135,7 @@ def moved(x: np.ndarray, x0: np.ndarray, rb: Bodies, t: np.ndarray, omega: np.nd
     out = x.copy()
     p = np.flatnonzero(rb.particle >= 0)
     k = rb.particle[p]
-    angle = np.linalg.norm(omega, axis=1)
-    half = 0.5 * angle
-    axis = omega / np.where(angle > 0.0, angle, 1.0)[:, None]
-    turn = np.concatenate([np.cos(half)[:, None], np.sin(half)[:, None] * axis], axis=1)
-    out[p] = rb.centre[k] + t[k] + rotate_np(turn[k], x0[p] - rb.centre[k])
+    out[p] = rb.centre[k] + t[k] + rotate_np(exp_np(omega)[k], x0[p] - rb.centre[k])
     return out
 
 
