@@ -53,6 +53,7 @@ class MechConfig:
     iterations: int
     strand_solver: str
     solver: str
+    residual_tolerance: float
     inertia_scale: float
     k_col: float
     v_depenetration: float

@@ -44,8 +44,8 @@ STICK = 1e-5
 LAG = 4
 #: relative tolerance and iteration cap of the Newton direction's conjugate gradients
 LINEAR_TOL, LINEAR_CAP = 1e-3, 5000
-#: equilibrium residual a bake's steps solve to, and rounds of failure in order per macro step at most
-BAKE_TOL, FAILURE_ROUNDS = 0.01, 24
+#: rounds of failure in order per macro step at most
+FAILURE_ROUNDS = 24
 #: Newton iterations the static settling may take (from the rest shape, pressed into the ground)
 SETTLE_NEWTON = 200
 #: shortest step (s) of a bake's implicit macro step
@@ -425,10 +425,10 @@ def macro_step(model: WoodModel, state, n_sub: int) -> int:
     for round_ in range(FAILURE_ROUNDS):
         ms.pairs_x = None
         mechanics.refresh_pairs(setup, ms)
-        report = step(setup, ms, h, tol=BAKE_TOL, stall=STALL)
+        report = step(setup, ms, h, tol=setup.residual_tolerance, stall=STALL)
         ms.t_seconds += h
         if not report.converged and h > BREAK_STEP:  # a stalled long step: on in short ones
-            report = step(setup, ms, BREAK_STEP, tol=BAKE_TOL)
+            report = step(setup, ms, BREAK_STEP, tol=setup.residual_tolerance)
             ms.t_seconds += BREAK_STEP
         ms.unconverged[0] += not report.converged
         ms.resolves[0] += round_ > 0
@@ -455,10 +455,10 @@ def settle(model: WoodModel, state) -> None:
     failure.update(setup, ms)
     mechanics.refresh_pairs(setup, ms)
     if setup.anchored_p.any() or len(setup.colliders):
-        ms.unconverged[0] += not step(setup, ms, np.inf, tol=BAKE_TOL, max_newton=SETTLE_NEWTON).converged
+        ms.unconverged[0] += not step(setup, ms, np.inf, tol=setup.residual_tolerance, max_newton=SETTLE_NEWTON).converged
     else:
         for _ in range(int(np.ceil(model.time.settle / BREAK_STEP - 1e-9))):
-            ms.unconverged[0] += not step(setup, ms, BREAK_STEP, tol=BAKE_TOL).converged
+            ms.unconverged[0] += not step(setup, ms, BREAK_STEP, tol=setup.residual_tolerance).converged
     ms.limit_elem, ms.limit_edge = limits
     ms.strain_ref_elem, ms.strain_ref_edge = failure.strains(setup, ms)
     ms.v[:] = 0.0

@@ -145,6 +145,7 @@ class MechSetup:
     iterations: int
     strand_solver: str  # "auto", "direct" or "gauss-seidel" (:func:`stage1_plan`)
     solver: str  # "xpbd" or "implicit" (:mod:`~wooddecay.sim.implicit`)
+    residual_tolerance: float  # the equilibrium residual each implicit step is solved to
     colliders: np.ndarray  # (k, contact.COLLIDER_COLUMNS)
     k_col: float
     v_depenetration: float
@@ -351,7 +352,7 @@ def prepare(model: WoodModel, config: MechConfig, colliders: np.ndarray, loads: 
                           k_pt0=Gm * np.pi * r_s**4 / 2.0),
         gravity=np.asarray(mech.gravity, dtype=np.float64), damping=float(mech.damping),
         dt=float(mech.dt_mech), iterations=int(mech.iterations), strand_solver=str(mech.strand_solver),
-        solver=str(mech.solver),
+        solver=str(mech.solver), residual_tolerance=float(mech.residual_tolerance),
         colliders=colliders, k_col=float(mech.k_col),
         v_depenetration=float(mech.v_depenetration), mu_f=float(mech.mu_f), epsilon=float(mech.epsilon),
         loads=tuple(load_forces),
