@@ -9,7 +9,7 @@ from click.testing import CliRunner
 
 import wooddecay as wd
 from wooddecay.cli import main
-from wooddecay.studies.solver_chart import TARGET, Run, bake, choose
+from wooddecay.studies.solver_chart import TARGET, Run, bake, choose, plot_chart
 
 from ..conftest import SAMPLES
 
@@ -58,3 +58,16 @@ def test_a_bake_reports_its_frames_and_one_past_its_cap_is_killed():
 def test_chart_solver_refuses_a_missing_folder_in_one_line(tmp_path):
     r = CliRunner().invoke(main, ["chart", "solver", "-o", str(tmp_path / "no" / "solver.png")])
     assert r.exit_code == 2 and len(r.output.splitlines()) == 1 and "does not exist" in r.output
+
+
+def test_the_chart_draws_every_panel_and_rings_the_default(tmp_path):
+    rng = np.random.default_rng(5)
+    rest = rng.normal(size=(50, 3))
+    runs = [Run(case, label, walls=[1.0, w], residuals=[r, r], finished=True, settled=rest + 1e-3 * r * rest, rest=rest)
+            for case in ("log", "fig6") for label, w, r in
+            (("xpbd 1", 10.0, 300.0), ("implicit 0.03", 20.0, 0.02), ("implicit 0.003", 30.0, 0.002))]
+    runs.append(Run("log", "xpbd 256", cap=600.0))  # cut before its first frame
+    cantilever = [{"label": "xpbd 1", "seconds": 1.5, "error": 0.04}, {"label": "implicit 0.03", "seconds": 0.02, "error": 0.0}]
+    out = tmp_path / "solver.png"
+    assert plot_chart(runs, cantilever, out) == "implicit 0.03"
+    assert out.read_bytes().startswith(b"\x89PNG") and out.stat().st_size > 10_000

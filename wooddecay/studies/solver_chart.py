@@ -205,6 +205,7 @@ def plot_chart(runs: list[Run], cantilever: list[dict], path) -> str | None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
 
     default = choose(runs)
     fig, axes = plt.subplots(2, 2, figsize=(11.0, 8.5), dpi=110)
@@ -214,17 +215,26 @@ def plot_chart(runs: list[Run], cantilever: list[dict], path) -> str | None:
         for solver, colour in colours.items():
             pts = [p for p in points if p[0].startswith(solver)]
             ax.plot([p[1] for p in pts], [p[2] for p in pts], "-", color=colour, alpha=0.5)
+            groups: list[list] = []  # points within 3% of each other on both axes share one label
             for label, x, y, done in pts:
                 ax.plot([x], [y], "o" if done else ">", color=colour, mfc=colour if done else "none", ms=7)
-                ax.annotate(label.split()[1] + ("" if done else " (killed)"), (x, y), textcoords="offset points",
-                            xytext=(5, 4), fontsize=7)
                 if label == default:
                     ax.plot([x], [y], "o", ms=16, mfc="none", mec="k")
+                near = next((g for g in groups if abs(g[1] / x - 1) < 0.03 and abs(g[2] / y - 1) < 0.03), None)
+                name = label.split()[1] + ("" if done else " (killed)")
+                if near is None:
+                    groups.append([name, x, y])
+                else:
+                    near[0] += "/" + name
+            for name, x, y in groups:
+                ax.annotate(name, (x, y), textcoords="offset points", xytext=(5, 4), fontsize=7)
         if target is not None:
             ax.axhline(target, color="0.4", ls=":", label=f"residual {target:g}")
             ax.legend(fontsize=8, loc="lower left")
         ax.set_xscale("log")
         ax.set_yscale("log")
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         ax.set_xlabel("wall time (s)")
         ax.set_ylabel(ylabel)
         ax.set_title(title, fontsize=10)
