@@ -227,8 +227,8 @@ class Scene:
 #: keys added after format 1 whose default is what every scene did before them, or that change only
 #: how the outputs are written: at that value they stay out of the hashes, so earlier bakes,
 #: settled caches and resumable checkpoints still match
-NEUTRAL_DEFAULTS = {("mechanics", "solver"): "xpbd", ("export", "point_tolerance"): 2e-4,
-                    ("export", "field_step"): 2e-3}
+NEUTRAL_DEFAULTS = {("mechanics", "solver"): "xpbd", ("mechanics", "residual_tolerance"): 0.01,
+                    ("export", "point_tolerance"): 2e-4, ("export", "field_step"): 2e-3}
 
 
 def _digest(d: dict) -> str:
