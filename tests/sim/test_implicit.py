@@ -67,10 +67,12 @@ def test_short_steps_converge_on_wood_lying_on_the_ground():
 
 
 def test_friction_forces_are_minus_the_gradient_of_its_energy():
-    """Lagged friction at the collider and pair contacts of the tiny log broken into its blocks:
+    """Lagged friction at the collider and pair contacts of the tiny log broken into its blocks,
+    squeezed so that they press on each other:
     its forces are the finite differences of its energy, in the stick and the slip regime."""
     sim = fragments()
     setup, ms = sim.model.mech, sim.state.mech
+    ms.x = ms.x * np.array([1.0, 0.99, 1.0])  # squeezed across the grain: the blocks press on each other
     friction = implicit._friction(setup, ms, ms.x)
     assert len(friction.muN) and (friction.w[:, 1:] != 0.0).any()  # pairs as well as the ground
     rng = np.random.default_rng(2)
@@ -101,3 +103,42 @@ def test_wood_nothing_holds_falls_and_keeps_its_shape():
     assert 0.8 * 0.5 * 9.81 * t * t < drop < 1.2 * 0.5 * 9.81 * t * t
     moved = state.mech.x - x0
     assert np.abs(moved - moved.mean(axis=0)).max() < 1e-3
+
+
+def test_a_protected_overlap_is_no_force_and_only_shrinks():
+    """A protected overlap (what a pair overlapped when its elements separated) is no force: with
+    every overlap of the tiny log's blocks protected, no pair pushes; once the pieces part by a
+    millimetre, the protection shrinks by it and never grows back."""
+    sim = fragments(**{"mechanics.solver": "implicit"})
+    setup, ms = sim.model.mech, sim.state.mech
+    ms.x = ms.x * np.array([1.0, 0.97, 1.0])  # squeezed across the grain: the blocks overlap
+    phi = equilibrium.pair_contacts(setup, ms).phi
+    assert phi.max() > 1e-4
+    ms.pairs_protect = ms.pairs_protect + np.maximum(phi, 0.0)
+    assert equilibrium.pair_contacts(setup, ms).phi.max() <= 1e-15  # k_col max(phi, 0)^2: no push
+    protected = ms.pairs_protect.copy()
+    ms.x = ms.x * np.array([1.0, 0.999, 1.0])  # a little further in: still protected as before
+    implicit._part(setup, ms)
+    assert np.array_equal(ms.pairs_protect, protected)
+    ms.x = ms.x / np.array([1.0, 0.999, 1.0]) ** 2  # the blocks part
+    implicit._part(setup, ms)
+    shrunk = equilibrium.pair_contacts(setup, ms).phi
+    assert (ms.pairs_protect <= protected).all() and (ms.pairs_protect < protected).any()
+    assert np.allclose(shrunk[ms.pairs_protect > 0.0], 0.0, atol=1e-12)
+
+
+def test_steps_shorten_after_a_stall_and_grow_back_while_easy():
+    """The controller of a macro step's first step: a stall starts the next at BREAK_STEP, a step
+    of at most EASY_NEWTON iterations doubles it, a harder one keeps it, and once it would reach
+    the span the next is the whole span again (0)."""
+    stalled = implicit.StepReport(newton=implicit.STALL + 1, residual=1.0, converged=False)
+    easy = implicit.StepReport(newton=implicit.EASY_NEWTON, residual=0.01, converged=True)
+    hard = implicit.StepReport(newton=implicit.EASY_NEWTON + 1, residual=0.01, converged=True)
+    assert implicit.next_step(stalled, 1.0, 1.0) == implicit.BREAK_STEP
+    h, steps = implicit.BREAK_STEP, []
+    while h:
+        steps.append(h)
+        h = implicit.next_step(easy, h, 1.0)
+    assert steps == [0.01 * 2 ** k for k in range(7)]
+    assert implicit.next_step(hard, 0.04, 1.0) == 0.04
+    assert implicit.next_step(hard, 1.0, 1.0) == 0.0

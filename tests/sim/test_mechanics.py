@@ -197,7 +197,7 @@ def test_contact_list_helpers_equal_numpy():
     sep = np.array([3, -1, 0, -1, 5])
     rest, protect = rng.random(5), rng.random(5)
     a, b = np.zeros(6), np.zeros(6)
-    mechanics._keep_overlaps(sep, rest, protect, a)
+    mechanics.keep_overlaps(sep, rest, protect, a)
     keep = sep >= 0
     b[sep[keep]] = rest[keep] + protect[keep]
     assert np.array_equal(a, b)

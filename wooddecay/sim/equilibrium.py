@@ -129,16 +129,22 @@ class PairContacts(NamedTuple):
     blocks: np.ndarray  # (k, 4) int64: the particles of i, then of j
     w: np.ndarray  # (k, 4) float64: their weights in j's closest point minus i's
     normal: np.ndarray  # (k, 3) float64: unit direction from i to j
-    phi: np.ndarray  # (k,) float64, m: penetration beyond the pair's rest overlap (negative: a gap)
+    phi: np.ndarray  # (k,) float64, m: penetration beyond the pair's rest and protected overlap (negative: a gap)
 
 
 def pair_contacts(setup: MechSetup, ms: MechState) -> PairContacts:
-    """:class:`PairContacts` of ``ms.pairs`` (the Verlet list of :func:`mechanics.refresh_pairs`)."""
+    """:class:`PairContacts` of ``ms.pairs`` (the Verlet list of :func:`mechanics.refresh_pairs`).
+    Neither the rest overlap nor the protected one a pair had when its elements separated is a
+    force: pieces born overlapping their old neighbours are not pushed apart by that overlap
+    (XPBD lets it out at v_depenetration, the implicit step as the pieces part:
+    :func:`wooddecay.sim.implicit.step`)."""
     i, j = ms.pairs[:, 0], ms.pairs[:, 1]
     a, b = setup.fp[i], setup.fp[j]
     s, t, normal, phi = capsule_contact_reference(ms.x[a], ms.x[a + 1], ms.radius[i], ms.x[b], ms.x[b + 1],
                                                   ms.radius[j])
     rest = ms.pairs_rest if len(ms.pairs_rest) == len(ms.pairs) else np.zeros(len(ms.pairs))
+    if len(ms.pairs_protect) == len(ms.pairs):
+        rest = rest + ms.pairs_protect
     return PairContacts(ms.pairs, np.stack([a, a + 1, b, b + 1], axis=1), np.stack([s - 1.0, -s, 1.0 - t, t], axis=1),
                         normal, phi - rest)
 

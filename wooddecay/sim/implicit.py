@@ -43,7 +43,7 @@ STICK = 1e-5
 #: Newton iterations between updates of the friction's contacts and normal forces
 LAG = 4
 #: relative tolerance and iteration cap of the Newton direction's conjugate gradients
-LINEAR_TOL, LINEAR_CAP = 1e-3, 5000
+LINEAR_TOL, LINEAR_CAP = 1e-2, 5000
 #: rounds of failure in order per macro step at most
 FAILURE_ROUNDS = 24
 #: Newton iterations the static settling may take (from the rest shape, pressed into the ground)
@@ -54,6 +54,8 @@ STEP_FLOOR = 1.0
 BREAK_STEP = 0.01
 #: Newton stops as stalled when STALL iterations have not halved its residual
 STALL = 8
+#: Newton iterations within which a macro step's first step doubles the next one's
+EASY_NEWTON = 3
 
 
 class StepReport(NamedTuple):
@@ -397,10 +399,19 @@ def step(setup: MechSetup, ms: MechState, h: float = np.inf, tol: float = 1e-3, 
         if res <= tol or (0 < stall < it and res > 0.5 * history[-1 - stall]):
             break
     ms.x, ms.q = moving.x, moving.q
+    _part(setup, ms)
     if not np.isinf(h):
         ms.v = (ms.x - x0) / h
         ms.omega = rotate_np(conj_np(ms.q), _rotation_from(ms.q, q0)) / h
     return StepReport(it, res, res <= tol)
+
+
+def _part(setup: MechSetup, ms: MechState) -> None:
+    """Shrink each pair's protected overlap (:func:`~wooddecay.sim.equilibrium.pair_contacts`) to
+    what is left of it, so pieces that parted cannot sink back into it; it never grows."""
+    if len(ms.pairs) and len(ms.pairs_protect) == len(ms.pairs):
+        ms.pairs_protect = np.maximum(ms.pairs_protect + np.minimum(equilibrium.pair_contacts(setup, ms).phi, 0.0), 0.0)
+        mechanics.keep_overlaps(ms.pairs_sep, ms.pairs_rest, ms.pairs_protect, ms.sep_overlap)
 
 
 def span(setup: MechSetup, n_sub: int) -> float:
@@ -410,9 +421,22 @@ def span(setup: MechSetup, n_sub: int) -> float:
     return max(n_sub * setup.dt, STEP_FLOOR)
 
 
+def next_step(report: StepReport, h: float, longest: float) -> float:
+    """The step the next macro step starts with after a first step of ``h`` (of at most
+    ``longest``) that did ``report``; 0 for the whole span: BREAK_STEP after a stall, twice ``h``
+    after at most EASY_NEWTON iterations, else ``h``. Wood that a break set moving (a bit swinging
+    on its last connection) stalls long steps, whose Newton iterates slide it off its arc; short
+    ones follow it in a few iterations, and the steps grow back as it comes to rest."""
+    if not report.converged:
+        return BREAK_STEP
+    grown = 2.0 * h if report.newton <= EASY_NEWTON else h
+    return 0.0 if grown >= longest else grown
+
+
 def macro_step(model: WoodModel, state, n_sub: int) -> int:
     """Algorithm 1 lines 4-8 with ``mechanics.solver = "implicit"``: one backward Euler step of
-    :func:`span` under the loads of the day (a stalled one goes on in a step of BREAK_STEP), then
+    :func:`span`, or shorter as :func:`next_step` set, under the loads of the day (a stalled one
+    goes on in a step of BREAK_STEP), then
     failure in order (:mod:`~wooddecay.sim.break_order`): while anything is over its limit, the
     round's breaks, each furthest over its limit within its neighbourhood, and a step of
     BREAK_STEP from there (what a break frees moves, and the inertia of short steps keeps Newton
@@ -420,13 +444,16 @@ def macro_step(model: WoodModel, state, n_sub: int) -> int:
     failures; ``ms.resolves`` counts the steps after breaks."""
     setup, ms = model.mech, state.mech
     ms.force = mechanics.external_forces(setup, state.t_days)
-    h = span(setup, n_sub)
+    longest = span(setup, n_sub)
+    h = min(longest, ms.h_next[0]) if ms.h_next[0] > 0.0 else longest
     new = 0
     for round_ in range(FAILURE_ROUNDS):
         ms.pairs_x = None
         mechanics.refresh_pairs(setup, ms)
         report = step(setup, ms, h, tol=setup.residual_tolerance, stall=STALL)
         ms.t_seconds += h
+        if round_ == 0:
+            ms.h_next[0] = next_step(report, h, longest)
         if not report.converged and h > BREAK_STEP:  # a stalled long step: on in short ones
             report = step(setup, ms, BREAK_STEP, tol=setup.residual_tolerance)
             ms.t_seconds += BREAK_STEP

@@ -230,6 +230,9 @@ class MechState:
     unconverged: np.ndarray = field(default_factory=lambda: np.zeros(1, dtype=np.int64))
     #: implicit steps re-solved after a round of breaks (:mod:`~wooddecay.sim.break_order`; checkpointed)
     resolves: np.ndarray = field(default_factory=lambda: np.zeros(1, dtype=np.int64))
+    #: the step (s) the next implicit macro step starts with, 0 for its whole span
+    #: (:func:`wooddecay.sim.implicit.macro_step`; checkpointed)
+    h_next: np.ndarray = field(default_factory=lambda: np.zeros(1))
     #: the last exact failure test of every REG edge within this :func:`_advance`
     #: (:class:`failure.Epoch`; not checkpointed: each call starts with an exact test)
     fail_epoch: failure.Epoch | None = None
@@ -683,7 +686,7 @@ def _substep(setup: MechSetup, ms: MechState, dt: float, stiff: Stiffness | None
                                  push, hit_p, phi_rest=ms.pairs_rest, protect=ms.pairs_protect)
         contact.particle_friction(ms.x, x_start, x_old, setup.mu_f, setup.epsilon * dt)
     # the protected overlaps only shrink; they outlive the contact list
-    _keep_overlaps(ms.pairs_sep, ms.pairs_rest, ms.pairs_protect, ms.sep_overlap)
+    keep_overlaps(ms.pairs_sep, ms.pairs_rest, ms.pairs_protect, ms.sep_overlap)
     _velocities(ms.x, ms.v, ms.q, ms.omega, x_old, q_old, ms.w_p, ms.w_q, dt)
     contact.collider_velocities(ms.v, ms.x, ms.w_p, setup.colliders, hit_c)
     contact.contact_velocities(ms.v, ms.x, ms.w_p, setup.fp, ms.radius, ms.pairs, hit_p)
@@ -802,7 +805,7 @@ def _within(x, x0, reach):
 
 
 @nb.njit(cache=True)
-def _keep_overlaps(pairs_sep, pairs_rest, pairs_protect, sep_overlap):
+def keep_overlaps(pairs_sep, pairs_rest, pairs_protect, sep_overlap):
     """Each contact pair's protected overlap (rest plus protect) back to its row of ``sep_overlap``."""
     for q in range(len(pairs_sep)):
         if pairs_sep[q] >= 0:
