@@ -46,10 +46,18 @@ class Strand:
     def setup(self):
         return self.model.mech
 
+    def deflection(self) -> float:
+        """The tip's drop from its rest height in the strand's current state."""
+        return float(self.model.particles[-1, 2] - self.ms.x[-1, 2])
+
+    @property
+    def analytic(self) -> float:
+        """Beam theory's tip deflection q L^4 / (8 E I)."""
+        return self.q * self.length**4 / (8 * self.EI)
+
     def deflection_error(self) -> float:
         """|tip deflection / (q L^4 / (8 E I)) - 1| of the strand's current state."""
-        deflection = float(self.model.particles[-1, 2] - self.ms.x[-1, 2])
-        return abs(deflection / (self.q * self.length**4 / (8 * self.EI)) - 1)
+        return abs(self.deflection() / self.analytic - 1)
 
     @property
     def ms(self):
@@ -112,9 +120,7 @@ def cantilever(length=0.5, n=20, dt=0.001, substeps=1, iterations=10, seconds=1.
     """Tip deflection under gravity against q L^4 / (8 E I); error and wall time."""
     s = strand(length=length, n=n, dt=dt, iterations=iterations, damping=damping)
     wall = settle(s, seconds, substeps)
-    deflection = float(s.model.particles[-1, 2] - s.ms.x[-1, 2])
-    analytic = s.q * s.length**4 / (8 * s.EI)
-    return {"deflection": deflection, "analytic": analytic, "error": s.deflection_error(),
+    return {"deflection": s.deflection(), "analytic": s.analytic, "error": s.deflection_error(),
             "seconds": wall, "dt": dt, "substeps": substeps, "iterations": iterations, "n_elements": n}
 
 
