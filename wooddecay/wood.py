@@ -54,6 +54,7 @@ class MechConfig:
     strand_solver: str
     solver: str
     residual_tolerance: float
+    connection_shear: float
     inertia_scale: float
     k_col: float
     v_depenetration: float

@@ -152,3 +152,9 @@ def test_inoculation_not_array():
 def test_load_errors(body, key, needle):
     err = error(f"[[load]]\n{body}")
     assert err.key == key and needle in err.message, str(err)
+
+
+def test_connection_shear_needs_the_implicit_solver():
+    err = error("[mechanics]\nconnection_shear = 0.5")
+    assert err.key == "mechanics.connection_shear" and "mechanics.solver = 'implicit'" in err.message
+    assert parse("[mechanics]\nsolver = 'implicit'\nconnection_shear = 0.5").mechanics.connection_shear == 0.5

@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from wooddecay.quaternion import mul_np, normalize_np
+from wooddecay.quaternion import mul_np, normalize_np, rotate_np
 from wooddecay.sim import equilibrium, mechanics
 from wooddecay.sim.state import initial_state
 
@@ -19,9 +19,10 @@ def _energy(setup, ms):
     return equilibrium.forces(setup, ms)[0].energy
 
 
-@pytest.fixture(scope="module")
-def jostled():
+@pytest.fixture(scope="module", params=[0.0, 0.5], ids=["central", "connection_shear"])
+def jostled(request):
     setup, ms = perturbed("tiny", seed=1)
+    setup = replace(setup, connection_shear=request.param)
     ms.rest_length = ms.rest_length * 0.99  # drying: every stretch loaded
     ms.rest_offset = ms.rest_offset * 0.98
     ms.mass_p[:] = 0.3
@@ -139,3 +140,39 @@ def test_residual_falls_as_xpbd_sweeps_converge():
             mechanics._substep(setup, ms, setup.dt, check=False)
         out.append(equilibrium.equilibrium_residual(setup, ms))
     assert out[1] < 0.5 * out[0]
+
+
+def _connection_energy(setup, ms, k):
+    """The energy of REG edge ``k``'s connection alone."""
+    only = np.zeros(len(setup.edges))
+    only[k] = equilibrium.reg_stiffness(setup, ms)[0][k]
+    P, n = setup.n_particles, setup.n_elements
+    return equilibrium._connections(setup, ms, only, np.zeros((P, 3)), np.zeros((n, 3)), np.zeros(P))
+
+
+def test_connection_shear_holds_an_offset_that_turns_with_the_wood():
+    """The co-rotated offset costs nothing at rest and under a rigid turn of the whole wood; a
+    slip of one centre across the pair's direction by eps costs 1/2 s k_conn eps^2, which the
+    central spring (s = 0) does not resist to second order."""
+    model = sample("tiny")[1]
+    ms = initial_state(model, rods=True).mech
+    k = 7
+    i, j = model.mech.edges[k]
+    kc = equilibrium.reg_stiffness(model.mech, ms)[0][k]
+    turn = np.array([np.cos(0.35), *(np.sin(0.35) * np.array([0.48, -0.6, 0.64]))])
+    turned = ms.copy()
+    turned.x = rotate_np(np.broadcast_to(turn, (len(ms.x), 4)), ms.x)
+    turned.q = normalize_np(mul_np(np.broadcast_to(turn, ms.q.shape), ms.q))
+    fp = model.mech.fp
+    c = 0.5 * (ms.x[fp] + ms.x[fp + 1])
+    d = c[j] - c[i]
+    across = np.cross(d, [0.0, 0.0, 1.0] if abs(d[2]) < 0.9 * np.linalg.norm(d) else [1.0, 0.0, 0.0])
+    eps = 1e-5
+    slipped = ms.copy()
+    slipped.x[[fp[j], fp[j] + 1]] += eps * across / np.linalg.norm(across)
+    for s in (0.0, 0.4):
+        setup = replace(model.mech, connection_shear=s)
+        assert _connection_energy(setup, ms, k) < 1e-12 * kc * eps ** 2
+        assert _connection_energy(setup, turned, k) < 1e-6 * kc * eps ** 2
+        assert _connection_energy(setup, slipped, k) == pytest.approx(0.5 * s * kc * eps ** 2, rel=1e-3,
+                                                                      abs=1e-3 * kc * eps ** 2)

@@ -3,11 +3,13 @@ a clamped bundle to equilibrium in a few Newton iterations; its short steps conv
 on the ground."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 import wooddecay as wd
-from wooddecay.sim import equilibrium, implicit, mechanics
+from wooddecay.sim import equilibrium, implicit, mechanics, sleep
 from wooddecay.sim.state import initial_state
 from wooddecay.studies import cantilever
 
@@ -34,9 +36,11 @@ def test_static_clamped_bundle_reaches_equilibrium():
     assert equilibrium.equilibrium_residual(setup, ms) <= 1e-3
 
 
-def test_hessian_is_the_force_jacobian_at_rest():
+@pytest.mark.parametrize("shear", [0.0, 0.5])
+def test_hessian_is_the_force_jacobian_at_rest(shear):
     """Where every constraint holds, Gauss-Newton drops nothing: H d = -(f(x + e d) - f(x)) / e."""
     setup, ms = _clamped_tiny()
+    setup = replace(setup, connection_shear=shear)
     ms.mass_p[:] = 0.0
     H = implicit.hessian(setup, ms)
     rng = np.random.default_rng(0)
@@ -142,3 +146,21 @@ def test_steps_shorten_after_a_stall_and_grow_back_while_easy():
     assert steps == [0.01 * 2 ** k for k in range(7)]
     assert implicit.next_step(hard, 0.04, 1.0) == 0.04
     assert implicit.next_step(hard, 1.0, 1.0) == 0.0
+
+
+def test_the_implicit_step_keeps_the_contacts_of_still_pieces():
+    """The schedule holds pieces at rest still, and XPBD then leaves out the contacts between
+    them; the implicit step moves every piece (drying shrinks a held one too), so its contact
+    list keeps them, or the pieces pass into each other unseen."""
+    counts = {}
+    for solver in ("xpbd", "implicit"):
+        sim = fragments(**{"mechanics.solver": solver})
+        setup, ms = sim.model.mech, sim.state.mech
+        every = len(ms.pairs)
+        ms.held[:] = True
+        sleep.hold(setup, ms)
+        ms.pairs_x = None
+        mechanics.refresh_pairs(setup, ms)
+        counts[solver] = (every, len(ms.pairs))
+    assert counts["xpbd"][0] > 0 and counts["xpbd"][1] == 0
+    assert counts["implicit"][1] == counts["implicit"][0] > 0

@@ -322,6 +322,12 @@ def _resolve(data: dict, ctx: _Ctx, base_dir: Path, path: Path | None, default_n
                              f"{format_value(time['years'])} ({format_value(days)} days); give one of the two")
         time["days"] = days
 
+    mech = values["mechanics"]
+    if mech["connection_shear"] > 0.0 and mech["solver"] != "implicit":
+        raise InputError(ctx.src("mechanics.connection_shear", "mechanics.solver"), "mechanics.connection_shear",
+                         f"{format_value(mech['connection_shear'])} acts only with mechanics.solver = 'implicit' "
+                         "(XPBD projects the paper's central connection, Eq. 2): set it to 0 or choose the implicit solver")
+
     frames = int(time["frames"])
     if not -frames <= values["export"]["gltf_frame"] < frames:
         raise InputError(ctx.src("export.gltf_frame", "time.frames"), "export.gltf_frame",

@@ -8,7 +8,9 @@ implicit solve are judged alike:
 * shear E = 1/2 G A l_r sum_k C_k^2, C_k = ((p_b - p_a) / l_r) . d_k(q), k = 1, 2;
 * bend-twist of strand joints and REG pairs E = 1/2 sum_c k_c l C_c^2,
   C = (2 / l) (Im(conj(q_i) q_j) - s Im(Omega_0)), k = (E I, E I, G J) (times I_ij on the REG);
-* REG connection (Eq. 2) E = 1/2 k_conn (|c_j - c_i| - dp)^2 on element centres;
+* REG connection (Eq. 2) E = 1/2 (1 - s) k_conn (|c_j - c_i| - dp)^2 on element centres, plus,
+  with a connection shear s > 0 (implicit solver only), 1/2 s k_conn |c_j - c_i - (u_i + u_j) / 2|^2,
+  u_i the pair's rest offset carried by i's rotation (:func:`connection_targets`);
 * contact of colliders and of capsule pairs (Eqs. 3-4) F = k_col phi^2 n, phi beyond the pair's
   rest overlap, i.e. E = k_col phi^3 / 3;
 * gravity, the ``[[load]]`` forces and the studies' torques.
@@ -107,19 +109,41 @@ def _strands(setup: MechSetup, ms: MechState, f: np.ndarray, tau: np.ndarray, sc
     return float(0.5 * (ks * (L - l) ** 2).sum() + 0.5 * (ksh * (Ck[0] ** 2 + Ck[1] ** 2)).sum())
 
 
-def _connections(setup: MechSetup, ms: MechState, k_conn: np.ndarray, f: np.ndarray, scale: np.ndarray) -> float:
-    """REG connections (Eq. 2) into ``f`` and ``scale``; their energy."""
+def connection_targets(setup: MechSetup, ms: MechState, k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """u_i, u_j (k, 3): the rest offset c_j - c_i of the REG edges ``k`` carried by i's and by j's
+    rotation from rest, scaled to the current rest offset dp (Eq. 16)."""
+    i, j, d0 = setup.edges[k, 0], setup.edges[k, 1], setup.offset0[k]
+    f = (ms.rest_offset[k] / np.where(d0 > 0.0, d0, 1.0))[:, None]
+    return f * rotate_np(ms.q[i], setup.edge_body[k, 0]), f * rotate_np(ms.q[j], setup.edge_body[k, 1])
+
+
+def _connections(setup: MechSetup, ms: MechState, k_conn: np.ndarray, f: np.ndarray, tau: np.ndarray,
+                 scale: np.ndarray) -> float:
+    """REG connections into ``f``, ``tau`` and ``scale``; their energy: the central spring (Eq. 2)
+    with (1 - s) k_conn and, for s = ``setup.connection_shear`` > 0, the co-rotated offset
+    1/2 s k_conn |d - (u_i + u_j) / 2|^2 (:func:`connection_targets`), whose torque on i is
+    1/2 u_i x g, g = s k_conn (d - (u_i + u_j) / 2)."""
     k = np.flatnonzero(k_conn > 0.0)
     ai, aj = setup.fp[setup.edges[k, 0]], setup.fp[setup.edges[k, 1]]
     d = 0.5 * (ms.x[aj] + ms.x[aj + 1] - ms.x[ai] - ms.x[ai + 1])
     L = np.linalg.norm(d, axis=1)
+    s = setup.connection_shear
     kc, dp = k_conn[k], ms.rest_offset[k]
-    half = (0.5 * kc * (L - dp) / np.where(L > 0.0, L, 1.0))[:, None] * d  # on each of i's particles
+    half = (0.5 * (1.0 - s) * kc * (L - dp) / np.where(L > 0.0, L, 1.0))[:, None] * d  # on each of i's particles
+    energy = 0.5 * ((1.0 - s) * kc * (L - dp) ** 2).sum()
+    if s > 0.0:
+        ui, uj = connection_targets(setup, ms, k)
+        delta = d - 0.5 * (ui + uj)
+        g = (s * kc)[:, None] * delta
+        half += 0.5 * g
+        n = len(tau)
+        tau += _scatter(setup.edges[k, 0], 0.5 * np.cross(ui, g), n) + _scatter(setup.edges[k, 1], 0.5 * np.cross(uj, g), n)
+        energy += 0.5 * (g * delta).sum()
     P = len(f)
     for p, sign in ((ai, 1.0), (ai + 1, 1.0), (aj, -1.0), (aj + 1, -1.0)):
         f += _scatter(p, sign * half, P)
         scale += np.bincount(p, 0.5 * kc * np.abs(dp - setup.offset0[k]), minlength=P)
-    return float(0.5 * (kc * (L - dp) ** 2).sum())
+    return float(energy)
 
 
 class PairContacts(NamedTuple):
@@ -187,7 +211,7 @@ def forces(setup: MechSetup, ms: MechState) -> tuple[Forces, np.ndarray]:
     tau += t
     energy += e
     k_conn, k_pb, k_pt = reg_stiffness(setup, ms)
-    energy += _connections(setup, ms, k_conn, f, scale)
+    energy += _connections(setup, ms, k_conn, f, tau, scale)
     t, e = _darboux(ms.q, setup.edges, setup.edge_rest, setup.edge_length, k_pb, k_pt)
     tau += t
     energy += e

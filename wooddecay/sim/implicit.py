@@ -123,6 +123,32 @@ def _distance(J: np.ndarray, blocks: np.ndarray, u: np.ndarray, k: np.ndarray, C
                    _rows(w[:, :, None] * t2[:, None, :], blocks, geo))
 
 
+def _skew(v: np.ndarray) -> np.ndarray:
+    """[v]x (k, 3, 3), row-wise: [v]x w = v x w."""
+    out = np.zeros((len(v), 3, 3))
+    out[:, 0, 1], out[:, 0, 2], out[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    out[:, 1, 0], out[:, 2, 0], out[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
+    return out
+
+
+def _offset_rows(setup: MechSetup, ms: MechState, c: np.ndarray, k: np.ndarray, particles: np.ndarray) -> Blocks:
+    """The co-rotated offset delta = d - (u_i + u_j) / 2 of the REG edges ``c``
+    (:func:`~wooddecay.sim.equilibrium.connection_targets`) as three rows, one per world axis:
+    +-1/2 on the centres' ``particles`` (i's two, then j's), 1/2 [u_i]x on theta_i and 1/2 [u_j]x on
+    theta_j (d u_i = dtheta_i x u_i)."""
+    ui, uj = equilibrium.connection_targets(setup, ms, c)
+    si, sj = 0.5 * _skew(ui), 0.5 * _skew(uj)
+    blocks = np.concatenate([particles, setup.n_particles + setup.edges[c]], axis=1)
+    w = np.array([-0.5, -0.5, 0.5, 0.5])
+    rows = []
+    for a in range(3):
+        J = np.zeros((len(c), 6, 3))
+        J[:, :4, a] = w
+        J[:, 4], J[:, 5] = si[:, a], sj[:, a]
+        rows.append(_rows(J, blocks, k))
+    return _summed(*rows)
+
+
 def _darboux_rows(q, pairs, rest, length, kb, kt, P) -> Blocks:
     """Bend-twist rows: J on theta_j = (2 / l) A, on theta_i minus that, A = 1/2 (w I - [v]x) R_i^T;
     their blocks B = A^T diag(k) A on (j, j) and (i, i), -B on (i, j) and (j, i)."""
@@ -131,11 +157,8 @@ def _darboux_rows(q, pairs, rest, length, kb, kt, P) -> Blocks:
     i, j = pairs[:, 0], pairs[:, 1]
     om = mul_np(conj_np(q[i]), q[j])
     w, v = om[:, 0], om[:, 1:]
-    skew = np.zeros((len(v), 3, 3))
-    skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
-    skew[:, 1, 0], skew[:, 2, 0], skew[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
     Rt = np.stack([rotate_np(conj_np(q[i]), np.broadcast_to(np.eye(3)[c], v.shape)) for c in range(3)], axis=2)
-    A = 0.5 * (w[:, None, None] * np.eye(3) - skew) @ Rt * (2.0 / length)[:, None, None]
+    A = 0.5 * (w[:, None, None] * np.eye(3) - _skew(v)) @ Rt * (2.0 / length)[:, None, None]
     k = np.stack([kb, kb, kt], axis=1) * length[:, None]
     B = np.einsum("rci,rc,rcj->rij", A, k, A)
     sign = np.array([[1.0, -1.0], [-1.0, 1.0]])
@@ -171,8 +194,12 @@ def _hessian_rows(setup: MechSetup, ms: MechState) -> list[Blocks]:
     d = 0.5 * (ms.x[aj] + ms.x[aj + 1] - ms.x[ai] - ms.x[ai + 1])
     L = np.linalg.norm(d, axis=1)
     u = d / np.maximum(L, 1e-300)[:, None]
-    parts.append(_distance(0.5 * np.stack([-u, -u, u, u], axis=1), np.stack([ai, ai + 1, aj, aj + 1], axis=1), u,
-                           k_conn[c], L - ms.rest_offset[c], L))
+    blocks = np.stack([ai, ai + 1, aj, aj + 1], axis=1)
+    s = setup.connection_shear
+    parts.append(_distance(0.5 * np.stack([-u, -u, u, u], axis=1), blocks, u, (1.0 - s) * k_conn[c],
+                           L - ms.rest_offset[c], L))
+    if s > 0.0:
+        parts.append(_offset_rows(setup, ms, c, s * k_conn[c], blocks))
     parts.append(_darboux_rows(ms.q, setup.edges, setup.edge_rest, setup.edge_length, k_pb, k_pt, P))
     for row in setup.colliders:
         sd, normal = collider_distance_reference(row, ms.x)
@@ -374,7 +401,7 @@ def step(setup: MechSetup, ms: MechState, h: float = np.inf, tol: float = 1e-3, 
     history = [res]
     it = 0
     for it in range(1, max_newton + 1):
-        if it % LAG == 0:  # the contacts and their normal forces where the solve has got to
+        if _refreshed(setup, moving) or it % LAG == 0:  # the contacts and their normal forces where the solve has got to
             friction = _friction(setup, moving, moving.x if np.isinf(h) else x0)
         H, grad, phi0 = newton_system(setup, moving, inertia, friction, lay)
         rb = rigid.bodies(setup, moving)
@@ -399,11 +426,22 @@ def step(setup: MechSetup, ms: MechState, h: float = np.inf, tol: float = 1e-3, 
         if res <= tol or (0 < stall < it and res > 0.5 * history[-1 - stall]):
             break
     ms.x, ms.q = moving.x, moving.q
+    ms.pairs, ms.pairs_x, ms.pairs_rest, ms.pairs_protect, ms.pairs_sep = (
+        moving.pairs, moving.pairs_x, moving.pairs_rest, moving.pairs_protect, moving.pairs_sep)
     _part(setup, ms)
     if not np.isinf(h):
         ms.v = (ms.x - x0) / h
         ms.omega = rotate_np(conj_np(ms.q), _rotation_from(ms.q, q0)) / h
     return StepReport(it, res, res <= tol)
+
+
+def _refreshed(setup: MechSetup, ms: MechState) -> bool:
+    """Rebuild the contact list of ``ms`` where the iterates have carried a particle half its
+    margin (:func:`~wooddecay.sim.mechanics.refresh_pairs`): a list kept over a whole step lets
+    pieces that were apart at its start pass into each other unseen. Whether it was rebuilt."""
+    before = ms.pairs_x
+    mechanics.refresh_pairs(setup, ms)
+    return ms.pairs_x is not before
 
 
 def _part(setup: MechSetup, ms: MechState) -> None:

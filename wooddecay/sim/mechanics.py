@@ -34,7 +34,7 @@ import numba as nb
 import numpy as np
 
 from ..wood import WoodModel
-from ..quaternion import conj_np, mul, mul_np, rotate
+from ..quaternion import conj_np, mul, mul_np, rotate, rotate_np
 from ..wood import Load, MechConfig
 from . import contact, failure, rods, sleep, strand_solve
 
@@ -146,6 +146,8 @@ class MechSetup:
     strand_solver: str  # "auto", "direct" or "gauss-seidel" (:func:`stage1_plan`)
     solver: str  # "xpbd" or "implicit" (:mod:`~wooddecay.sim.implicit`)
     residual_tolerance: float  # the equilibrium residual each implicit step is solved to
+    connection_shear: float  # share s of k_conn on the co-rotated offset (:mod:`~wooddecay.sim.equilibrium`)
+    edge_body: np.ndarray  # (m, 2, 3) rest offset c_j - c_i in i's and in j's body frame
     colliders: np.ndarray  # (k, contact.COLLIDER_COLUMNS)
     k_col: float
     v_depenetration: float
@@ -356,12 +358,23 @@ def prepare(model: WoodModel, config: MechConfig, colliders: np.ndarray, loads: 
         gravity=np.asarray(mech.gravity, dtype=np.float64), damping=float(mech.damping),
         dt=float(mech.dt_mech), iterations=int(mech.iterations), strand_solver=str(mech.strand_solver),
         solver=str(mech.solver), residual_tolerance=float(mech.residual_tolerance),
+        connection_shear=float(mech.connection_shear), edge_body=_edge_body(model, fp, ij),
         colliders=colliders, k_col=float(mech.k_col),
         v_depenetration=float(mech.v_depenetration), mu_f=float(mech.mu_f), epsilon=float(mech.epsilon),
         loads=tuple(load_forces),
         sleep_speed=float(mech.sleep_speed), sleep_time=float(mech.sleep_time),
         I_fail_elem=I_fail, I_fail_edge=0.5 * (I_fail[ij[:, 0]] + I_fail[ij[:, 1]]),
     )
+
+
+def _edge_body(model: WoodModel, fp: np.ndarray, ij: np.ndarray) -> np.ndarray:
+    """The rest offset c_j - c_i of each REG pair in the body frame of its element i and of j
+    (the co-rotated offset of :func:`wooddecay.sim.equilibrium.connection_targets`)."""
+    x = model.particles.astype(np.float64)
+    c = 0.5 * (x[fp] + x[fp + 1])
+    d = c[ij[:, 1]] - c[ij[:, 0]]
+    q = model.rest_quat
+    return np.stack([rotate_np(conj_np(q[ij[:, 0]]), d), rotate_np(conj_np(q[ij[:, 1]]), d)], axis=1)
 
 
 def _conj_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -766,8 +779,9 @@ def refresh_pairs(setup: MechSetup, ms: MechState) -> None:
     :func:`failure.update` changed the components (it clears ``pairs_x``). Failed elements take
     no part: a broken element's segment joins the end of one piece to the start of the next
     (its second particle is the next element's first), so it is no longer wood and its capsule
-    would drag through both pieces. Nor do pairs of which no element can move (:func:`movable`;
-    sleeping and held pieces): they move nothing. ``pairs_rest`` holds each pair's overlap at the rest
+    would drag through both pieces. Under XPBD nor do pairs of which no element can move
+    (:func:`movable`; sleeping and held pieces): they move nothing. The implicit step moves every
+    piece (its drying shrinks a held one too), so it keeps them. ``pairs_rest`` holds each pair's overlap at the rest
     positions (shrunk as brown rot shrank the pair), which contact does not push out (:mod:`~wooddecay.sim.contact`, "Rest overlap"), and
     ``pairs_protect`` the overlap beyond it that the pair had when its elements separated
     (``sep_keys``, ``sep_overlap``), which contact pushes out at most at v_depenetration."""
@@ -775,7 +789,7 @@ def refresh_pairs(setup: MechSetup, ms: MechState) -> None:
     if ms.pairs_x is not None and _within(ms.x, ms.pairs_x, 0.5 * margin):
         return
     ms.pairs = contact.candidate_pairs(ms.x, setup.fp, ms.radius, ms.component, margin, active=ms.element_ok)
-    if sleep.still(ms).any():  # a pair of which no element moves does nothing
+    if setup.solver == "xpbd" and sleep.still(ms).any():  # a pair of which no element moves does nothing
         moves = movable(setup, ms)
         ms.pairs = ms.pairs[moves[ms.pairs[:, 0]] | moves[ms.pairs[:, 1]]]
     shrink = np.divide(ms.radius, setup.radius, out=np.ones_like(ms.radius), where=setup.radius > 0.0)  # brown rot
