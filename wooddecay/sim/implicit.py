@@ -132,21 +132,16 @@ def _skew(v: np.ndarray) -> np.ndarray:
 
 
 def _offset_rows(setup: MechSetup, ms: MechState, c: np.ndarray, k: np.ndarray, particles: np.ndarray) -> Blocks:
-    """The co-rotated offset delta = d - (u_i + u_j) / 2 of the REG edges ``c``
-    (:func:`~wooddecay.sim.equilibrium.connection_targets`) as three rows, one per world axis:
-    +-1/2 on the centres' ``particles`` (i's two, then j's), 1/2 [u_i]x on theta_i and 1/2 [u_j]x on
-    theta_j (d u_i = dtheta_i x u_i)."""
+    """k J^T J of the co-rotated offset delta = d - (u_i + u_j) / 2 of the REG edges ``c``
+    (:func:`~wooddecay.sim.equilibrium.connection_targets`), J's 3x3 blocks +-1/2 I on the centres'
+    ``particles`` (i's two, then j's), 1/2 [u_i]x on theta_i and 1/2 [u_j]x on theta_j
+    (d u_i = dtheta_i x u_i)."""
     ui, uj = equilibrium.connection_targets(setup, ms, c)
-    si, sj = 0.5 * _skew(ui), 0.5 * _skew(uj)
-    blocks = np.concatenate([particles, setup.n_particles + setup.edges[c]], axis=1)
-    w = np.array([-0.5, -0.5, 0.5, 0.5])
-    rows = []
-    for a in range(3):
-        J = np.zeros((len(c), 6, 3))
-        J[:, :4, a] = w
-        J[:, 4], J[:, 5] = si[:, a], sj[:, a]
-        rows.append(_rows(J, blocks, k))
-    return _summed(*rows)
+    J = np.empty((len(c), 6, 3, 3))
+    J[:, :4] = np.array([-0.5, -0.5, 0.5, 0.5])[:, None, None] * np.eye(3)
+    J[:, 4], J[:, 5] = 0.5 * _skew(ui), 0.5 * _skew(uj)
+    values = k[:, None, None, None, None] * (J.transpose(0, 1, 3, 2)[:, :, None] @ J[:, None, :])
+    return Blocks(values, np.concatenate([particles, setup.n_particles + setup.edges[c]], axis=1))
 
 
 def _darboux_rows(q, pairs, rest, length, kb, kt, P) -> Blocks:
