@@ -19,7 +19,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "wooddecay"
 #: ``blender_addon`` are apart: the add-on imports nothing of the package, the scene only the
 #: base and ``wood`` (its one constant of time)
 LAYERS = (
-    ("base", {"errors", "atomic", "arrays", "fmath", "quaternion", "unionfind", "version"}),
+    ("base", {"errors", "atomic", "arrays", "fmath", "quaternion", "species", "unionfind", "version"}),
     ("strands", {"strands"}),
     ("wood", {"wood"}),
     ("bark", {"bark"}),

@@ -25,6 +25,7 @@ from .sim import biology, climate, contact, coupling, mechanics
 from .sim.biology import BioSetup
 from .sim.coupling import CouplingSetup
 from .sim.mechanics import MechSetup
+from .species import SPECIES
 from .strands import bsp as bsp_mod
 from .strands.elements import element_geometry, sample_strands
 from .strands.materials import Materials
@@ -323,7 +324,9 @@ def build_model(scene) -> WoodModel:
                         mask=region_mask(model, ino["region"])) for ino in scene.inoculations))
         bio = biology.prepare(model, phi_pack=float(st.phi_pack), k_W=float(scene.weakpoints.k_W),
                               climate=_climate(scene))
-        config = MechConfig(**{f.name: scene.mechanics[f.name] for f in fields(MechConfig)})
+        species = SPECIES.get(scene.wood["species"])
+        config = MechConfig(**{f.name: scene.mechanics[f.name] for f in fields(MechConfig) if f.name != "reg_moduli"},
+                            reg_moduli=None if species is None else tuple(species.rod_moduli()[2:]))
         loads = tuple(Load(day0=ld["days"][0], day1=ld["days"][1], force=tuple(ld["force"]),
                            mask=region_mask(model, ld["region"])) for ld in scene.loads)
         mech = mechanics.prepare(model, config, _collider_rows(scene), loads)

@@ -55,6 +55,7 @@ class MechConfig:
     solver: str
     residual_tolerance: float
     connection_shear: float
+    reg_moduli: tuple | None  # a species' (a_R, a_T, a_L, b), Pa (wooddecay.species.RodModuli)
     inertia_scale: float
     k_col: float
     v_depenetration: float

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import pytest
 
+from wooddecay.species import SPECIES
+
 from .conftest import error, parse
 
 
@@ -158,3 +160,16 @@ def test_connection_shear_needs_the_implicit_solver():
     err = error("[mechanics]\nconnection_shear = 0.5")
     assert err.key == "mechanics.connection_shear" and "mechanics.solver = 'implicit'" in err.message
     assert parse("[mechanics]\nsolver = 'implicit'\nconnection_shear = 0.5").mechanics.connection_shear == 0.5
+
+
+def test_a_species_needs_the_implicit_solver_and_sets_the_moduli():
+    err = error("[wood]\nspecies = 'oak'")
+    assert err.key == "wood.species" and "mechanics.solver = 'implicit'" in err.message, str(err)
+    for key in ("E = 2e9", "G = 1e9", "rho_dry = 500.0", "connection_shear = 0.5"):
+        err = error(f"[wood]\nspecies = 'oak'\n[mechanics]\nsolver = 'implicit'\n{key}")
+        assert err.key == f"mechanics.{key.split()[0]}" and "wood.species = 'oak'" in err.message, str(err)
+    scene = parse("[wood]\nspecies = 'spruce'\n[mechanics]\nsolver = 'implicit'")
+    rods = SPECIES["spruce"].rod_moduli()
+    assert (scene.mechanics.E, scene.mechanics.G, scene.mechanics.rho_dry) == (rods.E, rods.G, 400.0)
+    paper = parse("[mechanics]\nsolver = 'implicit'")
+    assert (paper.wood.species, paper.mechanics.E, paper.mechanics.G) == ("none", 1e9, 4e8)

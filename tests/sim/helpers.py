@@ -3,6 +3,7 @@ determinism and checkpoint tests compare, and the tiny log broken into its BSP b
 from __future__ import annotations
 
 import hashlib
+from dataclasses import replace
 
 import numpy as np
 
@@ -77,3 +78,14 @@ def sleep_digest(ms) -> str:
     for a in (ms.w_p, ms.w_q, ms.asleep):
         h.update(np.ascontiguousarray(a).tobytes())
     return h.hexdigest()
+
+
+#: REG connections of the equilibrium and Hessian tests: (central share, offset shares along R, T, L)
+CONNECTIONS = {"central": (1.0, (0.0, 0.0, 0.0)), "connection_shear": (0.5, (0.5, 0.5, 0.5)),
+               "orthotropic": (0.6, (0.2, 0.5, 0.1))}
+
+
+def with_connection(setup, central: float, offset: tuple):
+    """``setup`` with every REG connection's central share ``central`` and offset shares ``offset``."""
+    m = len(setup.edges)
+    return replace(setup, central_share=np.full(m, central), offset_share=np.tile(np.asarray(offset, float), (m, 1)))

@@ -12,17 +12,17 @@ from wooddecay.sim import equilibrium, mechanics
 from wooddecay.sim.state import initial_state
 
 from ..conftest import sample
-from .helpers import perturbed
+from .helpers import CONNECTIONS, perturbed, with_connection
 
 
 def _energy(setup, ms):
     return equilibrium.forces(setup, ms)[0].energy
 
 
-@pytest.fixture(scope="module", params=[0.0, 0.5], ids=["central", "connection_shear"])
+@pytest.fixture(scope="module", params=sorted(CONNECTIONS))
 def jostled(request):
     setup, ms = perturbed("tiny", seed=1)
-    setup = replace(setup, connection_shear=request.param)
+    setup = with_connection(setup, *CONNECTIONS[request.param])
     ms.rest_length = ms.rest_length * 0.99  # drying: every stretch loaded
     ms.rest_offset = ms.rest_offset * 0.98
     ms.mass_p[:] = 0.3
@@ -171,7 +171,7 @@ def test_connection_shear_holds_an_offset_that_turns_with_the_wood():
     slipped = ms.copy()
     slipped.x[[fp[j], fp[j] + 1]] += eps * across / np.linalg.norm(across)
     for s in (0.0, 0.4):
-        setup = replace(model.mech, connection_shear=s)
+        setup = with_connection(model.mech, 1.0 - s, (s, s, s))
         assert _connection_energy(setup, ms, k) < 1e-12 * kc * eps ** 2
         assert _connection_energy(setup, turned, k) < 1e-6 * kc * eps ** 2
         assert _connection_energy(setup, slipped, k) == pytest.approx(0.5 * s * kc * eps ** 2, rel=1e-3,

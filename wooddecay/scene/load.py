@@ -52,6 +52,7 @@ from wooddecay.scene.validate import (
     check_connect_radius,
     check_format,
     check_moisture,
+    check_species,
     unknown_key,
     validate_table,
     validate_value,
@@ -323,6 +324,7 @@ def _resolve(data: dict, ctx: _Ctx, base_dir: Path, path: Path | None, default_n
         time["days"] = days
 
     mech = values["mechanics"]
+    check_species(values["wood"]["species"], mech, data.get("mechanics", {}), ctx.src)
     if mech["connection_shear"] > 0.0 and mech["solver"] != "implicit":
         raise InputError(ctx.src("mechanics.connection_shear", "mechanics.solver"), "mechanics.connection_shear",
                          f"{format_value(mech['connection_shear'])} acts only with mechanics.solver = 'implicit' "

@@ -189,6 +189,7 @@ _SCHEMA: dict[str, list[tuple]] = {
         ("H_c_init", 1.0, "", "[0, 1]", f"Initial carbohydrate health H_c ({_T3})."),
         ("H_l_init", 1.0, "", "[0, 1]", f"Initial lignin health H_l ({_T3})."),
         ("C_init", 0.0, "", "[0, 1]", f"Initial defense efficacy C ({_T3}, Eq. 14)."),
+        ("species", "none", "", "", "Wood species whose orthotropic moduli (E_L, E_R, E_T, G_LR, G_LT, G_RT at 12% moisture, with sources: wooddecay/species.py, docs/model.md §4 \"Species moduli\") the converged bundle takes as its homogenised stiffness, and whose density becomes mechanics.rho_dry: the strands' E and G and the REG connection's stiffness along R, T and L and across it are calibrated to them (benchmarks/moduli.py). Needs mechanics.solver = 'implicit' and leaves mechanics.E, G, rho_dry and connection_shear to the species. 'none': the paper's isotropic mechanics.E and G.", "enum:none|oak|beech|pine|spruce|birch"),
     ],
     "mechanics": [
         ("M_0", 0.2, "kg/kg", "[0, 10]", f"Drying threshold M_0 below which shrinkage and limit reduction start (Eqs. 16-17; {_T3} typical 0.2)."),

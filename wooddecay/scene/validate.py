@@ -36,6 +36,7 @@ from wooddecay.scene.schema import (
     format_range,
 )
 from wooddecay.scene.types import FrozenMap
+from wooddecay.species import SPECIES
 
 #: ``src(*keys)``: the file (or overrides source) the first of ``keys`` that was set came from.
 Source = Callable[..., str]
@@ -395,3 +396,22 @@ def check_moisture(fungi: Mapping, moisture: Mapping, src: Source, prefix: str,
             raise fail((("moisture", "M_init"), ("moisture", "schedule")),
                        f"M_init = {format_value(mi)} kg/kg must lie in the schedule's range "
                        f"[{format_value(lo_s)}, {format_value(hi_s)}] kg/kg")
+
+
+def check_species(species: str, mech: dict[str, Any], given: Mapping[str, Any], src: Source) -> None:
+    """``wood.species`` other than 'none' needs the implicit solver and sets mechanics.E, G and
+    rho_dry (the species' calibrated strands and density, :mod:`wooddecay.species`) in ``mech``,
+    the resolved ``[mechanics]``; ``given``: the keys the scene's ``[mechanics]`` sets."""
+    if species == "none":
+        return
+    if mech["solver"] != "implicit":
+        raise InputError(src("wood.species", "mechanics.solver"), "wood.species",
+                         f"'{species}' gives the moduli of the converged bundle, which only mechanics.solver = "
+                         "'implicit' reaches: choose the implicit solver or species = 'none'")
+    for name in ("E", "G", "rho_dry", "connection_shear"):
+        if name in given:
+            raise InputError(src(f"mechanics.{name}", "wood.species"), f"mechanics.{name}",
+                             f"set by wood.species = '{species}' (wooddecay/species.py): leave one of the two out")
+    wood = SPECIES[species]
+    rods = wood.rod_moduli()
+    mech["E"], mech["G"], mech["rho_dry"] = rods.E, rods.G, wood.rho_dry

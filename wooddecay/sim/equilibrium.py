@@ -8,8 +8,8 @@ implicit solve are judged alike:
 * shear E = 1/2 G A l_r sum_k C_k^2, C_k = ((p_b - p_a) / l_r) . d_k(q), k = 1, 2;
 * bend-twist of strand joints and REG pairs E = 1/2 sum_c k_c l C_c^2,
   C = (2 / l) (Im(conj(q_i) q_j) - s Im(Omega_0)), k = (E I, E I, G J) (times I_ij on the REG);
-* REG connection (Eq. 2) E = 1/2 (1 - s) k_conn (|c_j - c_i| - dp)^2 on element centres, plus,
-  with a connection shear s > 0 (implicit solver only), 1/2 s k_conn |c_j - c_i - (u_i + u_j) / 2|^2,
+* REG connection (Eq. 2) E = 1/2 c k_conn (|c_j - c_i| - dp)^2 on element centres, plus, with
+  offset shares s_a > 0 (implicit solver only), 1/2 sum_a s_a k_conn ((c_j - c_i - (u_i + u_j) / 2) . e_a)^2,
   u_i the pair's rest offset carried by i's rotation (:func:`connection_targets`);
 * contact of colliders and of capsule pairs (Eqs. 3-4) F = k_col phi^2 n, phi beyond the pair's
   rest overlap, i.e. E = k_col phi^3 / 3;
@@ -117,27 +117,40 @@ def connection_targets(setup: MechSetup, ms: MechState, k: np.ndarray) -> tuple[
     return f * rotate_np(ms.q[i], setup.edge_body[k, 0]), f * rotate_np(ms.q[j], setup.edge_body[k, 1])
 
 
+def offset_tensor(setup: MechSetup, ms: MechState, k: np.ndarray, k_conn: np.ndarray) -> np.ndarray:
+    """B (k, 3, 3): the co-rotated offset's stiffness of the REG edges ``k`` in the world, sum_a
+    s_a k_conn e_a e_a^T over the pair's axes e_a (``setup.edge_axes`` turned by i's rotation) and
+    their shares s_a (``setup.offset_share``); ``k_conn`` of the edges ``k``."""
+    i = setup.edges[k, 0]
+    axes = np.stack([rotate_np(ms.q[i], setup.edge_axes[k, a]) for a in range(3)], axis=1)  # rows e_a
+    return np.einsum("ka,kai,kaj->kij", setup.offset_share[k] * k_conn[:, None], axes, axes)
+
+
 def _connections(setup: MechSetup, ms: MechState, k_conn: np.ndarray, f: np.ndarray, tau: np.ndarray,
                  scale: np.ndarray) -> float:
     """REG connections into ``f``, ``tau`` and ``scale``; their energy: the central spring (Eq. 2)
-    with (1 - s) k_conn and, for s = ``setup.connection_shear`` > 0, the co-rotated offset
-    1/2 s k_conn |d - (u_i + u_j) / 2|^2 (:func:`connection_targets`), whose torque on i is
-    1/2 u_i x g, g = s k_conn (d - (u_i + u_j) / 2)."""
+    with ``setup.central_share`` of k_conn and, where ``setup.offset_share`` is not zero, the
+    co-rotated offset 1/2 delta^T B delta, delta = d - (u_i + u_j) / 2 (:func:`connection_targets`,
+    :func:`offset_tensor`), whose torque on i is 1/2 u_i x g + delta x g (the second from B turning
+    with i) and on j 1/2 u_j x g, g = B delta."""
     k = np.flatnonzero(k_conn > 0.0)
     ai, aj = setup.fp[setup.edges[k, 0]], setup.fp[setup.edges[k, 1]]
     d = 0.5 * (ms.x[aj] + ms.x[aj + 1] - ms.x[ai] - ms.x[ai + 1])
     L = np.linalg.norm(d, axis=1)
-    s = setup.connection_shear
+    c = setup.central_share[k]
     kc, dp = k_conn[k], ms.rest_offset[k]
-    half = (0.5 * (1.0 - s) * kc * (L - dp) / np.where(L > 0.0, L, 1.0))[:, None] * d  # on each of i's particles
-    energy = 0.5 * ((1.0 - s) * kc * (L - dp) ** 2).sum()
-    if s > 0.0:
-        ui, uj = connection_targets(setup, ms, k)
-        delta = d - 0.5 * (ui + uj)
-        g = (s * kc)[:, None] * delta
-        half += 0.5 * g
+    half = (0.5 * c * kc * (L - dp) / np.where(L > 0.0, L, 1.0))[:, None] * d  # on each of i's particles
+    energy = 0.5 * (c * kc * (L - dp) ** 2).sum()
+    off = setup.offset_share[k].any(axis=1)
+    if off.any():
+        o = k[off]
+        ui, uj = connection_targets(setup, ms, o)
+        delta = d[off] - 0.5 * (ui + uj)
+        g = np.einsum("kij,kj->ki", offset_tensor(setup, ms, o, kc[off]), delta)
+        half[off] += 0.5 * g
         n = len(tau)
-        tau += _scatter(setup.edges[k, 0], 0.5 * np.cross(ui, g), n) + _scatter(setup.edges[k, 1], 0.5 * np.cross(uj, g), n)
+        tau += (_scatter(setup.edges[o, 0], 0.5 * np.cross(ui, g) + np.cross(delta, g), n)
+                + _scatter(setup.edges[o, 1], 0.5 * np.cross(uj, g), n))
         energy += 0.5 * (g * delta).sum()
     P = len(f)
     for p, sign in ((ai, 1.0), (ai + 1, 1.0), (aj, -1.0), (aj + 1, -1.0)):

@@ -131,16 +131,20 @@ def _skew(v: np.ndarray) -> np.ndarray:
     return out
 
 
-def _offset_rows(setup: MechSetup, ms: MechState, c: np.ndarray, k: np.ndarray, particles: np.ndarray) -> Blocks:
-    """k J^T J of the co-rotated offset delta = d - (u_i + u_j) / 2 of the REG edges ``c``
-    (:func:`~wooddecay.sim.equilibrium.connection_targets`), J's 3x3 blocks +-1/2 I on the centres'
-    ``particles`` (i's two, then j's), 1/2 [u_i]x on theta_i and 1/2 [u_j]x on theta_j
-    (d u_i = dtheta_i x u_i)."""
+def _offset_rows(setup: MechSetup, ms: MechState, c: np.ndarray, k_conn: np.ndarray, particles: np.ndarray
+                 ) -> Blocks:
+    """J^T B J of the co-rotated offset delta = d - (u_i + u_j) / 2 of the REG edges ``c``
+    (:func:`~wooddecay.sim.equilibrium.connection_targets`), B its stiffness
+    (:func:`~wooddecay.sim.equilibrium.offset_tensor` of ``k_conn``), J's 3x3 blocks +-1/2 I on
+    the centres' ``particles`` (i's two, then j's), 1/2 [u_i]x on theta_i and 1/2 [u_j]x on theta_j
+    (d u_i = dtheta_i x u_i); B's own turn with theta_i adds terms in delta, zero where the offset
+    holds."""
     ui, uj = equilibrium.connection_targets(setup, ms, c)
     J = np.empty((len(c), 6, 3, 3))
     J[:, :4] = np.array([-0.5, -0.5, 0.5, 0.5])[:, None, None] * np.eye(3)
     J[:, 4], J[:, 5] = 0.5 * _skew(ui), 0.5 * _skew(uj)
-    values = k[:, None, None, None, None] * (J.transpose(0, 1, 3, 2)[:, :, None] @ J[:, None, :])
+    B = equilibrium.offset_tensor(setup, ms, c, k_conn)
+    values = J.transpose(0, 1, 3, 2)[:, :, None] @ (B[:, None] @ J)[:, None, :]
     return Blocks(values, np.concatenate([particles, setup.n_particles + setup.edges[c]], axis=1))
 
 
@@ -190,11 +194,11 @@ def _hessian_rows(setup: MechSetup, ms: MechState) -> list[Blocks]:
     L = np.linalg.norm(d, axis=1)
     u = d / np.maximum(L, 1e-300)[:, None]
     blocks = np.stack([ai, ai + 1, aj, aj + 1], axis=1)
-    s = setup.connection_shear
-    parts.append(_distance(0.5 * np.stack([-u, -u, u, u], axis=1), blocks, u, (1.0 - s) * k_conn[c],
+    parts.append(_distance(0.5 * np.stack([-u, -u, u, u], axis=1), blocks, u, setup.central_share[c] * k_conn[c],
                            L - ms.rest_offset[c], L))
-    if s > 0.0:
-        parts.append(_offset_rows(setup, ms, c, s * k_conn[c], blocks))
+    off = setup.offset_share[c].any(axis=1)
+    if off.any():
+        parts.append(_offset_rows(setup, ms, c[off], k_conn[c[off]], blocks[off]))
     parts.append(_darboux_rows(ms.q, setup.edges, setup.edge_rest, setup.edge_length, k_pb, k_pt, P))
     for row in setup.colliders:
         sd, normal = collider_distance_reference(row, ms.x)

@@ -146,8 +146,10 @@ class MechSetup:
     strand_solver: str  # "auto", "direct" or "gauss-seidel" (:func:`stage1_plan`)
     solver: str  # "xpbd" or "implicit" (:mod:`~wooddecay.sim.implicit`)
     residual_tolerance: float  # the equilibrium residual each implicit step is solved to
-    connection_shear: float  # share s of k_conn on the co-rotated offset (:mod:`~wooddecay.sim.equilibrium`)
+    central_share: np.ndarray  # (m,) share of k_conn on the central spring (:mod:`~wooddecay.sim.equilibrium`)
+    offset_share: np.ndarray  # (m, 3) share of k_conn on the co-rotated offset along the pair's R, T, L
     edge_body: np.ndarray  # (m, 2, 3) rest offset c_j - c_i in i's and in j's body frame
+    edge_axes: np.ndarray  # (m, 3, 3) rows: element i's wood axes e_R, e_T, e_L at rest in its body frame
     colliders: np.ndarray  # (k, contact.COLLIDER_COLUMNS)
     k_col: float
     v_depenetration: float
@@ -312,19 +314,14 @@ def prepare(model: WoodModel, config: MechConfig, colliders: np.ndarray, loads: 
     per_element = model.materials.per_element
     fp = model.first_particle.astype(np.int64)
     P = len(model.particles)
-    E, G = per_element("E"), per_element("G")
-    r = model.radius
-    A, I_b = np.pi * r**2, np.pi * (r * r) * (r * r) / 4.0  # products, not numpy's power (wooddecay.fmath)
-    l0 = model.rest_length
+    r, l0 = model.radius, model.rest_length
+    A = np.pi * r**2
     last = np.zeros(n, dtype=bool)
     last[model.element_offsets[1:] - 1] = True
     je = np.flatnonzero(~last)
     joints = np.stack([je, je + 1], axis=1)
     ij = model.reg_edges.astype(np.int64)
-    r_s = model.r_s
-    edge_length = np.maximum(model.reg_rest_offset, r_s)
-    Em, Gm = 0.5 * (E[ij[:, 0]] + E[ij[:, 1]]), 0.5 * (G[ij[:, 0]] + G[ij[:, 1]])
-    lm = 0.5 * (l0[ij[:, 0]] + l0[ij[:, 1]])
+    k = base_stiffness(model, per_element("E"), per_element("G"), mech.reg_moduli, mech.connection_shear)
     rho = per_element("rho_dry")
     I_fail = per_element("I_fail")
     anchored_p = np.zeros(P, dtype=bool)
@@ -345,26 +342,81 @@ def prepare(model: WoodModel, config: MechConfig, colliders: np.ndarray, loads: 
         joint_sets=_parity_sets(np.arange(len(joints))),
         strand_offsets=model.element_offsets.astype(np.int64), joint_of=_joint_of(je, n),
         joint_rest=_conj_mul(model.rest_quat[je], model.rest_quat[je + 1]),
-        joint_length=_joint_length(l0, model.anchored, je),
-        joint_kb=0.5 * (E[je] + E[je + 1]) * I_b[je], joint_kt=0.5 * (G[je] + G[je + 1]) * 2 * I_b[je],
-        rest_length0=l0.copy(), radius=r.copy(), k_stretch=E * A, k_shear=G * A,
+        joint_length=_joint_length(l0, model.anchored, je), joint_kb=k.joint_kb, joint_kt=k.joint_kt,
+        rest_length0=l0.copy(), radius=r.copy(), k_stretch=k.k_stretch, k_shear=k.k_shear,
         inertia_factor=mech.inertia_scale * (r**2 / 4.0 + l0**2 / 12.0), dry_mass=dry, anchored_p=anchored_p,
         anchored_e=model.anchored.copy(), x_rest=model.particles.astype(np.float64),
         inner=_inner(model.element_offsets, n), edges=ij, edge_rest=model.reg_rest_darboux.copy(),
-        offset0=model.reg_rest_offset.copy(), edge_length=edge_length,
-        sweep=RegSweep.of(*rods.color_edges(ij, fp, P), ij, model.reg_rest_darboux, edge_length,
-                          k_conn0=Gm * 2.0 * r_s * lm / edge_length, k_pb0=Em * np.pi * r_s**4 / 4.0,
-                          k_pt0=Gm * np.pi * r_s**4 / 2.0),
+        offset0=model.reg_rest_offset.copy(), edge_length=k.edge_length,
+        sweep=RegSweep.of(*rods.color_edges(ij, fp, P), ij, model.reg_rest_darboux, k.edge_length,
+                          k_conn0=k.k_conn0, k_pb0=k.k_pb0, k_pt0=k.k_pt0),
         gravity=np.asarray(mech.gravity, dtype=np.float64), damping=float(mech.damping),
         dt=float(mech.dt_mech), iterations=int(mech.iterations), strand_solver=str(mech.strand_solver),
         solver=str(mech.solver), residual_tolerance=float(mech.residual_tolerance),
-        connection_shear=float(mech.connection_shear), edge_body=_edge_body(model, fp, ij),
+        central_share=k.central_share, offset_share=k.offset_share, edge_body=_edge_body(model, fp, ij),
+        edge_axes=_edge_axes(model, ij),
         colliders=colliders, k_col=float(mech.k_col),
         v_depenetration=float(mech.v_depenetration), mu_f=float(mech.mu_f), epsilon=float(mech.epsilon),
         loads=tuple(load_forces),
         sleep_speed=float(mech.sleep_speed), sleep_time=float(mech.sleep_time),
         I_fail_elem=I_fail, I_fail_edge=0.5 * (I_fail[ij[:, 0]] + I_fail[ij[:, 1]]),
     )
+
+
+class BaseStiffness(NamedTuple):
+    """The rods' stiffnesses (:func:`base_stiffness`): per element, per strand joint and per REG edge
+    (edge order)."""
+
+    k_stretch: np.ndarray  # (n,) E A
+    k_shear: np.ndarray  # (n,) G A
+    joint_kb: np.ndarray  # (J,) E I
+    joint_kt: np.ndarray  # (J,) G J
+    edge_length: np.ndarray  # (m,) lever of the pair bend-twist: max(|dp_0|, r_s)
+    k_conn0: np.ndarray  # (m,) connection stiffness at I = 1
+    k_pb0: np.ndarray  # (m,)
+    k_pt0: np.ndarray  # (m,)
+    central_share: np.ndarray  # (m,) share of k_conn0 on the central spring
+    offset_share: np.ndarray  # (m, 3) share of k_conn0 on the co-rotated offset along R, T, L
+
+
+def base_stiffness(model: WoodModel, E: np.ndarray, G: np.ndarray, reg: tuple | None = None,
+                   connection_shear: float = 0.0) -> BaseStiffness:
+    """Stiffnesses from the strands' moduli ``E``, ``G`` (n,) (docs/model.md §4): stretch and shear
+    E A, G A, joint bend and twist E I, G J (pair means), REG pair bend and twist E pi r_s^4 / 4,
+    G pi r_s^4 / 2, and the connection (Eq. 2) k_conn = 2 r_s l / |dp_0| G (pair means; |dp_0| at
+    least r_s), a share s = ``connection_shear`` of it on the co-rotated offset along every axis
+    and 1 - s on the central spring. With ``reg`` = (a_R, a_T, a_L, b_R, b_T, b_L)
+    (:class:`~wooddecay.species.RodModuli`, a species' rods) the central spring has 2 r_s l /
+    |dp_0| (a_R n_r^2 + a_T n_t^2 + a_L n_l^2), n its rest direction in the wood frame, and the
+    offset along the pair's R, T and L axes 2 r_s l / |dp_0| (b_R, b_T, b_L); k_conn0 is the
+    central stiffness plus the offset's mean."""
+    r = model.radius
+    A, I_b = np.pi * r**2, np.pi * (r * r) * (r * r) / 4.0  # products, not numpy's power (wooddecay.fmath)
+    n = model.n_elements
+    last = np.zeros(n, dtype=bool)
+    last[model.element_offsets[1:] - 1] = True
+    je = np.flatnonzero(~last)
+    ij = model.reg_edges.astype(np.int64)
+    r_s, l0 = model.r_s, model.rest_length
+    edge_length = np.maximum(model.reg_rest_offset, r_s)
+    Em, Gm = 0.5 * (E[ij[:, 0]] + E[ij[:, 1]]), 0.5 * (G[ij[:, 0]] + G[ij[:, 1]])
+    lm = 0.5 * (l0[ij[:, 0]] + l0[ij[:, 1]])
+    m = len(ij)
+    if reg is None:
+        k_conn0 = Gm * 2.0 * r_s * lm / edge_length
+        central_share, offset_share = np.full(m, 1.0 - connection_shear), np.full((m, 3), float(connection_shear))
+    else:
+        lever = 2.0 * r_s * lm / edge_length
+        central = lever * (model.reg_dir_weights @ np.asarray(reg[:3], dtype=np.float64))
+        offset = lever[:, None] * np.asarray(reg[3:], dtype=np.float64)[None, :]
+        k_conn0 = central + offset.mean(axis=1)
+        live = k_conn0 > 0.0
+        central_share = np.divide(central, k_conn0, out=np.zeros(m), where=live)
+        offset_share = np.divide(offset, k_conn0[:, None], out=np.zeros((m, 3)), where=live[:, None])
+    return BaseStiffness(k_stretch=E * A, k_shear=G * A, joint_kb=0.5 * (E[je] + E[je + 1]) * I_b[je],
+                         joint_kt=0.5 * (G[je] + G[je + 1]) * 2 * I_b[je], edge_length=edge_length,
+                         k_conn0=k_conn0, k_pb0=Em * np.pi * r_s**4 / 4.0, k_pt0=Gm * np.pi * r_s**4 / 2.0,
+                         central_share=central_share, offset_share=offset_share)
 
 
 def _edge_body(model: WoodModel, fp: np.ndarray, ij: np.ndarray) -> np.ndarray:
@@ -375,6 +427,13 @@ def _edge_body(model: WoodModel, fp: np.ndarray, ij: np.ndarray) -> np.ndarray:
     d = c[ij[:, 1]] - c[ij[:, 0]]
     q = model.rest_quat
     return np.stack([rotate_np(conj_np(q[ij[:, 0]]), d), rotate_np(conj_np(q[ij[:, 1]]), d)], axis=1)
+
+
+def _edge_axes(model: WoodModel, ij: np.ndarray) -> np.ndarray:
+    """Element i's wood axes (rows e_r, e_t, e_l of ``model.frames``) in its body frame at rest,
+    for each REG pair (i, j): the axes of its co-rotated offset."""
+    body = conj_np(model.rest_quat[ij[:, 0]])
+    return np.stack([rotate_np(body, model.frames[ij[:, 0], a]) for a in range(3)], axis=1)
 
 
 def _conj_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
