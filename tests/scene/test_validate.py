@@ -171,5 +171,7 @@ def test_a_species_needs_the_implicit_solver_and_sets_the_moduli():
     scene = parse("[wood]\nspecies = 'spruce'\n[mechanics]\nsolver = 'implicit'")
     rods = SPECIES["spruce"].rod_moduli()
     assert (scene.mechanics.E, scene.mechanics.G, scene.mechanics.rho_dry) == (rods.E, rods.G, 400.0)
+    err = error("[mechanics]\nsolver = 'implicit'\n[tissue.heartwood]\nspecies = 'oak'")
+    assert err.key == "tissue.heartwood.species" and "[wood] species" in err.message, str(err)
     paper = parse("[mechanics]\nsolver = 'implicit'")
     assert (paper.wood.species, paper.mechanics.E, paper.mechanics.G) == ("none", 1e9, 4e8)

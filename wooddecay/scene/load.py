@@ -400,6 +400,9 @@ def _resolve_tissues(raw: Any, values: dict[str, dict[str, Any]], ctx: _Ctx) -> 
                     hint = f"; write the keys of [{name}] directly, e.g. {next(iter(PARAMS[name]))} = ..."
                 raise InputError(ctx.src(key), key, f"unknown key {format_value(str(name))} in [tissue.{t}] "
                                  f"(allowed: keys of {', '.join('[' + s + ']' for s in TISSUE_SECTIONS)}){hint}")
+            if name == "species":
+                raise InputError(ctx.src(key), key, "a species is the whole wood's (its rods are calibrated on "
+                                 "clear wood of one species): set [wood] species instead")
             over[name] = validate_value(TISSUE_KEYS[name], v, ctx.src(key), key)
         if over:
             fungi = {**values["fungi"], **{k: v for k, v in over.items() if k in values["fungi"]}}

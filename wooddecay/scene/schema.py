@@ -396,6 +396,7 @@ CONDITIONAL: dict[str, tuple[str, dict[str, Any]]] = {
     "mechanics.residual_tolerance": ("with mechanics.solver = 'implicit'", {"mechanics.solver": "implicit"}),
     "mechanics.connection_shear": ("with mechanics.solver = 'implicit' where connections strain",
                                    {"mechanics.solver": "implicit", "mechanics.M_0": 0.6}),
+    "wood.species": ("with mechanics.solver = 'implicit'", {"mechanics.solver": "implicit"}),
     "mechanics.sleep_speed": _SETTLING, "mechanics.sleep_time": _SETTLING,
     "time.max_mechanics": ("while a piece moves for longer than that in one macro step (a fall)",
                            {"mechanics.ground_height": -1.0}),
