@@ -316,9 +316,7 @@ def prepare(model: WoodModel, config: MechConfig, colliders: np.ndarray, loads: 
     P = len(model.particles)
     r, l0 = model.radius, model.rest_length
     A = np.pi * r**2
-    last = np.zeros(n, dtype=bool)
-    last[model.element_offsets[1:] - 1] = True
-    je = np.flatnonzero(~last)
+    je = _joint_elements(model)
     joints = np.stack([je, je + 1], axis=1)
     ij = model.reg_edges.astype(np.int64)
     k = base_stiffness(model, per_element("E"), per_element("G"), mech.reg_moduli, mech.connection_shear)
@@ -392,10 +390,7 @@ def base_stiffness(model: WoodModel, E: np.ndarray, G: np.ndarray, reg: tuple | 
     central stiffness plus the offset's mean."""
     r = model.radius
     A, I_b = np.pi * r**2, np.pi * (r * r) * (r * r) / 4.0  # products, not numpy's power (wooddecay.fmath)
-    n = model.n_elements
-    last = np.zeros(n, dtype=bool)
-    last[model.element_offsets[1:] - 1] = True
-    je = np.flatnonzero(~last)
+    je = _joint_elements(model)
     ij = model.reg_edges.astype(np.int64)
     r_s, l0 = model.r_s, model.rest_length
     edge_length = np.maximum(model.reg_rest_offset, r_s)
@@ -427,6 +422,13 @@ def _edge_body(model: WoodModel, fp: np.ndarray, ij: np.ndarray) -> np.ndarray:
     d = c[ij[:, 1]] - c[ij[:, 0]]
     q = model.rest_quat
     return np.stack([rotate_np(conj_np(q[ij[:, 0]]), d), rotate_np(conj_np(q[ij[:, 1]]), d)], axis=1)
+
+
+def _joint_elements(model: WoodModel) -> np.ndarray:
+    """The first element of each strand joint: every element but its strand's last."""
+    last = np.zeros(model.n_elements, dtype=bool)
+    last[model.element_offsets[1:] - 1] = True
+    return np.flatnonzero(~last)
 
 
 def _edge_axes(model: WoodModel, ij: np.ndarray) -> np.ndarray:
