@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import wooddecay as wd
-from wooddecay.sim import equilibrium, implicit, mechanics, sleep
+from wooddecay.sim import equilibrium, implicit, mechanics, rigid, schedule, sleep
 from wooddecay.sim.state import initial_state
 from wooddecay.studies import cantilever
 
@@ -162,3 +162,40 @@ def test_the_implicit_step_keeps_the_contacts_of_still_pieces():
         counts[solver] = (every, len(ms.pairs))
     assert counts["xpbd"][0] > 0 and counts["xpbd"][1] == 0
     assert counts["implicit"][1] == counts["implicit"][0] > 0
+
+
+def test_the_wood_creeps_through_rest_changes_and_the_schedule_finds_it_quiet():
+    """A macro step's first step answers rest data that changed over the days since the last one:
+    the bound wood's displacement is creep over those days (v = dx / elapsed), so the tiny log
+    lying on the ground, shrunk by 100x the strain tolerance two days on, ends its solve quiet in a
+    step of BREAK_STEP (with dx / h it moved at cm/s, and the schedule would solve again)."""
+    scene = sample("tiny")[0]
+    sim = wd.Simulation(wd.build_model(wd.load_scene(scene.path, overrides={"mechanics.solver": "implicit"})))
+    model, state = sim.model, sim.state
+    ms = state.mech
+    ms.rest_length *= 1.0 - 100.0 * model.time.tolerances.strain
+    ms.stepped_day[0] = state.t_days
+    state.t_days += 2.0
+    ms.h_next[0] = implicit.BREAK_STEP
+    x0 = ms.x.copy()
+    assert schedule.solve(model, state, model.time.tolerances, "strain") == 1
+    moved = np.linalg.norm(ms.x - x0, axis=1).max()
+    assert moved / implicit.BREAK_STEP > model.time.tolerances.rest_speed
+    assert np.linalg.norm(ms.v, axis=1).max() < 2.0 * moved / (2.0 * implicit.DAY)
+    assert ms.quiet[0]
+
+
+def test_rigid_pieces_keep_their_momentum_through_creep():
+    """:func:`implicit.creep` spreads the bound wood's displacement over the elapsed days and
+    leaves a rigid piece's velocity as its step made it (a falling block goes on falling)."""
+    sim = fragments(**{"mechanics.solver": "implicit"})
+    setup, ms = sim.model.mech, sim.state.mech
+    implicit.step(setup, ms, implicit.BREAK_STEP, tol=setup.residual_tolerance)
+    v, omega = ms.v.copy(), ms.omega.copy()
+    implicit.creep(setup, ms, implicit.BREAK_STEP, 2.0 * implicit.DAY)
+    rb = rigid.bodies(setup, ms)
+    scale = implicit.BREAK_STEP / (2.0 * implicit.DAY)
+    assert rb.n_pieces > 0 and np.abs(v[rb.particle >= 0]).max() > 1e-3
+    assert np.array_equal(ms.v[rb.particle >= 0], v[rb.particle >= 0])
+    assert np.array_equal(ms.omega[rb.element >= 0], omega[rb.element >= 0])
+    assert np.allclose(ms.v[rb.particle < 0], v[rb.particle < 0] * scale, rtol=1e-12, atol=0.0)

@@ -51,7 +51,7 @@ from .signature import signature
 from .state import FIELDS, SimState, initial_state
 from .threads import ThreadChoice
 
-CHECKPOINT_VERSION = 11
+CHECKPOINT_VERSION = 12
 
 
 @dataclass(frozen=True, eq=False)

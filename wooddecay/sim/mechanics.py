@@ -237,6 +237,9 @@ class MechState:
     #: the step (s) the next implicit macro step starts with, 0 for its whole span
     #: (:func:`wooddecay.sim.implicit.macro_step`; checkpointed)
     h_next: np.ndarray = field(default_factory=lambda: np.zeros(1))
+    #: the day of the last implicit macro step: the rest data it answers changed since
+    #: (:func:`wooddecay.sim.implicit.macro_step`, creep; checkpointed)
+    stepped_day: np.ndarray = field(default_factory=lambda: np.zeros(1))
     #: the last exact failure test of every REG edge within this :func:`_advance`
     #: (:class:`failure.Epoch`; not checkpointed: each call starts with an exact test)
     fail_epoch: failure.Epoch | None = None

@@ -19,7 +19,6 @@ it. Figure (the log in five pieces on the ground, day 635, 21,498 unknowns, step
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
@@ -97,13 +96,16 @@ def two_level(A: sp.spmatrix, strand: np.ndarray, position: np.ndarray, modes: s
     S += REGULAR * sp.identity(S.shape[0], format="csc")  # a strand free of all else has rigid modes
     lu = spla.splu(S, permc_spec="NATURAL", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
     modes_t = modes.T.tocsr()
-    coarse = (modes_t @ (A @ modes)).toarray()
-    d = np.diag(coarse).copy()
-    coarse[np.diag_indices_from(coarse)] = np.where(d > 0.0, d * (1.0 + 1e-12), 1.0)
-    factor = sla.cho_factor(coarse) if len(d) else None
+    coarse = (modes_t @ (A @ modes)).tocsc()
+    d = coarse.diagonal()
+    coarse.setdiag(np.where(d > 0.0, d * (1.0 + 1e-12), 1.0))
+    # sparse: an aggregate's modes couple only its neighbours' (on the broken log's 1,104 modes,
+    # 6% of the entries: 7 ms a factor and 0.13 ms a solve against 38 ms and 0.5 ms dense)
+    factor = spla.splu(coarse, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                       options={"SymmetricMode": True}) if len(d) else None
 
     def apply(r: np.ndarray) -> np.ndarray:
         z = lu.solve(r[order])[rank]
-        return z if factor is None else z + modes @ sla.cho_solve(factor, modes_t @ r)
+        return z if factor is None else z + modes @ factor.solve(modes_t @ r)
 
     return spla.LinearOperator(A.shape, apply, dtype=float)

@@ -66,10 +66,8 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from ..wood import WoodModel
-from . import failure, sleep
-from . import implicit, mechanics
-from ..wood import Tolerances
+from ..wood import Tolerances, WoodModel
+from . import failure, implicit, mechanics, sleep
 from .events import Events
 from .signature import MIN_PIECE
 
@@ -200,9 +198,16 @@ class Motion(NamedTuple):
     v_mean: np.ndarray  # mean over the chunk
 
 
-def motion(setup: mechanics.MechSetup, ms: mechanics.MechState, x0: np.ndarray, seconds: float) -> Motion:
+def motion(setup: mechanics.MechSetup, ms: mechanics.MechState, x0: np.ndarray, seconds: float,
+           v0: np.ndarray | None = None) -> Motion:
     """:class:`Motion` of every piece: its centre of mass (intact element centres weighted by
-    mass) now and on average since the positions ``x0``, ``seconds`` ago."""
+    mass) now and on average since the positions ``x0``, ``seconds`` ago; given the velocities
+    ``v0`` at the start (the implicit solver), the average is the mean of the start's and the
+    end's velocities instead. Why: an implicit macro step leaves the bound wood's displacement
+    through changed rest data as creep over the days it took (:func:`implicit.creep`), and its
+    steps are seldom ``seconds`` long (a piece sliding steadily through steps of 0.01 s looked
+    100x faster at its end than on average over the span, so gaining speed, and the log's solves
+    never ended quiet)."""
     fp, n = setup.fp, int(ms.component.max(initial=-1)) + 1
     m_e = ms.mass_e * ms.element_ok
     mass = np.bincount(ms.component, weights=m_e, minlength=n)
@@ -212,8 +217,9 @@ def motion(setup: mechanics.MechSetup, ms: mechanics.MechState, x0: np.ndarray, 
         v = np.stack([np.bincount(ms.component, weights=m_e * a[:, c], minlength=n) for c in range(3)], axis=1)
         return np.linalg.norm(v, axis=1) * weight
 
-    return Motion(np.bincount(ms.component, minlength=n), mass, com_speed(0.5 * (ms.v[fp] + ms.v[fp + 1])),
-                  com_speed(0.5 * (ms.x[fp] + ms.x[fp + 1] - x0[fp] - x0[fp + 1])) / seconds)
+    mean = (com_speed(0.5 * (ms.x[fp] + ms.x[fp + 1] - x0[fp] - x0[fp + 1])) / seconds if v0 is None
+            else com_speed(0.25 * (v0[fp] + v0[fp + 1] + ms.v[fp] + ms.v[fp + 1])))
+    return Motion(np.bincount(ms.component, minlength=n), mass, com_speed(0.5 * (ms.v[fp] + ms.v[fp + 1])), mean)
 
 
 def moving(m: Motion, rest_speed: float) -> bool:
@@ -283,12 +289,6 @@ def _macro_step(model: WoodModel, state, n_sub: int) -> int:
     return solver(model, state, n_sub)
 
 
-def _span(model: WoodModel, n_sub: int) -> float:
-    """Seconds of mechanics :func:`_macro_step` runs for ``n_sub`` substeps."""
-    setup = model.mech
-    return implicit.span(setup, n_sub) if setup.solver == "implicit" else n_sub * setup.dt
-
-
 def _budget(model: WoodModel, tol: Tolerances) -> float:
     """What :func:`solve` may spend: ``tol.max_seconds`` of XPBD substeps, or as many implicit
     steps (:func:`implicit.span` each, at least one) as fit in them."""
@@ -305,12 +305,12 @@ def solve(model: WoodModel, state, tol: Tolerances, reason: str | None = None) -
     n_sub = relax_substeps(model) if reason in RELAX else model.time.N_mech
     chunks, substeps, quiet = 0, 0, False
     while not quiet and (substeps * dt if model.mech.solver == "xpbd" else chunks) < _budget(model, tol):
-        x0 = ms.x.copy()
+        x0, v0 = ms.x.copy(), ms.v.copy()
         pieces = big_pieces(ms)
         _macro_step(model, state, n_sub)
         chunks += 1
         substeps += n_sub
-        m = motion(model.mech, ms, x0, _span(model, n_sub))
+        m = motion(model.mech, ms, x0, n_sub * dt, v0 if model.mech.solver == "implicit" else None)
         quiet = big_pieces(ms) == pieces and not moving(m, tol.rest_speed)
         hold_still(model.mech, ms, m, tol.hold_speed)
         n_sub = model.time.N_mech
