@@ -192,8 +192,8 @@ def test_rigid_pieces_keep_their_momentum_through_creep():
     setup, ms = sim.model.mech, sim.state.mech
     implicit.step(setup, ms, implicit.BREAK_STEP, tol=setup.residual_tolerance)
     v, omega = ms.v.copy(), ms.omega.copy()
-    implicit.creep(setup, ms, implicit.BREAK_STEP, 2.0 * implicit.DAY)
     rb = rigid.bodies(setup, ms)
+    implicit.creep(ms, rb, implicit.BREAK_STEP, 2.0 * implicit.DAY)
     scale = implicit.BREAK_STEP / (2.0 * implicit.DAY)
     assert rb.n_pieces > 0 and np.abs(v[rb.particle >= 0]).max() > 1e-3
     assert np.array_equal(ms.v[rb.particle >= 0], v[rb.particle >= 0])

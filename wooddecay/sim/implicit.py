@@ -502,12 +502,13 @@ def macro_step(model: WoodModel, state, n_sub: int) -> int:
             report = step(setup, ms, BREAK_STEP, tol=setup.residual_tolerance)
             last_h = BREAK_STEP
             ms.t_seconds += BREAK_STEP
+        rb = rigid.bodies(setup, ms)
         if round_ == 0:
-            creep(setup, ms, last_h, elapsed)
+            creep(ms, rb, last_h, elapsed)
         ms.unconverged[0] += not report.converged
         ms.resolves[0] += round_ > 0
         last = round_ == FAILURE_ROUNDS - 1
-        rigid.freeze_strains(setup, ms, rigid.bodies(setup, ms))
+        rigid.freeze_strains(setup, ms, rb)
         count = failure.update(setup, ms, tested=None if last else break_order.select(setup, ms))
         new += count
         if not count:
@@ -516,9 +517,9 @@ def macro_step(model: WoodModel, state, n_sub: int) -> int:
     return new
 
 
-def creep(setup: MechSetup, ms: MechState, h: float, elapsed: float) -> None:
+def creep(ms: MechState, rb: rigid.Bodies, h: float, elapsed: float) -> None:
     """The velocities after a macro step's first step of ``h`` that answered rest data changed over
-    ``elapsed`` seconds of biology: the bound wood (every piece not rigid,
+    ``elapsed`` seconds of biology: the bound wood (every piece not among the rigid ``rb``,
     :mod:`~wooddecay.sim.rigid`) moved there through the change, so its displacement is spread
     over ``elapsed`` (v = dx / elapsed), not momentum gained in ``h``; rigid pieces keep
     theirs (they fall). Why (docs/decisions.md, "Creep between macro steps"): with dx / h the
@@ -526,7 +527,6 @@ def creep(setup: MechSetup, ms: MechState, h: float, elapsed: float) -> None:
     started 16x further from equilibrium, and the schedule found it moving at every macro step."""
     if elapsed <= h:
         return
-    rb = rigid.bodies(setup, ms)
     ms.v[rb.particle < 0] *= h / elapsed
     ms.omega[rb.element < 0] *= h / elapsed
 

@@ -217,9 +217,10 @@ def motion(setup: mechanics.MechSetup, ms: mechanics.MechState, x0: np.ndarray, 
         v = np.stack([np.bincount(ms.component, weights=m_e * a[:, c], minlength=n) for c in range(3)], axis=1)
         return np.linalg.norm(v, axis=1) * weight
 
+    now = 0.5 * (ms.v[fp] + ms.v[fp + 1])
     mean = (com_speed(0.5 * (ms.x[fp] + ms.x[fp + 1] - x0[fp] - x0[fp + 1])) / seconds if v0 is None
-            else com_speed(0.25 * (v0[fp] + v0[fp + 1] + ms.v[fp] + ms.v[fp + 1])))
-    return Motion(np.bincount(ms.component, minlength=n), mass, com_speed(0.5 * (ms.v[fp] + ms.v[fp + 1])), mean)
+            else com_speed(0.5 * (0.5 * (v0[fp] + v0[fp + 1]) + now)))
+    return Motion(np.bincount(ms.component, minlength=n), mass, com_speed(now), mean)
 
 
 def moving(m: Motion, rest_speed: float) -> bool:
@@ -305,12 +306,12 @@ def solve(model: WoodModel, state, tol: Tolerances, reason: str | None = None) -
     n_sub = relax_substeps(model) if reason in RELAX else model.time.N_mech
     chunks, substeps, quiet = 0, 0, False
     while not quiet and (substeps * dt if model.mech.solver == "xpbd" else chunks) < _budget(model, tol):
-        x0, v0 = ms.x.copy(), ms.v.copy()
+        x0, v0 = ms.x.copy(), (ms.v.copy() if model.mech.solver == "implicit" else None)
         pieces = big_pieces(ms)
         _macro_step(model, state, n_sub)
         chunks += 1
         substeps += n_sub
-        m = motion(model.mech, ms, x0, n_sub * dt, v0 if model.mech.solver == "implicit" else None)
+        m = motion(model.mech, ms, x0, n_sub * dt, v0)
         quiet = big_pieces(ms) == pieces and not moving(m, tol.rest_speed)
         hold_still(model.mech, ms, m, tol.hold_speed)
         n_sub = model.time.N_mech
